@@ -1,0 +1,3 @@
+from fall_predictor.cli import main
+
+raise SystemExit(main())

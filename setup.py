@@ -1,0 +1,43 @@
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = 'fall_predictor'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'test.*']),
+    package_data={package_name: ['data/*.urdf']},
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/config', glob('config/*.yaml')),
+        ('share/' + package_name + '/launch', glob('launch/*.py')),
+        ('share/' + package_name + '/models', glob('models/*')),
+    ],
+    python_requires='>=3.10',
+    install_requires=[
+        'setuptools',
+        'numpy>=1.24',
+        'scipy>=1.10',
+        'scikit-learn>=1.3',
+        'joblib>=1.3',
+        'matplotlib>=3.7',
+        'tqdm>=4.60',
+        'pybullet>=3.2.5',
+        'rosbags>=0.10',
+        'pyyaml>=6',
+    ],
+    extras_require={'test': ['pytest>=7']},
+    zip_safe=True,
+    maintainer='fall_predictor developers',
+    maintainer_email='dev@fall-predictor.invalid',
+    description='Learned humanoid fall prediction with ROS 2 nodes and offline tools.',
+    license='Apache-2.0',
+    entry_points={
+        'console_scripts': [
+            'fall-predictor = fall_predictor.cli:main',
+        ],
+    },
+)
