@@ -20,6 +20,7 @@ from fall_predictor.gait import GRAVITY, Footstep, PreviewController, WalkingPla
 from fall_predictor.records import Measurement
 
 N_JOINTS = len(rm.JOINT_NAMES)
+_IDENTITY = np.eye(3)
 _LEG_SLICE = {'l': slice(0, 6), 'r': slice(6, 12)}
 
 #: Arms hang slightly away from the body, elbows bent; head straight.
@@ -161,11 +162,10 @@ class BalanceController:
         return None
 
     def _set_legs(self, torso: np.ndarray, soles: dict) -> None:
-        body_rot = np.eye(3)
+        # Torso upright and soles flat, both facing the walking direction (world +x).
         for side in rm.SIDES:
-            x, y, z = soles[side]
-            ankle = kin.ankle_from_sole(np.array([x, y, z]), np.eye(3))
-            q = kin.leg_ik(kin.hip_position(torso, body_rot, side), body_rot, ankle, np.eye(3))
+            ankle = kin.ankle_from_sole(np.array(soles[side]), _IDENTITY)
+            q = kin.leg_ik(kin.hip_position(torso, _IDENTITY, side), _IDENTITY, ankle, _IDENTITY)
             self.target[_LEG_SLICE[side]] = q
 
     def _momentum_departed(self, m: Measurement) -> bool:

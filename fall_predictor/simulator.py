@@ -35,6 +35,22 @@ class SimulatorConfig:
     velocity_gain: float = 1.0
 
 
+def quaternions_to_matrices(q: np.ndarray) -> np.ndarray:
+    """Rotation matrices (n, 3, 3) from PyBullet quaternions (n, 4) in (x, y, z, w) order."""
+    x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    out = np.empty((len(q), 3, 3))
+    out[:, 0, 0] = 1 - 2 * (y * y + z * z)
+    out[:, 0, 1] = 2 * (x * y - z * w)
+    out[:, 0, 2] = 2 * (x * z + y * w)
+    out[:, 1, 0] = 2 * (x * y + z * w)
+    out[:, 1, 1] = 1 - 2 * (x * x + z * z)
+    out[:, 1, 2] = 2 * (y * z - x * w)
+    out[:, 2, 0] = 2 * (x * z - y * w)
+    out[:, 2, 1] = 2 * (y * z + x * w)
+    out[:, 2, 2] = 1 - 2 * (x * x + y * y)
+    return out
+
+
 class Simulator:
     """The robot in a fresh PyBullet world; :meth:`step` applies joint targets and measures."""
 
@@ -177,18 +193,23 @@ class Simulator:
         base_lin, base_ang = pb.getBaseVelocity(self.robot, physicsClientId=c)
         links = pb.getLinkStates(self.robot, self.joint_indices, computeLinkVelocity=1,
                                  computeForwardKinematics=1, physicsClientId=c)
-        pos = np.array([base_pos] + [ls[0] for ls in links])
-        orn = [base_orn] + [ls[1] for ls in links]
-        vel = np.array([base_lin] + [ls[6] for ls in links])
-        omega = np.array([base_ang] + [ls[7] for ls in links])
+        # One array of (position, quaternion, linear velocity, angular velocity) per body.
+        rows = [(*base_pos, *base_orn, *base_lin, *base_ang)]
+        rows += [(*ls[0], *ls[1], *ls[6], *ls[7]) for ls in links]
+        state = np.array(rows)
+        pos, quat, vel, omega = state[:, 0:3], state[:, 3:7], state[:, 7:10], state[:, 10:13]
         m = self.masses
         com = m @ pos / self.total_mass
         lin_mom = m @ vel
-        # Angular momentum about the CoM: orbital part plus each link's spin R I R^T w.
+        # Angular momentum about the CoM: orbital part sum m (r - c) x v, plus each link's
+        # spin R I R^T w (R: inertial frame orientation, I: its diagonal inertia).
         rel = pos - com
-        ang = np.cross(rel, vel * m[:, None]).sum(axis=0)
-        rots = np.array([pb.getMatrixFromQuaternion(q) for q in orn]).reshape(-1, 3, 3)
-        w_body = np.einsum('nji,nj->ni', rots, omega)           # R^T w
+        mv = vel * m[:, None]
+        ang = np.array([(rel[:, 1] * mv[:, 2] - rel[:, 2] * mv[:, 1]).sum(),
+                        (rel[:, 2] * mv[:, 0] - rel[:, 0] * mv[:, 2]).sum(),
+                        (rel[:, 0] * mv[:, 1] - rel[:, 1] * mv[:, 0]).sum()])
+        rots = quaternions_to_matrices(quat)
+        w_body = np.einsum('nji,nj->ni', rots, omega)
         ang += np.einsum('nij,nj->i', rots, self.inertias * w_body)
         rot0 = rots[0]
         heading = math.atan2(rot0[1, 0], rot0[0, 0])

@@ -1,0 +1,96 @@
+"""Measurements checked against physics (issue: simulation and measurements)."""
+import numpy as np
+import pybullet as pb
+import pytest
+
+from fall_predictor.controllers import BalanceController
+from fall_predictor.records import PushSpec
+from fall_predictor.simulator import GRAVITY
+from fall_predictor.trajectory import run_trajectory
+
+
+def _stand(sim, seconds):
+    q0, torso = BalanceController().initial_posture()
+    ms = [sim.reset(q0, torso)]
+    for _ in range(int(seconds / sim.config.dt_s)):
+        ms.append(sim.step())
+    return ms
+
+
+def test_standing_still_normal_force_carries_the_weight_and_cop_is_under_the_com(sim):
+    ms = _stand(sim, 1.5)[-200:]
+    weight = sim.total_mass * GRAVITY
+    normal = np.array([m.left_contacts[:, 2].sum() + m.right_contacts[:, 2].sum() for m in ms])
+    assert normal.mean() == pytest.approx(weight, rel=0.01)
+    cop = np.array([m.cop[:2] for m in ms]).mean(axis=0)
+    com = np.array([m.com[:2] for m in ms]).mean(axis=0)
+    assert np.linalg.norm(cop - com) < 0.005
+    assert np.abs(np.array([m.lin_mom for m in ms])).max() < 0.05
+    assert not any(m.fallen for m in ms)
+    # Both flat soles touch: the CoP lies between the feet.
+    assert all(len(m.left_contacts) >= 3 and len(m.right_contacts) >= 3 for m in ms)
+
+
+def _free_fall(sim, angular_velocity=(0.0, 0.0, 0.0)):
+    q0, _ = BalanceController().initial_posture()
+    sim.reset(q0, [0.0, 0.0, 5.0])
+    pb.resetBaseVelocity(sim.robot, [0, 0, 0], list(angular_velocity), physicsClientId=sim.client)
+    return sim.measure()
+
+
+def test_free_fall_momentum_rate_is_the_weight(sim):
+    first = _free_fall(sim)
+    ms = [sim.step() for _ in range(200)]
+    rate = (ms[-1].lin_mom - first.lin_mom) / (ms[-1].t - first.t)
+    assert rate == pytest.approx([0.0, 0.0, -sim.total_mass * GRAVITY], abs=0.05)
+    assert all(len(m.left_contacts) == 0 and len(m.right_contacts) == 0 and np.isnan(m.cop).all() for m in ms)
+
+
+def test_free_fall_conserves_angular_momentum_about_the_com(sim):
+    # Also checks SPEC's zero link damping, which PyBullet cannot report back: damping would
+    # bleed the spin away.
+    first = _free_fall(sim, angular_velocity=(0.8, -0.5, 1.2))
+    assert np.linalg.norm(first.ang_mom) > 1.0          # a real spin, not a trivial zero
+    ms = [sim.step() for _ in range(300)]
+    for m in ms[::50]:
+        assert np.allclose(m.ang_mom, first.ang_mom, rtol=0.02, atol=0.02)
+
+
+def test_a_known_push_force_shows_up_in_the_momentum_rate(sim):
+    _free_fall(sim)
+    sim.schedule_push(PushSpec(force_n=120.0, angle_deg=90.0, height_m=0.1, t_push=0.02))
+    ms = [sim.step() for _ in range(200)]
+    by_t = {round(m.t, 3): m for m in ms}
+    during = (by_t[0.1].lin_mom - by_t[0.03].lin_mom) / 0.07
+    # Heading 0: 90 deg pushes along +y (to the robot's left).
+    assert during == pytest.approx([0.0, 120.0, -sim.total_mass * GRAVITY], abs=0.2)
+    after = (by_t[0.19].lin_mom - by_t[0.13].lin_mom) / 0.06
+    assert after == pytest.approx([0.0, 0.0, -sim.total_mass * GRAVITY], abs=0.2)
+    assert by_t[0.05].push_force == pytest.approx([0.0, 120.0, 0.0], abs=1e-9)
+    assert not by_t[0.15].push_force.any()
+    # The push is applied above the CoM: it also spins the robot (a moment about the CoM).
+    assert abs(by_t[0.1].ang_mom[0]) > 0.5
+
+
+def test_same_push_gives_an_identical_trajectory():
+    push = PushSpec(force_n=180.0, angle_deg=40.0, height_m=0.12, t_push=1.3)
+    a = run_trajectory(push, 2.5)
+    b = run_trajectory(push, 2.5)
+    assert np.array_equal(a.com, b.com)
+    assert np.array_equal(a.joint_positions, b.joint_positions)
+
+
+def test_an_unsupported_robot_ends_fallen(sim):
+    q0, torso = BalanceController().initial_posture()
+    sim.reset(q0, torso)
+    # No joint torque at all: the robot collapses.
+    pb.setJointMotorControlArray(sim.robot, sim.joint_indices, pb.VELOCITY_CONTROL,
+                                 forces=[0.0] * 26, physicsClientId=sim.client)
+    fallen_at = None
+    for _ in range(3000):
+        m = sim.step()
+        if m.fallen:
+            fallen_at = m.t
+            break
+    assert fallen_at is not None
+    assert m.com[2] < 0.33 or m.non_foot_contact
