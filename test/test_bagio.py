@@ -1,0 +1,282 @@
+"""rosbag2/MCAP bags: exact round trips, ros2-bag-compatible metadata, damage always reported."""
+import os
+
+import numpy as np
+import pytest
+import yaml
+from rosbags.rosbag2 import Writer
+from rosbags.rosbag2.enums import StoragePlugin
+
+from fall_predictor.bagio import (
+    BagError,
+    BagWriter,
+    decode,
+    iter_messages,
+    read_trajectory,
+    typestore,
+)
+from fall_predictor.records import Measurement
+from fall_predictor.wire import (
+    CONTROLLER_MODE,
+    FEATURES,
+    JOINT_COMMANDS,
+    JOINT_STATES,
+    MEASUREMENT,
+    PUSH,
+    STATE,
+    PredictorState,
+    pack_measurement,
+)
+
+N_SAMPLES = 300
+JOINTS = ('l_hip_yaw', 'l_knee_pitch', 'r_hip_yaw', 'r_knee_pitch')
+
+
+def make_measurement(rng, n_left, n_right, t=0.123):
+    return Measurement(
+        t=t, com=rng.normal(size=3), lin_mom=rng.normal(size=3), ang_mom=rng.normal(size=3),
+        heading=float(rng.normal()),
+        cop=rng.normal(size=3) if n_left + n_right else np.full(3, np.nan),
+        left_contacts=rng.normal(size=(n_left, 3)), right_contacts=rng.normal(size=(n_right, 3)),
+        left_foot=rng.normal(size=3), right_foot=rng.normal(size=3),
+        non_foot_contact=bool(rng.integers(2)), push_force=rng.normal(size=3))
+
+
+def trajectory(seed=0):
+    """N_SAMPLES measurements at 1 kHz with contact counts varying between 0 and 8 per foot."""
+    rng = np.random.default_rng(seed)
+    return [make_measurement(rng, *rng.integers(0, 9, 2), t=k / 1000.0)
+            for k in range(N_SAMPLES)]
+
+
+def write_bag(path, measurements, *, compress=True, extras=True):
+    with BagWriter(path, compress=compress) as writer:
+        for k, m in enumerate(measurements):
+            writer.write_measurement(m)
+            if extras and k % 10 == 0:
+                writer.write_joint_state(m.t, JOINTS, np.full(4, k * 0.01), np.ones(4))
+                writer.write_features(m.t, np.arange(15.0) + k, k % 16)
+                writer.write_state(PredictorState(m.t, k >= 200, k >= 150, False, k >= 200,
+                                                  k % 16, 0.044))
+        if extras:
+            writer.write_push(0.1, [250.0, -30.0, 0.0])
+    return path
+
+
+def mcap_file(bag):
+    [name] = [f for f in os.listdir(bag) if f.endswith('.mcap')]
+    return bag / name
+
+
+@pytest.fixture(scope='module')
+def measurements():
+    return trajectory()
+
+
+@pytest.fixture(scope='module')
+def bag(tmp_path_factory, measurements):
+    return write_bag(tmp_path_factory.mktemp('bags') / 'run', measurements)
+
+
+def test_round_trip_is_exact(bag, measurements):
+    rec = read_trajectory(bag)
+    assert len(rec.measurements) == N_SAMPLES
+    for got, want in zip(rec.measurements, measurements, strict=True):
+        assert pack_measurement(got).tobytes() == pack_measurement(want).tobytes()
+        assert got.left_contacts.shape == want.left_contacts.shape
+        assert got.non_foot_contact is want.non_foot_contact
+    counts = {(len(m.left_contacts), len(m.right_contacts)) for m in rec.measurements}
+    assert len(counts) > 30 and any(0 in c for c in counts) and max(map(max, counts)) == 8
+
+    js = rec.joint_states
+    assert js.names == JOINTS and js.position.shape == (30, 4) and js.effort.shape == (30, 0)
+    assert np.array_equal(js.t, [k / 1000.0 for k in range(0, N_SAMPLES, 10)])
+    assert np.array_equal(js.position[:, 0], [k * 0.01 for k in range(0, N_SAMPLES, 10)])
+    assert [p.t for p in rec.pushes] == [0.1]
+    assert np.array_equal(rec.pushes[0].force, [250.0, -30.0, 0.0])
+    assert [f.mode for f in rec.features] == [k % 16 for k in range(0, N_SAMPLES, 10)]
+    assert [s.falling for s in rec.states] == [k >= 200 for k in range(0, N_SAMPLES, 10)]
+    assert set(rec.topics) == {MEASUREMENT.name, JOINT_STATES.name, FEATURES.name, STATE.name,
+                               PUSH.name}
+
+
+def test_metadata_is_what_ros2_bag_needs(bag):
+    info = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert info['storage_identifier'] == 'mcap'
+    assert info['version'] == 9                      # ROS 2 Jazzy's rosbag2 metadata version
+    assert info['relative_file_paths'] == [mcap_file(bag).name]
+    assert info['compression_mode'] == ''            # compression lives inside the MCAP chunks
+    topics = {t['topic_metadata']['name']: t for t in info['topics_with_message_count']}
+    assert topics[MEASUREMENT.name]['message_count'] == N_SAMPLES
+    meta = topics[MEASUREMENT.name]['topic_metadata']
+    assert meta['type'] == 'std_msgs/msg/Float64MultiArray'
+    assert meta['serialization_format'] == 'cdr'
+    assert meta['type_description_hash'].startswith('RIHS01_')
+    qos = meta['offered_qos_profiles'][0]
+    assert (qos['reliability'], qos['durability'], qos['depth']) == ('reliable', 'volatile', 1000)
+    assert info['starting_time']['nanoseconds_since_epoch'] == 0          # log time = sim time
+    assert info['duration']['nanoseconds'] == (N_SAMPLES - 1) * 1_000_000
+
+
+def test_mcap_chunks_are_zstd_with_checksum(bag):
+    data = mcap_file(bag).read_bytes()
+    assert data.startswith(b'\x89MCAP0\r\n') and data.endswith(b'\x89MCAP0\r\n')
+    frame = data.index(b'\x28\xb5\x2f\xfd')          # zstd frame magic
+    assert data[frame + 4] & 0b100                   # Content_Checksum_flag
+
+
+def test_compression_shrinks_the_bag(tmp_path, measurements):
+    plain = write_bag(tmp_path / 'plain', measurements, compress=False, extras=False)
+    packed = write_bag(tmp_path / 'packed', measurements, compress=True, extras=False)
+    assert mcap_file(packed).stat().st_size < 0.8 * mcap_file(plain).stat().st_size
+    assert len(read_trajectory(plain).measurements) == N_SAMPLES
+
+
+def test_iter_messages_filters_and_orders(bag):
+    messages = list(iter_messages(bag, topics=[PUSH.name, STATE.name]))
+    assert {m.topic for m in messages} == {PUSH.name, STATE.name}
+    assert [m.t_ns for m in messages] == sorted(m.t_ns for m in messages)
+    push = next(m for m in messages if m.topic == PUSH.name)
+    assert push.t_ns == 100_000_000 and decode(push).t == 0.1
+
+
+def test_generic_write_with_latched_qos(tmp_path, measurements):
+    bag = tmp_path / 'modes'
+    string = typestore().types['std_msgs/msg/String']
+    with BagWriter(bag) as writer:
+        writer.write_measurement(measurements[0])
+        writer.write(CONTROLLER_MODE.name, CONTROLLER_MODE.msg_type, 0, string(data='balance'))
+        writer.write_joint_state(0.0, JOINTS, np.zeros(4), topic=JOINT_COMMANDS.name)
+        with pytest.raises(BagError, match='has type std_msgs/msg/String, not'):
+            writer.write(CONTROLLER_MODE.name, 'std_msgs/msg/Bool', 0, None)
+    info = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    topics = {t['topic_metadata']['name']: t['topic_metadata']
+              for t in info['topics_with_message_count']}
+    assert topics[CONTROLLER_MODE.name]['offered_qos_profiles'][0]['durability'] == \
+        'transient_local'
+    [mode] = list(iter_messages(bag, topics=[CONTROLLER_MODE.name]))
+    assert mode.msg.data == 'balance'
+
+
+# ---------------------------------------------------------------------------- damage
+
+@pytest.fixture
+def damaged(tmp_path, bag):
+    """A fresh copy of the module bag, to be damaged by the test."""
+    copy = tmp_path / 'copy'
+    copy.mkdir()
+    for f in bag.iterdir():
+        (copy / f.name).write_bytes(f.read_bytes())
+    return copy
+
+
+@pytest.mark.parametrize('fraction', [0.0, 0.001, 0.01, 0.25, 0.5, 0.9, 0.999])
+def test_truncated_bag_raises_bag_error(damaged, fraction):
+    mcap = mcap_file(damaged)
+    data = mcap.read_bytes()
+    mcap.write_bytes(data[:int(len(data) * fraction)])
+    with pytest.raises(BagError, match=str(damaged)):
+        read_trajectory(damaged)
+
+
+def test_bag_cut_just_before_its_end_raises_bag_error(damaged):
+    mcap = mcap_file(damaged)
+    mcap.write_bytes(mcap.read_bytes()[:-1])
+    with pytest.raises(BagError, match='truncated or corrupt'):
+        read_trajectory(damaged)
+
+
+def test_garbage_file_raises_bag_error(damaged):
+    mcap = mcap_file(damaged)
+    mcap.write_bytes(np.random.default_rng(1).bytes(mcap.stat().st_size))
+    with pytest.raises(BagError, match=f'{damaged}.*magic is invalid'):
+        read_trajectory(damaged)
+
+
+@pytest.mark.parametrize('where', [0.2, 0.5, 0.8])
+def test_garbage_inside_a_chunk_raises_bag_error(damaged, where):
+    mcap = mcap_file(damaged)
+    data = bytearray(mcap.read_bytes())
+    frame = data.index(b'\x28\xb5\x2f\xfd')
+    at = frame + 16 + int(where * 0.5 * (len(data) - frame))
+    data[at:at + 8] = b'\xa5' * 8
+    mcap.write_bytes(bytes(data))
+    with pytest.raises(BagError, match=f'{damaged}: damaged bag'):    # the zstd checksum
+        read_trajectory(damaged)
+
+
+def test_missing_or_broken_metadata_raises_bag_error(damaged):
+    meta = damaged / 'metadata.yaml'
+    text = meta.read_text()
+    meta.write_text(text[:len(text) // 2])
+    with pytest.raises(BagError, match=f'{damaged}.*YAML'):
+        read_trajectory(damaged)
+    meta.unlink()
+    with pytest.raises(BagError, match='metadata'):
+        read_trajectory(damaged)
+
+
+def test_missing_bag_raises_bag_error(tmp_path):
+    with pytest.raises(BagError, match='does not exist'):
+        read_trajectory(tmp_path / 'nowhere')
+    with pytest.raises(BagError, match='does not exist'):
+        list(iter_messages(tmp_path / 'nowhere'))
+
+
+def test_bag_without_measurements_is_reported(tmp_path):
+    bag = tmp_path / 'pushes_only'
+    with BagWriter(bag) as writer:
+        writer.write_push(0.5, [100.0, 0.0, 0.0])
+    with pytest.raises(BagError, match=f'{bag}: required topic {MEASUREMENT.name} is missing'):
+        read_trajectory(bag)
+    rec = read_trajectory(bag, required=())
+    assert rec.measurements is None and rec.joint_states is None and rec.features is None
+    assert len(rec.pushes) == 1
+
+
+def test_malformed_message_in_bag_is_reported(tmp_path, measurements):
+    bag = tmp_path / 'bad_label'
+    types = typestore().types
+    dim = types['std_msgs/msg/MultiArrayDimension'](label='other/v1', size=26, stride=26)
+    msg = types['std_msgs/msg/Float64MultiArray'](
+        layout=types['std_msgs/msg/MultiArrayLayout'](dim=[dim], data_offset=0),
+        data=np.zeros(26))
+    with BagWriter(bag) as writer:
+        writer.write_measurement(measurements[0])
+        writer.write(MEASUREMENT.name, MEASUREMENT.msg_type, 5_000_000, msg)
+    with pytest.raises(BagError, match=f"malformed {MEASUREMENT.name} message at 5000000 ns: "
+                                       "layout label 'other/v1'"):
+        read_trajectory(bag)
+
+
+def test_known_topic_with_wrong_type_is_reported(tmp_path):
+    bag = tmp_path / 'wrong_type'
+    store = typestore()
+    with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        conn = writer.add_connection(MEASUREMENT.name, 'std_msgs/msg/String', typestore=store)
+        writer.write(conn, 0, store.serialize_cdr(store.types['std_msgs/msg/String']('x'),
+                                                  'std_msgs/msg/String'))
+    with pytest.raises(BagError, match='has type std_msgs/msg/String, expected'):
+        read_trajectory(bag)
+
+
+def test_changing_joint_names_are_reported(tmp_path, measurements):
+    bag = tmp_path / 'joints'
+    with BagWriter(bag) as writer:
+        writer.write_measurement(measurements[0])
+        writer.write_joint_state(0.0, ('a', 'b'), [0.0, 0.0])
+        writer.write_joint_state(0.01, ('a', 'c'), [0.0, 0.0])
+    with pytest.raises(BagError, match=r'joint names change at t=0\.01'):
+        read_trajectory(bag)
+
+
+def test_writer_refuses_existing_path_and_aborts_on_error(tmp_path, measurements):
+    with pytest.raises(BagError, match=r'cannot create bag.*exists'), BagWriter(tmp_path):
+        pass
+    bag = tmp_path / 'aborted'
+    with pytest.raises(RuntimeError), BagWriter(bag) as writer:
+        writer.write_measurement(measurements[0])
+        raise RuntimeError('simulation crashed')
+    assert not (bag / 'metadata.yaml').exists()
+    with pytest.raises(BagError, match='metadata'):
+        read_trajectory(bag)
