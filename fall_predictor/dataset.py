@@ -1,0 +1,304 @@
+"""Push-trajectory datasets: generation into rosbag2 bags, the index, and the feature cache.
+
+Layout of a dataset directory::
+
+    dataset.json              manifest: format, seed, push distribution, horizon
+    bags/traj_00042/          one rosbag2 bag (MCAP) per trajectory
+    index/traj_00042.json     its index row, written only once the bag is complete
+    index.csv                 all rows in one table (rewritten after each run)
+    cache/traj_00042.npz      features derived from the bag (rebuilt when the bag changes)
+
+Generation is deterministic per seed (trajectory ``i`` draws its push from
+``(seed, i)`` alone) and resumable: a bag is written under a temporary name and renamed when
+complete, and its index row is written after that, so an interrupted run never leaves a
+half-written trajectory that looks finished; a rerun skips finished trajectories and redoes
+unfinished ones.
+"""
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import os
+import shutil
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Iterable, Optional
+
+import numpy as np
+
+from fall_predictor import robot_model as rm
+from fall_predictor.bagio import BagError, BagWriter, read_trajectory
+from fall_predictor.features import extract_features
+from fall_predictor.labels import height_drop_time
+from fall_predictor.pushes import PushDistribution, trajectory_seed
+from fall_predictor.records import PushSpec, TrajectoryFeatures
+
+FORMAT = 'fall_predictor/dataset/v1'
+CACHE_FORMAT = 'fall_predictor/features-cache/v1'
+
+
+class DatasetError(Exception):
+    """A dataset directory that cannot be used as asked (names the path and the problem)."""
+
+
+@dataclass(frozen=True)
+class GenerationConfig:
+    seed: int
+    #: Simulated time after the push ends; a trajectory that has not fallen by then counts as
+    #: balanced. Justified by the calibration data (docs/calibration.json): see the README.
+    horizon_after_push_s: float = 4.0
+    #: Walking recorded before the push onset (the simulation itself starts from standing).
+    pre_push_s: float = 1.0
+    joint_state_rate_hz: float = 100.0
+    push_distribution: PushDistribution = field(default_factory=PushDistribution)
+
+    def manifest(self) -> dict:
+        return {'format': FORMAT, 'seed': self.seed, 'horizon_after_push_s': self.horizon_after_push_s,
+                'pre_push_s': self.pre_push_s, 'joint_state_rate_hz': self.joint_state_rate_hz,
+                'push_distribution': asdict(self.push_distribution)}
+
+
+@dataclass
+class IndexRow:
+    """One trajectory of the index. Times in simulation seconds; None where not applicable."""
+
+    trajectory_id: str
+    bag: str                      #: bag directory relative to the dataset directory
+    force_n: float
+    angle_deg: float
+    height_m: float
+    t_push: float
+    t_force_end: float
+    fallen: bool
+    t_fallen: Optional[float]
+    t_height_drop: Optional[float]
+    t_reflex: Optional[float]
+    t_start: float
+    t_end: float
+    samples: int
+
+    @property
+    def push(self) -> PushSpec:
+        return PushSpec(self.force_n, self.angle_deg, self.height_m, self.t_push,
+                        round(self.t_force_end - self.t_push, 6))
+
+
+def trajectory_id(index: int) -> str:
+    return f'traj_{index:05d}'
+
+
+def _atomic_write_text(path: Path, text: str) -> None:
+    tmp = path.with_name(path.name + '.tmp')
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def _open_dataset(out: Path, config: GenerationConfig) -> None:
+    manifest_path = out / 'dataset.json'
+    manifest = config.manifest()
+    if manifest_path.exists():
+        try:
+            existing = json.loads(manifest_path.read_text())
+        except (OSError, json.JSONDecodeError) as exc:
+            raise DatasetError(f'{manifest_path}: unreadable manifest: {exc}') from exc
+        if existing != manifest:
+            raise DatasetError(f'{out}: exists with different generation settings '
+                               f'({existing}); use another --out or the same settings')
+    else:
+        out.mkdir(parents=True, exist_ok=True)
+        _atomic_write_text(manifest_path, json.dumps(manifest, indent=1, sort_keys=True))
+    (out / 'bags').mkdir(exist_ok=True)
+    (out / 'index').mkdir(exist_ok=True)
+
+
+_WORKER_SIM = None
+
+
+def _simulator():
+    # One physics client per worker process, reset (a fresh world) for every trajectory.
+    global _WORKER_SIM
+    if _WORKER_SIM is None:
+        from fall_predictor.simulator import Simulator
+        _WORKER_SIM = Simulator()
+    return _WORKER_SIM
+
+
+def generate_one(out: Path, config: GenerationConfig, index: int) -> IndexRow:
+    """Simulate trajectory ``index`` and write its bag and index row (atomically)."""
+    from fall_predictor.trajectory import run_trajectory
+
+    tid = trajectory_id(index)
+    push = config.push_distribution.sample(trajectory_seed(config.seed, index))
+    result = run_trajectory(push, push.t_force_end + config.horizon_after_push_s, simulator=_simulator())
+    t_start = round(push.t_push - config.pre_push_s, 6)
+    keep = [i for i, m in enumerate(result.measurements) if m.t >= t_start - 1e-9]
+    measurements = [result.measurements[i] for i in keep]
+    t_height_drop = None
+    if result.fallen:
+        t = np.array([m.t for m in measurements])
+        z = np.array([m.com[2] for m in measurements])
+        t_height_drop = height_drop_time(t, z, result.t_fallen)
+    final = out / 'bags' / tid
+    partial = out / 'bags' / (tid + '.partial')
+    shutil.rmtree(partial, ignore_errors=True)
+    shutil.rmtree(final, ignore_errors=True)
+    joint_every = max(1, int(round(1.0 / (config.joint_state_rate_hz * 0.001))))
+    with BagWriter(partial) as bag:
+        applied = next((m.push_force for m in measurements if m.push_force.any()), np.zeros(3))
+        bag.write_push(push.t_push, applied)
+        for k, i in enumerate(keep):
+            m = result.measurements[i]
+            bag.write_measurement(m)
+            if k % joint_every == 0:
+                bag.write_joint_state(m.t, rm.JOINT_NAMES, result.joint_positions[i], result.joint_velocities[i])
+    # metadata.yaml names the MCAP file relative to the bag directory, so renaming the
+    # directory keeps the bag valid.
+    os.replace(partial, final)
+    row = IndexRow(trajectory_id=tid, bag=f'bags/{tid}', force_n=push.force_n, angle_deg=push.angle_deg,
+                   height_m=push.height_m, t_push=push.t_push, t_force_end=push.t_force_end,
+                   fallen=result.fallen, t_fallen=result.t_fallen, t_height_drop=t_height_drop,
+                   t_reflex=result.t_reflex, t_start=measurements[0].t, t_end=measurements[-1].t,
+                   samples=len(measurements))
+    _atomic_write_text(out / 'index' / f'{tid}.json', json.dumps(asdict(row), sort_keys=True))
+    return row
+
+
+def _finished(out: Path, index: int) -> bool:
+    tid = trajectory_id(index)
+    return (out / 'index' / f'{tid}.json').exists() and (out / 'bags' / tid / 'metadata.yaml').exists()
+
+
+def generate_dataset(out: str | os.PathLike, trajectories: int, seed: int, jobs: int = 1,
+                     config: Optional[GenerationConfig] = None, progress: bool = True) -> list[IndexRow]:
+    """Generate (or finish generating) ``trajectories`` push trajectories into ``out``."""
+    from joblib import Parallel, delayed
+    from tqdm import tqdm
+
+    out = Path(out)
+    config = config or GenerationConfig(seed=seed)
+    if config.seed != seed:
+        raise ValueError('seed and config.seed differ')
+    _open_dataset(out, config)
+    pending = [i for i in range(trajectories) if not _finished(out, i)]
+    bar = tqdm(total=trajectories, initial=trajectories - len(pending), desc='trajectories',
+               unit='traj', disable=not progress)
+    if pending:
+        results = Parallel(n_jobs=jobs, return_as='generator_unordered')(
+            delayed(generate_one)(out, config, i) for i in pending)
+        for _ in results:
+            bar.update(1)
+    bar.close()
+    rows = read_index(out)
+    write_index_csv(out, rows)
+    return rows
+
+
+def read_index(out: str | os.PathLike) -> list[IndexRow]:
+    """All finished trajectories of a dataset, in index order."""
+    out = Path(out)
+    if not (out / 'dataset.json').exists():
+        raise DatasetError(f'{out}: not a dataset directory (no dataset.json)')
+    rows = []
+    for path in sorted((out / 'index').glob('traj_*.json')):
+        try:
+            rows.append(IndexRow(**json.loads(path.read_text())))
+        except (OSError, json.JSONDecodeError, TypeError) as exc:
+            raise DatasetError(f'{path}: unreadable index row: {exc}') from exc
+    return rows
+
+
+def write_index_csv(out: Path, rows: Iterable[IndexRow]) -> Path:
+    path = Path(out) / 'index.csv'
+    rows = list(rows)
+    names = list(IndexRow.__dataclass_fields__)
+    tmp = path.with_name('index.csv.tmp')
+    with open(tmp, 'w', newline='') as f:
+        writer = csv.DictWriter(f, fieldnames=names)
+        writer.writeheader()
+        for row in rows:
+            writer.writerow(asdict(row))
+    os.replace(tmp, path)
+    return path
+
+
+# -- feature cache ------------------------------------------------------------------------------
+def bag_fingerprint(bag_dir: Path) -> str:
+    """Identifies a bag's content cheaply: names, sizes and modification times of its files."""
+    h = hashlib.sha256()
+    for f in sorted(bag_dir.iterdir()):
+        st = f.stat()
+        h.update(f'{f.name}:{st.st_size}:{st.st_mtime_ns};'.encode())
+    return h.hexdigest()[:32]
+
+
+@dataclass
+class LoadReport:
+    """What :func:`load_features` found: usable trajectories and the bags it had to skip."""
+
+    trajectories: list[TrajectoryFeatures]
+    errors: dict[str, str]           #: trajectory id -> error message (bag named)
+    rebuilt: int                     #: cache entries (re)computed from bags
+    fingerprint: str                 #: of the whole dataset as loaded
+
+
+def _features_from_bag(out: Path, row: IndexRow) -> TrajectoryFeatures:
+    recorded = read_trajectory(out / row.bag)
+    X, mode = extract_features(recorded.measurements)
+    t = np.array([m.t for m in recorded.measurements])
+    return TrajectoryFeatures(row.trajectory_id, t, X, mode, row.fallen, row.t_push, row.t_force_end,
+                              row.t_fallen, row.t_height_drop)
+
+
+def _load_or_build(out: Path, row: IndexRow) -> tuple[Optional[TrajectoryFeatures], Optional[str], bool]:
+    bag = out / row.bag
+    cache = out / 'cache' / f'{row.trajectory_id}.npz'
+    try:
+        fingerprint = bag_fingerprint(bag)
+    except OSError as exc:
+        return None, f'{bag}: {exc}', False
+    if cache.exists():
+        try:
+            with np.load(cache, allow_pickle=False) as z:
+                if str(z['format']) == CACHE_FORMAT and str(z['fingerprint']) == fingerprint:
+                    return TrajectoryFeatures(row.trajectory_id, z['t'], z['X'], z['mode'], row.fallen,
+                                              row.t_push, row.t_force_end, row.t_fallen,
+                                              row.t_height_drop), None, False
+        except (OSError, ValueError, KeyError):
+            pass  # unreadable cache entry: rebuild it from the bag
+    try:
+        traj = _features_from_bag(out, row)
+    except BagError as exc:
+        return None, str(exc), False
+    cache.parent.mkdir(exist_ok=True)
+    tmp = cache.with_name(cache.stem + '.tmp.npz')
+    np.savez(tmp, format=CACHE_FORMAT, fingerprint=fingerprint, t=traj.t, X=traj.X, mode=traj.mode)
+    os.replace(tmp, cache)
+    return traj, None, True
+
+
+def load_features(data_dir: str | os.PathLike, jobs: int = 1, progress: bool = True) -> LoadReport:
+    """Features of every trajectory of a dataset, from the cache where it is up to date.
+
+    A bag that cannot be read is reported in ``errors`` (with its file named) and skipped;
+    the rest of the dataset stays usable.
+    """
+    from joblib import Parallel, delayed
+    from tqdm import tqdm
+
+    out = Path(data_dir)
+    rows = read_index(out)
+    if not rows:
+        raise DatasetError(f'{out}: the dataset has no finished trajectories')
+    results = Parallel(n_jobs=jobs)(delayed(_load_or_build)(out, row)
+                                   for row in tqdm(rows, desc='features', unit='traj', disable=not progress))
+    trajectories, errors, rebuilt = [], {}, 0
+    h = hashlib.sha256()
+    for row, (traj, error, built) in zip(rows, results):
+        if traj is None:
+            errors[row.trajectory_id] = error
+            continue
+        trajectories.append(traj)
+        rebuilt += int(built)
+        h.update(f'{row.trajectory_id}:{bag_fingerprint(out / row.bag)};'.encode())
+    return LoadReport(trajectories, errors, rebuilt, h.hexdigest()[:16])
