@@ -1,0 +1,135 @@
+import math
+
+import numpy as np
+import pytest
+
+from fall_predictor.learning import CoveringListLearner, TreeListLearner
+from fall_predictor.metrics import (TrajectoryAlarms, cross_validate, evaluate, evaluate_atomic,
+                                    stratified_trajectory_folds, trajectory_alarms)
+from fall_predictor.records import FEATURE_NAMES, TrajectoryFeatures
+
+from synthetic_trajectories import make_dataset
+
+DT = 0.001
+COM_Z = FEATURE_NAMES.index('com_z')
+
+
+def trajectory(name: str, fallen: bool, duration_s: float = 3.0, t_push: float = 1.0,
+               t_fallen: float = 2.5, com_drop_at: float | None = None) -> TrajectoryFeatures:
+    """Features all zero except a standing CoM height; optionally the CoM drops to 0.40 m."""
+    t = np.arange(int(round(duration_s / DT))) * DT
+    X = np.zeros((t.size, len(FEATURE_NAMES)))
+    X[:, COM_Z] = 0.59
+    if com_drop_at is not None:
+        X[t >= com_drop_at - 1e-9, COM_Z] = 0.40
+    return TrajectoryFeatures(name, t, X, np.zeros(t.size, dtype=int), fallen, t_push, t_push + 0.1,
+                              t_fallen if fallen else None, t_fallen - 0.3 if fallen else None)
+
+
+def alarm_at(traj: TrajectoryFeatures, *times: float, length_s: float = 0.0) -> np.ndarray:
+    """Atomic predictions: falling from each of ``times`` for ``length_s`` seconds."""
+    atomic = np.zeros(traj.t.size, dtype=bool)
+    for start in times:
+        atomic[(traj.t >= start - 1e-9) & (traj.t <= start + length_s + 1e-9)] = True
+    return atomic
+
+
+def test_fpr_and_lead_on_hand_made_trajectories():
+    balanced = [trajectory(f'b{i}', False) for i in range(3)]
+    fallen = trajectory('f', True, t_fallen=2.5)
+    trajectories = balanced + [fallen]
+    atomic = [np.zeros(3000, bool), alarm_at(balanced[1], 1.7), np.zeros(3000, bool),
+              alarm_at(fallen, 2.0, length_s=0.5)]
+    result = evaluate_atomic(trajectories, atomic, tau_his_values=(0.0,))[0.0]
+    assert result.fpr == pytest.approx(1 / 3)
+    assert result.n_false_positives == 1 and result.n_balanced == 3 and result.n_fallen == 1
+    assert result.tau_lead_s == pytest.approx(0.5)
+    assert result.n_missed == 0
+    assert result.oracle_lead_s == pytest.approx(1.5)
+    assert result.lead_fraction == pytest.approx(1 / 3)
+    assert result.n_pre_push_alarms == 0
+
+
+def test_history_window_suppresses_the_spike_but_delays_the_fall():
+    balanced = [trajectory(f'b{i}', False) for i in range(3)]
+    fallen = trajectory('f', True, t_fallen=2.5)
+    atomic = [np.zeros(3000, bool), alarm_at(balanced[1], 1.7), np.zeros(3000, bool),
+              alarm_at(fallen, 2.0, length_s=0.5)]
+    results = evaluate_atomic(balanced + [fallen], atomic, tau_his_values=(0.0, 0.002, 0.1))
+    assert results[0.0].fpr == pytest.approx(1 / 3)
+    assert results[0.002].fpr == 0.0
+    assert results[0.002].tau_lead_s == pytest.approx(0.498)
+    assert results[0.1].tau_lead_s == pytest.approx(0.4)
+
+
+def test_misses_count_zero_lead():
+    fallen = [trajectory('early', True), trajectory('never', True), trajectory('at', True)]
+    atomic = [alarm_at(fallen[0], 1.5, length_s=1.5), np.zeros(3000, bool), alarm_at(fallen[2], 2.5)]
+    result = evaluate_atomic(fallen, atomic)[0.0]
+    assert result.n_missed == 2                      # none, and exactly at t_fallen
+    assert result.tau_lead_s == pytest.approx(1.0 / 3)
+    assert math.isnan(result.fpr) and result.n_balanced == 0
+
+
+def test_guard_catches_a_fall_the_list_misses():
+    fallen = trajectory('f', True, t_fallen=2.5, com_drop_at=2.3)
+    result = evaluate_atomic([fallen], [np.zeros(3000, bool)], tau_his_values=(0.0, 1.0))
+    assert result[0.0].tau_lead_s == pytest.approx(0.2)
+    assert result[1.0].tau_lead_s == pytest.approx(0.2)     # the guard bypasses the window
+    assert result[0.0].n_missed == 0
+
+
+def test_pre_push_alarms_are_reported_separately():
+    balanced = trajectory('b', False)
+    fallen = trajectory('f', True, t_fallen=2.5)
+    atomic = [alarm_at(balanced, 0.5), alarm_at(fallen, 0.5, 2.2)]
+    result = evaluate_atomic([balanced, fallen], atomic)[0.0]
+    assert result.n_pre_push_alarms_balanced == 1      # also a false positive
+    assert result.n_pre_push_alarms_fallen == 1        # not in FPR; lead from the first alarm after the push
+    assert result.fpr == 1.0
+    assert result.tau_lead_s == pytest.approx(0.3)
+    assert result.n_pre_push_alarms == 2
+
+
+def test_evaluate_from_alarm_times():
+    fallen = trajectory('f', True, t_fallen=2.5)
+    alarms = trajectory_alarms(fallen.t, alarm_at(fallen, 0.2, 1.9), fallen.t_push)
+    assert alarms == TrajectoryAlarms(first_alarm_t=fallen.t[200], first_alarm_after_push_t=fallen.t[1900],
+                                      pre_push_alarm=True)
+    result = evaluate([fallen], [alarms], mean_rule_size=3.5)
+    assert result.tau_lead_s == pytest.approx(0.6) and result.mean_rule_size == 3.5
+    with pytest.raises(ValueError):
+        evaluate([fallen], [])
+
+
+def test_folds_are_stratified_and_never_split_a_trajectory():
+    trajectories = [trajectory(f'f{i}', True, duration_s=0.01) for i in range(13)] + \
+                   [trajectory(f'b{i}', False, duration_s=0.01) for i in range(17)]
+    folds = stratified_trajectory_folds(trajectories, folds=4, seed=0)
+    assert sorted(np.concatenate(folds).tolist()) == list(range(30))
+    assert sorted(len(f) for f in folds) == [7, 7, 8, 8]
+    fallen_counts = [sum(trajectories[i].fallen for i in fold) for fold in folds]
+    assert max(fallen_counts) - min(fallen_counts) <= 1
+    assert [f.tolist() for f in folds] == [f.tolist() for f in stratified_trajectory_folds(trajectories, 4, 0)]
+    assert [f.tolist() for f in folds] != [f.tolist() for f in stratified_trajectory_folds(trajectories, 4, 1)]
+    with pytest.raises(ValueError):
+        stratified_trajectory_folds(trajectories, folds=1, seed=0)
+
+
+@pytest.mark.parametrize('learner', [TreeListLearner(), CoveringListLearner()],
+                         ids=lambda learner: type(learner).__name__)
+def test_cross_validation_on_synthetic_data(learner):
+    trajectories = make_dataset(n_fallen=8, n_balanced=8, seed=31, duration_s=1.6)
+    result = cross_validate(trajectories, folds=4, seed=0, tau_plus_s=0.0,
+                            tau_his_values=(0.0, 0.01), learner=learner)
+    assert len(result.per_fold) == 4
+    ids = [i for fold in result.test_folds for i in fold]
+    assert sorted(ids) == sorted(traj.trajectory_id for traj in trajectories)
+    pooled = result.pooled[0.01]
+    assert pooled.n_trajectories == 16 and pooled.n_fallen == 8
+    assert pooled.fpr == 0.0
+    assert pooled.tau_lead_s == pytest.approx(0.49)       # t_fallen - t_height_drop - tau_his
+    assert pooled.mean_rule_size == pytest.approx(1 / 16)
+    assert result.mean[0.01].tau_lead_s == pytest.approx(0.49)
+    assert result.mean[0.01].fpr == 0.0 and result.mean[0.0].tau_lead_std_s == pytest.approx(0.0)
+    assert result.per_fold[0][0.0].n_trajectories == 4

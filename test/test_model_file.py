@@ -1,0 +1,145 @@
+import json
+from pathlib import Path
+
+import pytest
+
+from fall_predictor.decision_list import Condition, DecisionList, PerModeDecisionLists, Rule
+from fall_predictor.learning import TreeListLearner, learner_description
+from fall_predictor.model_file import (SCHEMA_NAME, SCHEMA_VERSION, ModelFileError, ModelMetadata,
+                                       load_model, save_model)
+from fall_predictor.records import BALANCED, FALLING, N_CONTACT_MODES
+
+
+def example_lists() -> PerModeDecisionLists:
+    lists = [DecisionList() for _ in range(N_CONTACT_MODES)]
+    lists[6] = DecisionList((
+        Rule((Condition(10, '>', -64.5), Condition(12, '<=', 15.95)), FALLING),
+        Rule((Condition(2, '<=', 0.35000000000000003),), FALLING),
+        Rule((), BALANCED),
+    ))
+    lists[15] = DecisionList((Rule((), FALLING),))
+    return PerModeDecisionLists(tuple(lists))
+
+
+def example_metadata() -> ModelMetadata:
+    learner = learner_description(TreeListLearner(max_depth=5))
+    return ModelMetadata(tau_plus_s=-0.25, balanced_weight=4.0, falling_weight=1.0,
+                         learner_name=learner['name'], learner_params=learner['params'],
+                         dataset_fingerprint='sha256:0123abcd', recommended_tau_his_s=0.06)
+
+
+@pytest.fixture
+def model_path(tmp_path: Path) -> Path:
+    path = tmp_path / 'model.json'
+    save_model(path, example_lists(), example_metadata())
+    return path
+
+
+def test_round_trip_is_exact(model_path):
+    lists, metadata = load_model(model_path)
+    assert lists == example_lists()
+    assert lists.lists[6].rules[1].conditions[0].threshold == 0.35000000000000003
+    expected = example_metadata()
+    assert metadata.learner_params == expected.learner_params
+    assert (metadata.tau_plus_s, metadata.balanced_weight, metadata.falling_weight,
+            metadata.learner_name, metadata.dataset_fingerprint, metadata.recommended_tau_his_s) == (
+        -0.25, 4.0, 1.0, 'TreeListLearner', 'sha256:0123abcd', 0.06)
+    document = json.loads(model_path.read_text())
+    assert document['schema'] == SCHEMA_NAME and document['schema_version'] == SCHEMA_VERSION
+    assert document['lists'][6]['rules'][0]['conditions'][0] == {'feature': 10, 'op': '>', 'threshold': -64.5}
+    # Saving what was loaded reproduces the file byte for byte.
+    again = model_path.with_name('again.json')
+    save_model(again, lists, metadata)
+    assert again.read_bytes() == model_path.read_bytes()
+
+
+def edit(path: Path, change) -> None:
+    document = json.loads(path.read_text())
+    change(document)
+    path.write_text(json.dumps(document))
+
+
+def set_condition(key, value):
+    def change(document):
+        document['lists'][6]['rules'][0]['conditions'][0][key] = value
+    return change
+
+
+@pytest.mark.parametrize('change, message', [
+    (lambda d: d.update(schema='something.else'), 'schema'),
+    (lambda d: d.update(schema_version=2), 'unsupported version 2'),
+    (lambda d: d.update(schema_version=True), 'unsupported version'),
+    (lambda d: d['feature_names'].__setitem__(0, 'com_X'), 'feature_names'),
+    (lambda d: d['feature_names'].pop(), 'feature_names'),
+    (lambda d: d['contact_mode_names'].reverse(), 'contact_mode_names'),
+    (lambda d: d['lists'].pop(), 'expected 16 lists'),
+    (lambda d: d['lists'][3].update(mode='L-RIGHT'), r'lists\[3\]\.mode'),
+    (set_condition('feature', 15), r'lists\[6\]\.rules\[0\]\.conditions\[0\]\.feature'),
+    (set_condition('feature', -1), 'feature index'),
+    (set_condition('feature', 2.0), 'feature index'),
+    (set_condition('feature', True), 'feature index'),
+    (set_condition('op', '>='), 'unknown operator'),
+    (set_condition('threshold', 'NaN'), 'expected a number'),
+    (set_condition('threshold', None), 'expected a number'),
+    (lambda d: d['lists'][6]['rules'][0].update(label='fallen'), 'unknown class'),
+    (lambda d: d['lists'][6].update(default='maybe'), 'unknown class'),
+    (lambda d: d['lists'][6]['rules'][0].pop('label'), 'missing key'),
+    (lambda d: d['lists'][6]['rules'][0].update(code='import os'), 'unknown key'),
+    (lambda d: d.pop('training'), 'missing key'),
+    (lambda d: d['training'].update(balanced_weight=-4.0), 'weight must be positive'),
+    (lambda d: d['training']['learner'].update(params=[1, 2]), 'params'),
+    (lambda d: d.update(recommended_tau_his_s=-0.1), 'recommended_tau_his_s'),
+    (lambda d: d.update(dataset_fingerprint=7), 'dataset_fingerprint'),
+    (lambda d: d.update(lists={}), 'expected an array'),
+])
+def test_invalid_content_is_rejected_with_file_and_field(model_path, change, message):
+    edit(model_path, change)
+    with pytest.raises(ModelFileError, match=message) as error:
+        load_model(model_path)
+    assert str(model_path) in str(error.value)
+
+
+@pytest.mark.parametrize('literal', ['NaN', 'Infinity', '-Infinity', '1e999'])
+def test_non_finite_threshold_is_rejected(model_path, literal):
+    edit(model_path, set_condition('threshold', 123.25))
+    model_path.write_text(model_path.read_text().replace('123.25', literal))
+    with pytest.raises(ModelFileError, match='non-finite') as error:
+        load_model(model_path)
+    assert 'conditions[0].threshold' in str(error.value)
+
+
+def test_truncated_and_malformed_files_are_rejected(model_path):
+    text = model_path.read_text()
+    model_path.write_text(text[:len(text) // 2])
+    with pytest.raises(ModelFileError, match='truncated') as error:
+        load_model(model_path)
+    assert str(model_path) in str(error.value)
+    model_path.write_text('')
+    with pytest.raises(ModelFileError, match='malformed'):
+        load_model(model_path)
+    model_path.write_bytes(b'\xff\xfe{}')
+    with pytest.raises(ModelFileError, match='UTF-8'):
+        load_model(model_path)
+    model_path.write_text('[1, 2, 3]')
+    with pytest.raises(ModelFileError, match='expected an object'):
+        load_model(model_path)
+    with pytest.raises(ModelFileError, match='cannot read'):
+        load_model(model_path.with_name('missing.json'))
+
+
+def test_save_rejects_metadata_that_would_not_load(tmp_path):
+    path = tmp_path / 'model.json'
+    bad_params = ModelMetadata(tau_plus_s=0.0, balanced_weight=4.0, falling_weight=1.0,
+                               learner_name='X', learner_params={'rng': object()},
+                               dataset_fingerprint='')
+    with pytest.raises(ModelFileError, match='cannot write'):
+        save_model(path, example_lists(), bad_params)
+    bad_number = ModelMetadata(tau_plus_s=float('nan'), balanced_weight=4.0, falling_weight=1.0,
+                               learner_name='X', learner_params={}, dataset_fingerprint='')
+    with pytest.raises(ModelFileError):
+        save_model(path, example_lists(), bad_number)
+    bad_weight = ModelMetadata(tau_plus_s=0.0, balanced_weight=0.0, falling_weight=1.0,
+                               learner_name='X', learner_params={}, dataset_fingerprint='')
+    with pytest.raises(ModelFileError, match='weight'):
+        save_model(path, example_lists(), bad_weight)
+    assert list(tmp_path.iterdir()) == []
