@@ -20,7 +20,6 @@ from fall_predictor.gait import GRAVITY, Footstep, PreviewController, WalkingPla
 from fall_predictor.records import Measurement
 
 N_JOINTS = len(rm.JOINT_NAMES)
-_IDENTITY = np.eye(3)
 _LEG_SLICE = {'l': slice(0, 6), 'r': slice(6, 12)}
 
 #: Arms hang slightly away from the body, elbows bent; head straight.
@@ -162,11 +161,14 @@ class BalanceController:
         return None
 
     def _set_legs(self, torso: np.ndarray, soles: dict) -> None:
-        # Torso upright and soles flat, both facing the walking direction (world +x).
+        # Torso upright and soles flat, both facing the walking direction (world +x): the
+        # closed-form IK's parallel case.
+        tx, ty, tz = float(torso[0]), float(torso[1]), float(torso[2])
         for side in rm.SIDES:
-            ankle = kin.ankle_from_sole(np.array(soles[side]), _IDENTITY)
-            q = kin.leg_ik(kin.hip_position(torso, _IDENTITY, side), _IDENTITY, ankle, _IDENTITY)
-            self.target[_LEG_SLICE[side]] = q
+            x, y, z = soles[side]
+            hip = (tx, ty + (rm.HIP_HALF_WIDTH_M if side == 'l' else -rm.HIP_HALF_WIDTH_M), tz - rm.HIP_DROP_M)
+            ankle = (x - rm.SOLE_FORWARD_OFFSET_M, y, z + rm.ANKLE_HEIGHT_M)
+            self.target[_LEG_SLICE[side]] = kin.leg_ik_parallel(hip, ankle)
 
     def _momentum_departed(self, m: Measurement) -> bool:
         mass = 42.1

@@ -112,16 +112,22 @@ def _open_dataset(out: Path, config: GenerationConfig) -> None:
     (out / 'index').mkdir(exist_ok=True)
 
 
-_WORKER_SIM = None
+_WORKER_PREFIX: dict = {}
 
 
-def _simulator():
-    # One physics client per worker process, reset (a fresh world) for every trajectory.
-    global _WORKER_SIM
-    if _WORKER_SIM is None:
-        from fall_predictor.simulator import Simulator
-        _WORKER_SIM = Simulator()
-    return _WORKER_SIM
+def _walk_prefix(config: GenerationConfig):
+    """One simulator per worker process, with the unpushed walk up to the latest possible
+    push onset simulated once (trajectories then start from its snapshots, bit-identically)."""
+    from fall_predictor.simulator import Simulator
+    from fall_predictor.trajectory import WalkPrefix
+
+    dist = config.push_distribution
+    key = (dist.settle_s, dist.walk_cycle_s())
+    if key not in _WORKER_PREFIX:
+        until = dist.settle_s + dist.walk_cycle_s()
+        _WORKER_PREFIX[key] = WalkPrefix(Simulator(), until_s=until,
+                                         walk_duration_s=until + config.horizon_after_push_s + 5.0)
+    return _WORKER_PREFIX[key]
 
 
 def generate_one(out: Path, config: GenerationConfig, index: int) -> IndexRow:
@@ -130,7 +136,7 @@ def generate_one(out: Path, config: GenerationConfig, index: int) -> IndexRow:
 
     tid = trajectory_id(index)
     push = config.push_distribution.sample(trajectory_seed(config.seed, index))
-    result = run_trajectory(push, push.t_force_end + config.horizon_after_push_s, simulator=_simulator())
+    result = run_trajectory(push, push.t_force_end + config.horizon_after_push_s, prefix=_walk_prefix(config))
     t_start = round(push.t_push - config.pre_push_s, 6)
     keep = [i for i, m in enumerate(result.measurements) if m.t >= t_start - 1e-9]
     measurements = [result.measurements[i] for i in keep]

@@ -58,6 +58,29 @@ def leg_ik(hip: np.ndarray, body_rot: np.ndarray, ankle: np.ndarray, foot_rot: n
     return np.array([hip_yaw, hip_roll, hip_pitch, knee, ankle_pitch, ankle_roll])
 
 
+def leg_ik_parallel(hip: tuple[float, float, float], ankle: tuple[float, float, float],
+                    yaw: float = 0.0, thigh: float = THIGH, shank: float = SHANK) -> list[float]:
+    """:func:`leg_ik` for a torso and a sole with the same orientation, upright, at ``yaw``.
+
+    Then the hip rotation reduces to roll(-ankle roll) pitch(-ankle pitch - knee) with zero
+    hip yaw; plain floats, for the 1 kHz controller.
+    """
+    dx, dy, dz = hip[0] - ankle[0], hip[1] - ankle[1], hip[2] - ankle[2]
+    c, s = math.cos(yaw), math.sin(yaw)
+    rx, ry, rz = c * dx + s * dy, -s * dx + c * dy, dz
+    dist = math.sqrt(rx * rx + ry * ry + rz * rz)
+    cos_knee = (dist * dist - thigh * thigh - shank * shank) / (2.0 * thigh * shank)
+    knee = math.acos(min(1.0, max(-1.0, cos_knee)))
+    ankle_pitch_inner = math.asin(min(1.0, thigh / max(dist, 1e-9) * math.sin(math.pi - knee)))
+    ankle_roll = math.atan2(ry, rz)
+    if ankle_roll > math.pi / 2:
+        ankle_roll -= math.pi
+    elif ankle_roll < -math.pi / 2:
+        ankle_roll += math.pi
+    ankle_pitch = -math.atan2(rx, math.copysign(math.hypot(ry, rz), rz)) - ankle_pitch_inner
+    return [0.0, -ankle_roll, -ankle_pitch - knee, knee, ankle_pitch, ankle_roll]
+
+
 def leg_fk(hip: np.ndarray, body_rot: np.ndarray, q: np.ndarray,
            thigh: float = THIGH, shank: float = SHANK) -> tuple[np.ndarray, np.ndarray]:
     """Ankle centre position and foot orientation (world) for leg angles ``q``."""

@@ -27,6 +27,8 @@ MIN_CONTACT_FORCE_N = 1e-6
 class SimulatorConfig:
     dt_s: float = DT_S
     gui: bool = False
+    #: Fewer than ~50 iterations leave a standing robot vibrating (momentum ~0.5 kg m/s) and
+    #: its CoP millimetres off the CoM projection; see the README (speed).
     solver_iterations: int = 50
     ground_friction: float = 1.0
     foot_friction: float = 1.0
@@ -114,6 +116,15 @@ class Simulator:
         self._prev_measurement = None
         self.set_joint_targets(joint_positions)
         return self.measure()
+
+    def restore_clock(self, tick: int, measurement: Measurement) -> None:
+        """After ``pybullet.restoreState``: set the clock and last sample to the snapshot's,
+        with no push pending."""
+        self.tick = tick
+        self.t = tick * self.config.dt_s
+        self._push = None
+        self._push_force_world = np.zeros(3)
+        self._prev_measurement = measurement
 
     def close(self) -> None:
         if self.client >= 0:

@@ -45,3 +45,14 @@ def test_fk_matches_pybullet():
             assert np.allclose(np.array(pb.getMatrixFromQuaternion(state[5])).reshape(3, 3), foot_rot, atol=1e-9)
     finally:
         pb.disconnect(client)
+
+
+def test_parallel_case_matches_the_general_ik():
+    rng = np.random.default_rng(5)
+    for _ in range(300):
+        yaw = rng.uniform(-1.0, 1.0)
+        rot = kin.rot_z(yaw)
+        hip = rng.uniform(-0.2, 0.2, 3) + np.array([0.0, 0.0, 0.55])
+        ankle = hip + rot @ np.array([rng.uniform(-0.2, 0.2), rng.uniform(-0.15, 0.15), -rng.uniform(0.35, 0.5)])
+        general = kin.leg_ik(hip, rot, ankle, rot)
+        assert np.allclose(kin.leg_ik_parallel(tuple(hip), tuple(ankle), yaw), general, atol=1e-9)

@@ -94,3 +94,15 @@ def test_an_unsupported_robot_ends_fallen(sim):
             break
     assert fallen_at is not None
     assert m.com[2] < 0.33 or m.non_foot_contact
+
+
+def test_a_trajectory_from_a_walk_prefix_equals_one_from_a_fresh_world(sim):
+    from fall_predictor.trajectory import WalkPrefix
+    prefix = WalkPrefix(sim, until_s=1.6, walk_duration_s=10.0)
+    for push in (PushSpec(160.0, 120.0, 0.05, 1.234), PushSpec(90.0, -60.0, 0.2, 1.55)):
+        warm = run_trajectory(push, 3.0, prefix=prefix)
+        fresh = run_trajectory(push, 3.0)
+        assert len(warm.measurements) == len(fresh.measurements)
+        assert np.array_equal(warm.com, fresh.com)
+        assert np.array_equal(warm.joint_positions, fresh.joint_positions)
+        assert warm.t_reflex == fresh.t_reflex and warm.fallen == fresh.fallen
