@@ -96,7 +96,7 @@ def _atomic_write_text(path: Path, text: str) -> None:
 
 def _open_dataset(out: Path, config: GenerationConfig) -> None:
     manifest_path = out / 'dataset.json'
-    manifest = config.manifest()
+    manifest = json.loads(json.dumps(config.manifest()))   # as it reads back from the file
     if manifest_path.exists():
         try:
             existing = json.loads(manifest_path.read_text())

@@ -1,0 +1,102 @@
+"""Dataset generation, index, feature cache and bad bags (issue: push-trajectory datasets)."""
+import json
+import os
+import shutil
+
+import numpy as np
+import pytest
+
+from fall_predictor.bagio import read_trajectory
+from fall_predictor.dataset import (DatasetError, GenerationConfig, generate_dataset, load_features,
+                                    read_index)
+from fall_predictor.records import FALLEN_COM_HEIGHT_M
+from fall_predictor.stats import dataset_stats, plot_fig6
+
+
+def test_each_trajectory_has_a_complete_bag_and_index_row(small_dataset):
+    rows = read_index(small_dataset)
+    assert len(rows) == 8
+    assert {r.fallen for r in rows} == {True, False}
+    for row in rows:
+        assert row.t_start == pytest.approx(row.t_push - 0.5)
+        assert row.t_force_end == pytest.approx(row.t_push + 0.1)
+        recorded = read_trajectory(small_dataset / row.bag)
+        assert len(recorded.measurements) == row.samples
+        assert recorded.measurements[0].t == pytest.approx(row.t_start)
+        assert len(recorded.pushes) == 1 and recorded.pushes[0].t == pytest.approx(row.t_push)
+        # The recorded push force is the SPEC push: horizontal, of the sampled magnitude.
+        assert np.linalg.norm(recorded.pushes[0].force) == pytest.approx(row.force_n)
+        assert recorded.joint_states is not None and recorded.joint_states.position.shape[1] == 26
+        if row.fallen:
+            assert row.t_push < row.t_height_drop < row.t_fallen == pytest.approx(recorded.measurements[-1].t)
+            assert recorded.measurements[-1].fallen
+            z = np.array([m.com[2] for m in recorded.measurements if row.t_height_drop <= m.t <= row.t_fallen])
+            assert np.all(np.diff(z) <= 1e-4)          # the CoM only drops from t_height_drop on
+        else:
+            assert row.t_fallen is None and row.t_height_drop is None
+            assert min(m.com[2] for m in recorded.measurements) > FALLEN_COM_HEIGHT_M
+    assert (small_dataset / 'index.csv').read_text().count('\n') == 9
+
+
+def _config(seed):
+    return GenerationConfig(seed=seed, horizon_after_push_s=0.3, pre_push_s=0.2)
+
+
+def test_generation_is_deterministic_and_resumes_without_redoing(tmp_path):
+    a = generate_dataset(tmp_path / 'a', 3, 21, config=_config(21), progress=False)
+    b_dir = tmp_path / 'b'
+    generate_dataset(b_dir, 1, 21, config=_config(21), progress=False)
+    first_row = b_dir / 'index' / 'traj_00000.json'
+    stamp = first_row.stat().st_mtime_ns
+    # An interrupted write of trajectory 1: a partial bag and no index row.
+    (b_dir / 'bags' / 'traj_00001.partial').mkdir()
+    (b_dir / 'bags' / 'traj_00001.partial' / 'junk.mcap').write_bytes(b'\x00' * 100)
+    b = generate_dataset(b_dir, 3, 21, config=_config(21), progress=False)
+    assert first_row.stat().st_mtime_ns == stamp            # not redone
+    assert not (b_dir / 'bags' / 'traj_00001.partial').exists()
+    assert [json.loads((tmp_path / 'a' / 'index' / f'{r.trajectory_id}.json').read_text()) for r in a] == \
+           [json.loads((b_dir / 'index' / f'{r.trajectory_id}.json').read_text()) for r in b]
+
+
+def test_other_generation_settings_refuse_to_mix_with_an_existing_dataset(tmp_path):
+    generate_dataset(tmp_path / 'd', 1, 5, config=_config(5), progress=False)
+    other = GenerationConfig(seed=5, horizon_after_push_s=0.6, pre_push_s=0.2)
+    with pytest.raises(DatasetError, match='different generation settings'):
+        generate_dataset(tmp_path / 'd', 2, 5, config=other, progress=False)
+
+
+def test_feature_cache_is_reused_and_rebuilt_when_a_bag_changes(small_dataset, tmp_path):
+    data = tmp_path / 'copy'
+    shutil.copytree(small_dataset, data)
+    first = load_features(data, progress=False)
+    assert first.rebuilt == 8 and not first.errors
+    assert load_features(data, progress=False).rebuilt == 0
+    mcap = next((data / 'bags' / 'traj_00002').glob('*.mcap'))
+    os.utime(mcap, ns=(mcap.stat().st_atime_ns, mcap.stat().st_mtime_ns + 10**9))
+    again = load_features(data, progress=False)
+    assert again.rebuilt == 1
+    for a, b in zip(first.trajectories, again.trajectories):
+        assert np.array_equal(a.X, b.X) and np.array_equal(a.mode, b.mode)
+
+
+def test_a_corrupt_bag_is_named_and_the_rest_stays_usable(small_dataset, tmp_path):
+    data = tmp_path / 'damaged'
+    shutil.copytree(small_dataset, data)
+    mcap = next((data / 'bags' / 'traj_00004').glob('*.mcap'))
+    mcap.write_bytes(mcap.read_bytes()[: mcap.stat().st_size // 2])
+    report = load_features(data, progress=False)
+    assert list(report.errors) == ['traj_00004']
+    assert 'traj_00004' in report.errors['traj_00004']
+    assert len(report.trajectories) == 7
+
+
+def test_stats_and_fig6_plots(small_dataset, tmp_path):
+    rows = read_index(small_dataset)
+    report = load_features(small_dataset, progress=False)
+    stats = dataset_stats(rows, report.trajectories)
+    assert stats['trajectories'] == 8
+    assert stats['fall_fraction'] == pytest.approx(sum(r.fallen for r in rows) / 8)
+    assert sum(stats['contact_mode_occupancy'].values()) == pytest.approx(1.0)
+    assert stats['oracle_lead_s']['min'] > 0.1
+    for path in plot_fig6(report.trajectories, tmp_path / 'plots'):
+        assert path.stat().st_size > 10_000 and path.read_bytes()[:4] == b'\x89PNG'
