@@ -28,10 +28,12 @@ def _positive(text: str) -> float:
 
 
 def _emit(args, payload: dict, lines: list[str]) -> None:
-    if getattr(args, 'json', False):
-        print(json.dumps(payload, sort_keys=True))
-    else:
-        print('\n'.join(lines))
+    text = json.dumps(payload, sort_keys=True) if getattr(args, 'json', False) else '\n'.join(lines)
+    try:
+        print(text, flush=True)
+    except BrokenPipeError:
+        # The reader (e.g. `| head`) went away: not an error of ours, and no traceback.
+        sys.stdout = None
 
 
 # -- simulate --------------------------------------------------------------------------------
@@ -131,6 +133,206 @@ def cmd_stats(args) -> int:
     return 1 if report.errors else 0
 
 
+# -- train, rules, evaluate, sweep --------------------------------------------------------
+def _nonnegative(text: str) -> float:
+    value = _finite(float)(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f'{text!r} must be >= 0')
+    return value
+
+
+def _at_least_two(text: str) -> int:
+    value = int(text)
+    if value < 2:
+        raise argparse.ArgumentTypeError(f'{text!r} must be an integer >= 2')
+    return value
+
+
+def _list_of(element):
+    """Parser of a comma-separated list whose elements ``element`` parses."""
+    def parse(text: str) -> tuple:
+        try:
+            values = tuple(element(part) for part in text.split(',') if part.strip())
+        except ValueError as error:
+            raise argparse.ArgumentTypeError(f'{text!r}: {error}') from error
+        if not values:
+            raise argparse.ArgumentTypeError(f'{text!r}: expected a comma-separated list')
+        return values
+    return parse
+
+
+def _learner_param(text: str) -> tuple:
+    """``KEY=VALUE``; VALUE is read as JSON (``8``, ``0.5``, ``null``) or else kept as a string."""
+    key, separator, raw = text.partition('=')
+    if not separator or not key.strip():
+        raise argparse.ArgumentTypeError(f'{text!r}: expected KEY=VALUE')
+    try:
+        value = json.loads(raw)
+    except json.JSONDecodeError:
+        value = raw
+    return key.strip(), value
+
+
+def _fail(command: str, error: Exception | str) -> int:
+    """A dataset, model file or setting that cannot be used: one clear line, exit code 2."""
+    print(f'fall-predictor {command}: error: {error}', file=sys.stderr)
+    return 2
+
+
+def _add_learner_arguments(p: argparse.ArgumentParser) -> None:
+    from fall_predictor.experiments import DEFAULT_SAMPLE_STRIDE, LEARNER_CLASSES
+    p.add_argument('--learner', choices=sorted(LEARNER_CLASSES), default='tree',
+                   help='tree: CART tree rewritten as a list; covering: RIPPER-like sequential '
+                        'covering (default tree)')
+    p.add_argument('--param', type=_learner_param, action='append', default=[], metavar='KEY=VALUE',
+                   help='learner hyper-parameter, repeatable (e.g. --param max_depth=10); VALUE is JSON')
+    p.add_argument('--stride', type=_positive_int, default=DEFAULT_SAMPLE_STRIDE,
+                   help=f'train on every K-th 1 kHz sample, weights x K (default {DEFAULT_SAMPLE_STRIDE})')
+
+
+def cmd_train(args) -> int:
+    from fall_predictor.dataset import DatasetError
+    from fall_predictor.experiments import make_learner, train_model
+    from fall_predictor.model_file import ModelFileError, save_model
+
+    try:
+        make_learner(args.learner, dict(args.param))
+    except ValueError as error:
+        return _fail('train', error)
+    start = time.perf_counter()
+    try:
+        lists, metadata = train_model(args.data, args.tau_plus, args.learner, dict(args.param),
+                                      args.stride, jobs=args.jobs,
+                                      recommended_tau_his_s=args.tau_his_recommended,
+                                      skip_unreadable=args.skip_unreadable, progress=not args.json)
+        save_model(args.out, lists, metadata)
+    except (DatasetError, ModelFileError) as error:
+        return _fail('train', error)
+    wall = time.perf_counter() - start
+    payload = {'model': str(args.out), 'tau_plus_s': metadata.tau_plus_s,
+               'recommended_tau_his_s': metadata.recommended_tau_his_s,
+               'learner': {'name': metadata.learner_name, 'params': metadata.learner_params},
+               'sample_stride': args.stride, 'dataset_fingerprint': metadata.dataset_fingerprint,
+               'mean_rule_size': lists.mean_rule_size, 'rule_sizes': list(lists.rule_sizes),
+               'depths': list(lists.depths), 'wall_s': wall}
+    _emit(args, payload, [f'wrote {args.out}: {metadata.learner_name}, tau_plus '
+                          f'{metadata.tau_plus_s:+.3f} s, stride {args.stride}, mean rule size '
+                          f'{lists.mean_rule_size:.1f}, depths {list(lists.depths)} ({wall:.1f} s)'])
+    return 0
+
+
+def cmd_rules(args) -> int:
+    from fall_predictor.experiments import rules_summary
+    from fall_predictor.model_file import ModelFileError, load_model
+
+    try:
+        lists, metadata = load_model(args.model)
+    except ModelFileError as error:
+        return _fail('rules', error)
+    summary = rules_summary(lists)
+    payload = {'model': str(args.model), **summary,
+               'training': {'tau_plus_s': metadata.tau_plus_s, 'learner': metadata.learner_name,
+                            'params': metadata.learner_params,
+                            'recommended_tau_his_s': metadata.recommended_tau_his_s}}
+    lines = [f'# {args.model}: {metadata.learner_name}, tau_plus {metadata.tau_plus_s:+.3f} s']
+    for mode in summary['modes']:
+        lines += ['', f'# {mode["mode"]}: rule size {mode["rule_size"]}, depth {mode["depth"]}', mode['text']]
+    lines += ['', f'mean rule size {summary["mean_rule_size"]:.2f} (over the 16 modes); mean depth '
+                  f'{summary["mean_depth"]:.1f} (non-empty lists), max depth {summary["max_depth"]}']
+    _emit(args, payload, lines)
+    return 0
+
+
+def cmd_evaluate(args) -> int:
+    from fall_predictor.dataset import DatasetError
+    from fall_predictor.experiments import evaluate_model, evaluation_json
+    from fall_predictor.model_file import ModelFileError, load_model
+
+    try:
+        lists, metadata = load_model(args.model)
+        tau_his = args.tau_his if args.tau_his is not None else metadata.recommended_tau_his_s
+        if tau_his is None:
+            return _fail('evaluate', f'{args.model} recommends no tau_his: give --tau-his')
+        evaluation = evaluate_model(args.data, lists, tau_his, baselines=args.baselines,
+                                    jobs=args.jobs, skip_unreadable=args.skip_unreadable,
+                                    progress=not args.json)
+    except (DatasetError, ModelFileError) as error:
+        return _fail('evaluate', error)
+    payload = {'model': str(args.model), 'data': str(args.data), **evaluation_json(evaluation),
+               'trained_on_this_dataset': metadata.dataset_fingerprint == evaluation.dataset_fingerprint}
+    r = evaluation.result
+    lines = [f'{r.n_trajectories} trajectories ({r.n_fallen} fallen), tau_his {tau_his:.3f} s',
+             f'FPR {r.fpr:.3f} ({r.n_false_positives}/{r.n_balanced} balanced trajectories)',
+             f'tau_lead {r.tau_lead_s:.3f} s, oracle lead {r.oracle_lead_s:.3f} s, lead fraction '
+             f'{r.lead_fraction:.2f}, misses {r.n_missed}/{r.n_fallen}',
+             f'pre-push false alarms: {r.n_pre_push_alarms_balanced} balanced, '
+             f'{r.n_pre_push_alarms_fallen} fallen trajectories',
+             f'mean rule size {r.mean_rule_size:.2f}']
+    if payload['trained_on_this_dataset']:
+        lines.append('warning: the model was trained on this dataset; these numbers are not a '
+                     'held-out estimate (use `fall-predictor sweep` for cross-validation)')
+    for name, front in payload.get('baselines', {}).items():
+        lines.append(f'baseline {name}, Pareto front (FPR, tau_lead): ' + ', '.join(
+            f'({p["fpr"]:.2f}, {p["tau_lead_s"]:.2f})' for p in front
+            if p['fpr'] is not None and p['tau_lead_s'] is not None))
+    for tid, error in evaluation.unreadable.items():
+        lines.append(f'SKIPPED {tid}: {error}')
+    _emit(args, payload, lines)
+    return 0
+
+
+def cmd_sweep(args) -> int:
+    import shlex
+
+    from fall_predictor.dataset import DatasetError
+    from fall_predictor.experiments import SweepConfig, pareto_mean_lead, run_sweep
+
+    settings = {'folds': args.folds, 'seed': args.seed, 'learner_name': args.learner,
+                'learner_params': dict(args.param), 'sample_stride': args.stride,
+                'capture_point': not args.no_capture_point}
+    if args.tau_plus is not None:
+        settings['tau_plus_values_s'] = args.tau_plus
+    if args.tau_his is not None:
+        settings['tau_his_values_s'] = args.tau_his
+    if args.learning_curve is not None:
+        settings['learning_curve_sizes'] = args.learning_curve
+    if args.no_learning_curve:
+        settings['learning_curve_sizes'] = ()
+    command = shlex.join(['fall-predictor', *args.argv])
+    try:
+        config = SweepConfig.quick(**settings) if args.quick else SweepConfig(**settings)
+    except ValueError as error:
+        return _fail('sweep', error)
+    try:
+        result = run_sweep(args.data, args.out, config, jobs=args.jobs,
+                           skip_unreadable=args.skip_unreadable, progress=not args.json,
+                           command=command)
+    except DatasetError as error:
+        return _fail('sweep', error)
+    t = result.timing
+    payload = {'out': str(args.out), 'files': list(result.files),
+               'n_trajectories': result.n_trajectories, 'n_fallen': result.n_fallen,
+               'n_predictors': len(result.points), 'n_pareto': len(result.pareto),
+               'pareto_mean_lead_s': pareto_mean_lead(result.points),
+               'selected': [{'name': paper.name, 'tau_plus_s': p.tau_plus_s, 'tau_his_s': p.tau_his_s,
+                             'fpr': p.fpr, 'tau_lead_s': p.tau_lead_s, 'mean_rule_size': p.mean_rule_size}
+                            for paper, p in result.selected],
+               'timing': {'total_s': t.total_s, 'n_fits': t.n_fits, 'fit_s_mean_full': t.fit_s_mean_full,
+                          'jobs': t.jobs}}
+    lines = [f'{len(result.points)} predictors ({result.config.folds}-fold CV over '
+             f'{result.n_trajectories} trajectories, {result.n_fallen} fallen) in {t.total_s:.0f} s '
+             f'with {t.jobs} job(s): {t.n_fits} trainings, mean full-size fit {t.fit_s_mean_full:.2f} s']
+    for paper, p in result.selected:
+        lines.append(f'{paper.name} analogue: tau_plus {p.tau_plus_s:+.2f} s, tau_his {p.tau_his_s:.3f} s: '
+                     f'FPR {p.fpr:.3f}, tau_lead {p.tau_lead_s:.2f} s, mean rule size {p.mean_rule_size:.1f} '
+                     f'(paper: FPR {paper.fpr}, tau_lead {paper.tau_lead_s} s, '
+                     f'rule size {paper.mean_rule_size})')
+    lines.append(f'mean best lead over FPR budgets 0-0.5: {payload["pareto_mean_lead_s"]:.3f} s')
+    lines.append('wrote ' + ', '.join(result.files))
+    _emit(args, payload, lines)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog='fall-predictor', description=__doc__)
     sub = parser.add_subparsers(dest='command', metavar='<command>')
@@ -172,12 +374,94 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--jobs', type=_positive_int, default=1)
     p.add_argument('--json', action='store_true')
     p.set_defaults(func=cmd_stats)
+
+    p = sub.add_parser('train', help='learn per-mode decision lists and write a model file',
+                       description='Train one decision list per foot contact mode (SPEC §8) on every '
+                                   'trajectory of a dataset and write the JSON model file. Falling states '
+                                   'before t_height_drop + tau_plus are withheld; balanced states weigh 4, '
+                                   'falling states 1 (per 1 kHz sample). Exit code 2 if the dataset or a '
+                                   'setting cannot be used.')
+    p.add_argument('--data', type=Path, required=True, help='dataset directory')
+    p.add_argument('--tau-plus', type=_finite(float), required=True,
+                   help='tau_plus [s]: falling states are trained on from t_height_drop + tau_plus '
+                        '(may be < 0; write --tau-plus=-0.25)')
+    p.add_argument('--out', type=Path, required=True, help='model file to write (JSON)')
+    _add_learner_arguments(p)
+    p.add_argument('--tau-his-recommended', type=_nonnegative, default=None,
+                   help='history window [s] to store as the model\'s run-time default')
+    p.add_argument('--jobs', type=_positive_int, default=1, help='processes loading features')
+    p.add_argument('--skip-unreadable', action='store_true',
+                   help='leave out unreadable bags instead of failing')
+    p.add_argument('--json', action='store_true', help='print one JSON object')
+    p.set_defaults(func=cmd_train)
+
+    p = sub.add_parser('rules', help='print a model\'s decision lists (the paper\'s Fig. 8 form)',
+                       description='Print the decision list of every foot contact mode of a model file '
+                                   'in the paper\'s Fig. 8 form, with each list\'s rule size (number of '
+                                   'comparisons) and depth (number of rules), and the mean rule size over '
+                                   'the 16 modes. Exit code 2 if the file is not a valid model.')
+    p.add_argument('model', type=Path, help='model file (JSON)')
+    p.add_argument('--json', action='store_true', help='print one JSON object')
+    p.set_defaults(func=cmd_rules)
+
+    p = sub.add_parser('evaluate', help='FPR, lead time and misses of a model on a dataset',
+                       description='Run a model over every trajectory of a dataset (the online predictor: '
+                                   'decision lists, history window tau_his, CoM guard) and report SPEC §5\'s '
+                                   'metrics: FPR, tau_lead, misses, pre-push false alarms, oracle lead, lead '
+                                   'fraction and mean rule size; with --baselines also the Pareto fronts of '
+                                   'the hand-coded baselines. Not cross-validated: use a dataset the model '
+                                   'was not trained on. Exit code 2 if the model or dataset cannot be used.')
+    p.add_argument('--data', type=Path, required=True, help='dataset directory')
+    p.add_argument('--model', type=Path, required=True, help='model file (JSON)')
+    p.add_argument('--tau-his', type=_nonnegative, default=None,
+                   help='history window [s] (default: the model\'s recommended value)')
+    p.add_argument('--baselines', action='store_true',
+                   help='also evaluate the CoM-height, momentum and capture-point baselines')
+    p.add_argument('--jobs', type=_positive_int, default=1)
+    p.add_argument('--skip-unreadable', action='store_true',
+                   help='leave out unreadable bags instead of failing')
+    p.add_argument('--json', action='store_true', help='print one JSON object')
+    p.set_defaults(func=cmd_evaluate)
+
+    p = sub.add_parser('sweep', help='cross-validated tau_plus x tau_his sweep, figures and tables',
+                       description='k-fold cross-validation by trajectory over a grid of tau_plus '
+                                   '(training) and tau_his (run time): one training per fold and tau_plus, '
+                                   'every tau_his evaluated from it. Also a learning curve at FP-L2\'s '
+                                   'settings and the hand-coded baselines on the same trajectories. Writes '
+                                   'sweep.json, table.md (with the paper\'s Table 2 next to the analogues) and '
+                                   'PNGs (Fig. 10 and Fig. 11 analogues) to --out. Exit code 2 if the dataset '
+                                   'or a setting cannot be used.')
+    p.add_argument('--data', type=Path, required=True, help='dataset directory')
+    p.add_argument('--out', type=Path, required=True, help='output directory')
+    p.add_argument('--folds', type=_at_least_two, default=10, help='cross-validation folds (default 10)')
+    p.add_argument('--seed', type=int, default=0, help='fold assignment and learning-curve subsets')
+    _add_learner_arguments(p)
+    p.add_argument('--tau-plus', type=_list_of(_finite(float)), default=None, metavar='LIST',
+                   help='comma-separated tau_plus values [s]; write --tau-plus=-1.5,-0.25 (a leading '
+                        'minus needs the =); default -1.5,-1.25,...,0.5')
+    p.add_argument('--tau-his', type=_list_of(_nonnegative), default=None, metavar='LIST',
+                   help='comma-separated tau_his values [s] '
+                        '(default 0,0.004,0.008,0.016,0.03,0.044,0.06,0.08,0.1)')
+    p.add_argument('--learning-curve', type=_list_of(_positive_int), default=None, metavar='LIST',
+                   help='training-set sizes of the learning curve (default 50,100,250,500,900)')
+    p.add_argument('--no-learning-curve', action='store_true', help='skip the learning curve')
+    p.add_argument('--no-capture-point', action='store_true',
+                   help='skip the capture-point baseline (it reads every bag once to fill its cache)')
+    p.add_argument('--quick', action='store_true',
+                   help='reduced grid: 5 tau_plus, 5 tau_his, learning curve 10,25,50, coarse baselines '
+                        '(explicit --tau-plus/--tau-his/--learning-curve still apply)')
+    p.add_argument('--jobs', type=_positive_int, default=1, help='parallel trainings')
+    p.add_argument('--skip-unreadable', action='store_true',
+                   help='leave out unreadable bags instead of failing')
+    p.add_argument('--json', action='store_true', help='print one JSON summary object')
+    p.set_defaults(func=cmd_sweep)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)   # recorded by sweep
     if not getattr(args, 'func', None):
         parser.print_help()
         return 2

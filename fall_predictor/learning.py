@@ -52,7 +52,7 @@ def _check_float(name: str, value: object, low: float, high: float = math.inf,
 class RuleListLearner(ClassifierMixin, BaseEstimator):
     """Base of the decision-list learners: input validation, prediction, fitted attributes.
 
-    Subclasses implement :meth:`_check_params` and :meth:`_learn_rules`.
+    Subclasses implement :meth:`check_params` and :meth:`_learn_rules`.
     """
 
     def fit(self, X: np.ndarray, y: np.ndarray, sample_weight: Optional[np.ndarray] = None,
@@ -64,7 +64,7 @@ class RuleListLearner(ClassifierMixin, BaseEstimator):
         samples (used by learners that hold out data, so that a held-out set never shares a
         trajectory with the data it checks; ignored by the others).
         """
-        self._check_params()
+        self.check_params()
         X = np.asarray(X, dtype=float)
         y = np.asarray(y)
         if X.ndim != 2 or X.shape[1] != N_FEATURES:
@@ -97,7 +97,7 @@ class RuleListLearner(ClassifierMixin, BaseEstimator):
             raise RuntimeError(f'{type(self).__name__} is not fitted')
         return self.decision_list_.predict(X)
 
-    def _check_params(self) -> None:
+    def check_params(self) -> None:
         raise NotImplementedError
 
     def _fit_model(self, X: np.ndarray, y: np.ndarray, w: np.ndarray,
@@ -139,7 +139,7 @@ class TreeListLearner(RuleListLearner):
         self.ccp_alpha = ccp_alpha
         self.random_state = random_state
 
-    def _check_params(self) -> None:
+    def check_params(self) -> None:
         if self.criterion not in ('entropy', 'gini', 'log_loss'):
             raise ValueError(f"criterion must be 'entropy', 'gini' or 'log_loss', got {self.criterion!r}")
         _check_int('max_depth', self.max_depth, 1, allow_none=True)
@@ -266,7 +266,7 @@ class CoveringListLearner(RuleListLearner):
         self.prune_fraction = prune_fraction
         self.random_state = random_state
 
-    def _check_params(self) -> None:
+    def check_params(self) -> None:
         _check_int('n_bins', self.n_bins, 4)
         if self.n_bins > 254:
             raise ValueError(f'n_bins must be at most 254 (codes are uint8), got {self.n_bins}')

@@ -74,6 +74,8 @@ class ModelMetadata:
     learner_params: dict[str, Any]
     dataset_fingerprint: str
     recommended_tau_his_s: Optional[float] = None
+    #: Every ``sample_stride``-th 1 kHz sample was trained on, its weight multiplied by the stride.
+    sample_stride: int = 1
     created_utc: str = field(default_factory=_utc_now)
     package_version: str = __version__
 
@@ -95,6 +97,7 @@ def _model_document(lists: PerModeDecisionLists, metadata: ModelMetadata) -> dic
             'tau_plus_s': metadata.tau_plus_s,
             'balanced_weight': metadata.balanced_weight,
             'falling_weight': metadata.falling_weight,
+            'sample_stride': metadata.sample_stride,
             'learner': {'name': metadata.learner_name, 'params': metadata.learner_params},
         },
         'recommended_tau_his_s': metadata.recommended_tau_his_s,
@@ -240,7 +243,7 @@ def _parse_model(text: str, path: Path) -> tuple[PerModeDecisionLists, ModelMeta
         lists.append(DecisionList(tuple(rules), default))
 
     training = read.object(document['training'], 'training',
-                           ('tau_plus_s', 'balanced_weight', 'falling_weight', 'learner'))
+                           ('tau_plus_s', 'balanced_weight', 'falling_weight', 'sample_stride', 'learner'))
     learner = read.object(training['learner'], 'training.learner', ('name', 'params'))
     params = learner['params']
     if not isinstance(params, dict):
@@ -250,6 +253,9 @@ def _parse_model(text: str, path: Path) -> tuple[PerModeDecisionLists, ModelMeta
         weights[key] = read.number(training[key], f'training.{key}')
         if weights[key] <= 0.0:
             raise read.fail(f'training.{key}', f'weight must be positive, got {weights[key]!r}')
+    stride = training['sample_stride']
+    if isinstance(stride, bool) or not isinstance(stride, int) or stride < 1:
+        raise read.fail('training.sample_stride', f'expected a positive integer, got {stride!r}')
     tau_his = document['recommended_tau_his_s']
     if tau_his is not None:
         tau_his = read.number(tau_his, 'recommended_tau_his_s')
@@ -262,7 +268,7 @@ def _parse_model(text: str, path: Path) -> tuple[PerModeDecisionLists, ModelMeta
         learner_name=read.string(learner['name'], 'training.learner.name'),
         learner_params=params,
         dataset_fingerprint=read.string(document['dataset_fingerprint'], 'dataset_fingerprint'),
-        recommended_tau_his_s=tau_his,
+        recommended_tau_his_s=tau_his, sample_stride=stride,
         created_utc=read.string(created['utc'], 'created.utc'),
         package_version=read.string(created['package_version'], 'created.package_version'))
     return PerModeDecisionLists(tuple(lists)), metadata

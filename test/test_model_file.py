@@ -88,6 +88,8 @@ def set_condition(key, value):
     (lambda d: d.pop('training'), 'missing key'),
     (lambda d: d['training'].update(balanced_weight=-4.0), 'weight must be positive'),
     (lambda d: d['training']['learner'].update(params=[1, 2]), 'params'),
+    (lambda d: d['training'].update(sample_stride=0), 'sample_stride'),
+    (lambda d: d['training'].update(sample_stride=2.5), 'sample_stride'),
     (lambda d: d.update(recommended_tau_his_s=-0.1), 'recommended_tau_his_s'),
     (lambda d: d.update(dataset_fingerprint=7), 'dataset_fingerprint'),
     (lambda d: d.update(lists={}), 'expected an array'),

@@ -1,0 +1,8 @@
+#!/usr/bin/env bash
+# The README's main job: set everything up, then bring up the ROS 2 fall monitor (simulator,
+# features, predictor, controller nodes as separate processes) and push the robot 3 times,
+# printing one JSON line per push. Extra arguments go to `fall-predictor bringup`.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+scripts/setup.sh
+exec .venv/bin/fall-predictor bringup --pushes 3 --seed 1 --json "$@"
