@@ -32,7 +32,7 @@ _UPPER_BODY_POSTURE = {
 class GaitConfig:
     single_support_s: float = 0.5
     double_support_s: float = 0.2
-    step_length_m: float = 0.0        #: 0 steps in place
+    step_length_m: float = 0.08       #: a slow walk (0.11 m/s); 0 steps in place
     lift_height_m: float = 0.04
     torso_height_m: float = 0.63      #: torso origin above the ground while walking
     stance_half_width_m: float = rm.HIP_HALF_WIDTH_M

@@ -13,6 +13,7 @@ def test_walks_60_s_without_falling_or_reflex():
     assert result.t_reflex is None
     com = result.com
     assert com[:, 2].min() > 0.55
+    assert com[-1, 0] > 5.0 and abs(com[-1, 1]) < 0.3      # it walks forward, straight
     # It really walks: single support alternates between the feet.
     left_only = [len(m.left_contacts) > 0 and len(m.right_contacts) == 0 for m in result.measurements]
     right_only = [len(m.right_contacts) > 0 and len(m.left_contacts) == 0 for m in result.measurements]
