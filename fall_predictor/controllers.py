@@ -82,6 +82,7 @@ class BalanceController:
         w = gait.stance_half_width_m
         self.feet = {'l': np.array([0.0, w]), 'r': np.array([0.0, -w])}
         self.com_offset = np.zeros(2)
+        self._reflex_step: Optional[Footstep] = None
         self._started = False
 
     # -- set-up ----------------------------------------------------------------------------
@@ -92,9 +93,10 @@ class BalanceController:
         return self.target.copy(), torso
 
     def _start(self, m: Measurement) -> None:
-        # The CoM sits at a fixed horizontal offset from the torso origin in this posture;
-        # the pattern is planned for the CoM and the torso is placed that offset away.
-        self.com_offset = m.com[:2] - np.zeros(2)
+        # The CoM sits at a fixed horizontal offset from the torso origin (placed at x = y = 0
+        # by initial_posture); the pattern is planned for the CoM and the torso follows at
+        # that offset.
+        self.com_offset = m.com[:2].copy()
         self.com_height_m = float(m.com[2])
         self.omega = math.sqrt(GRAVITY / self.com_height_m)
         self.preview = PreviewController(self.dt_s, self.com_height_m, self.gait.preview_s)
@@ -148,8 +150,6 @@ class BalanceController:
         self._set_legs(torso, soles)
         return self.target.copy()
 
-    _reflex_step: Optional[Footstep] = None
-
     def _active_step(self, side: str, t: float) -> Optional[Footstep]:
         # Drop finished steps (their targets become the planted feet).
         while self._steps and t > self._steps[0].t_land + 1e-9:
@@ -171,7 +171,7 @@ class BalanceController:
             self.target[_LEG_SLICE[side]] = kin.leg_ik_parallel(hip, ankle)
 
     def _momentum_departed(self, m: Measurement) -> bool:
-        mass = 42.1
+        mass = rm.TOTAL_MASS_KG
         ref_vel = self.preview.state[1]
         c, s = math.cos(m.heading), math.sin(m.heading)
         dx = m.lin_mom[0] - mass * ref_vel[0]
@@ -182,7 +182,7 @@ class BalanceController:
     def _fire_reflex(self, m: Measurement) -> None:
         r = self.reflex
         t = m.t
-        mass = 42.1
+        mass = rm.TOTAL_MASS_KG
         com = m.com[:2]
         vel = m.lin_mom[:2] / mass
         capture = com + vel / self.omega
