@@ -38,6 +38,11 @@ setup(
     entry_points={
         'console_scripts': [
             'fall-predictor = fall_predictor.cli:main',
+            'simulator_node = fall_predictor.nodes.simulator_node:main',
+            'controller_node = fall_predictor.nodes.controller_node:main',
+            'feature_node = fall_predictor.nodes.feature_node:main',
+            'predictor_node = fall_predictor.nodes.predictor_node:main',
+            'recorder_node = fall_predictor.nodes.recorder_node:main',
         ],
     },
 )

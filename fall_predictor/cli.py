@@ -375,6 +375,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--json', action='store_true')
     p.set_defaults(func=cmd_stats)
 
+    from fall_predictor.bringup import add_arguments as add_bringup_arguments, cmd_bringup
+    p = sub.add_parser('bringup', help='start the ROS 2 nodes and push the robot N times',
+                       description='Start simulator, feature, predictor and controller nodes (and '
+                                   'optionally the recorder) as separate processes with the shipped '
+                                   'config and model, push the robot N times and print one JSON '
+                                   'line per push.')
+    add_bringup_arguments(p)
+    p.set_defaults(func=cmd_bringup)
+
     p = sub.add_parser('train', help='learn per-mode decision lists and write a model file',
                        description='Train one decision list per foot contact mode (SPEC §8) on every '
                                    'trajectory of a dataset and write the JSON model file. Falling states '

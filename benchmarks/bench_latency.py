@@ -1,0 +1,235 @@
+"""End-to-end latency of the onboard fall monitor, sample to state, over real DDS.
+
+Starts the simulator, controller, feature and predictor nodes as separate processes (as the
+bring-up does: lock-step, ``--real-time-factor``, a private ROS domain) and runs one walk of
+``--duration`` simulated seconds. For every simulation sample k it measures the wall-clock
+time from the simulator publishing measurement k to this process receiving the predictor's
+state stamped with sample k's time (``CLOCK_MONOTONIC``, shared by all processes of the
+machine): the simulator runs as a small subclass that notes the time just before each
+publish. Printed as one JSON object:
+
+* ``latency_ms``: median, p90, p99 and max over all samples;
+* ``dropped_samples``: measurements published without a state received for them;
+* ``real_time_factor``: simulated seconds per wall second reached (target in
+  ``real_time_factor_target``); below the target, ``cpu_percent`` (per process, over the run)
+  and ``load_average`` show what holds it back.
+
+Usage: ``python benchmarks/bench_latency.py [--duration 60] [--real-time-factor 1.0]
+[--model M]`` (default model: a hand-built momentum model in a temporary directory).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, Optional
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.client import Client
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from std_srvs.srv import SetBool, Trigger
+
+from fall_predictor.bringup import (NodeProcess, default_domain_id, default_params_file,
+                                    node_command, ros_environment, start_node, start_process,
+                                    stop_nodes)
+from fall_predictor.decision_list import Condition, DecisionList, PerModeDecisionLists, Rule
+from fall_predictor.model_file import ModelMetadata, save_model
+from fall_predictor.nodes.common import UNMATCHED_INPUTS, create_subscription, run_node
+from fall_predictor.nodes.simulator_node import NODE_NAME, SimulatorNode
+from fall_predictor.records import FALLING, FEATURE_NAMES, N_CONTACT_MODES, Measurement
+from fall_predictor.wire import DIAGNOSTICS, LEVEL_STALE, STATE
+
+_SIMULATOR_CHILD = '--simulator-child'
+
+
+def _run_timed_simulator(out: Path, ros_args: list[str]) -> int:
+    """The simulator node, noting (sample time [ms], wall time [s]) before each publish."""
+    published: list[tuple[int, float]] = []
+
+    class TimedSimulatorNode(SimulatorNode):
+        def _publish_sample(self, m: Measurement) -> None:
+            published.append((round(m.t * 1000), time.monotonic()))
+            super()._publish_sample(m)
+
+    code = run_node(TimedSimulatorNode, NODE_NAME, ros_args)
+    np.save(out, np.array(published, dtype=np.float64).reshape(-1, 2))
+    return code
+
+
+def _momentum_model(path: Path) -> Path:
+    """A hand-built model (falling above 25 kg m/s of horizontal momentum), as in the tests."""
+    rules = tuple(Rule((Condition(FEATURE_NAMES.index(name), op, threshold),), FALLING)
+                  for name in ('lin_mom_x', 'lin_mom_y')
+                  for op, threshold in (('>', 25.0), ('<=', -25.0)))
+    lists = PerModeDecisionLists(tuple(DecisionList(rules) for _ in range(N_CONTACT_MODES)))
+    save_model(path, lists, ModelMetadata(
+        tau_plus_s=0.0, balanced_weight=4.0, falling_weight=1.0, learner_name='hand-built',
+        learner_params={}, dataset_fingerprint='none', recommended_tau_his_s=0.01))
+    return path
+
+
+def _cpu_seconds(pid: int) -> float:
+    """User + system CPU time [s] of a process so far."""
+    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+class _Timer:
+    """This process's ROS node: starts the run and notes when each state arrives."""
+
+    def __init__(self, context: rclpy.Context) -> None:
+        self.node = Node('bench_latency', context=context)
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.node)
+        self.reset = self.node.create_client(Trigger, '/simulator_node/reset')
+        self.pause = self.node.create_client(SetBool, '/simulator_node/pause')
+        self.pause_request = SetBool.Request(data=True)
+        self.reset_request = Trigger.Request()
+        self.received: list[tuple[int, float]] = []      # (sample time [ms], wall [s])
+        self.unmatched: dict[str, str] = {}
+
+        def on_state(msg: DiagnosticArray) -> None:
+            now = time.monotonic()
+            if msg.status[0].level[0] != LEVEL_STALE:
+                stamp = msg.header.stamp
+                self.received.append((round(stamp.sec * 1000 + stamp.nanosec / 1e6), now))
+
+        def on_diagnostics(msg: DiagnosticArray) -> None:
+            for status in msg.status:
+                for kv in status.values:
+                    if kv.key == UNMATCHED_INPUTS:
+                        self.unmatched[status.name] = kv.value
+
+        self.state_sub = create_subscription(self.node, DiagnosticArray, STATE, on_state)
+        create_subscription(self.node, DiagnosticArray, DIAGNOSTICS, on_diagnostics)
+
+    def spin_until(self, done: Callable[[], bool], timeout_s: float) -> bool:
+        deadline = time.monotonic() + timeout_s
+        while not done():
+            if time.monotonic() > deadline:
+                return False
+            self.executor.spin_once(timeout_sec=0.05)
+        return True
+
+    def call(self, client: Client, request: Any) -> None:
+        future = client.call_async(request)
+        if not self.spin_until(future.done, 10.0):
+            raise RuntimeError(f'{client.srv_name} did not answer')
+
+
+def _percentiles_ms(latencies_s: np.ndarray) -> dict[str, float]:
+    ms = latencies_s * 1000.0
+    return {'median': round(float(np.median(ms)), 3),
+            'p90': round(float(np.percentile(ms, 90)), 3),
+            'p99': round(float(np.percentile(ms, 99)), 3), 'max': round(float(ms.max()), 3)}
+
+
+def run_benchmark(duration_s: float, real_time_factor: float, model: Optional[Path],
+                  domain_id: int) -> dict[str, object]:
+    tmp = Path(tempfile.mkdtemp(prefix='bench_latency_'))
+    model = model or _momentum_model(tmp / 'model.json')
+    env = ros_environment(domain_id)
+    params = default_params_file()
+    publish_times = tmp / 'published.npy'
+    nodes: dict[str, NodeProcess] = {}
+    context = rclpy.Context()
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    rclpy.init(context=context, domain_id=domain_id)
+    timer: Optional[_Timer] = None
+    try:
+        for name, overrides in (('predictor_node', {'model_path': str(model)}),
+                                ('feature_node', {}), ('controller_node', {})):
+            nodes[name] = start_node(name, params, overrides, env, tmp)
+        ros_args = node_command('simulator_node', params, {
+            'real_time_factor': repr(float(real_time_factor)), 'autostart': 'false',
+            'lockstep': 'true'})[3:]                  # without "python -m <module>"
+        nodes['simulator_node'] = start_process(
+            'simulator_node', [sys.executable, __file__, _SIMULATOR_CHILD, str(publish_times),
+                               *ros_args], env, tmp)
+        timer = _Timer(context)
+        names = [f'/{name}' for name in nodes]
+
+        def up() -> bool:
+            for node in nodes.values():
+                if node.process.poll() is not None:
+                    raise RuntimeError(f'{node.name} exited:\n{node.log_tail()}')
+            return (all(timer.unmatched.get(n) == '' for n in names)
+                    and timer.reset.service_is_ready()
+                    and timer.state_sub.get_publisher_count() >= 1)
+
+        if not timer.spin_until(up, 60.0):
+            raise RuntimeError(f'the nodes did not come up (logs in {tmp})')
+        load_before = os.getloadavg()
+        cpu_before = {name: _cpu_seconds(node.process.pid) for name, node in nodes.items()}
+        own_cpu_before = time.process_time()
+        wall_start = time.monotonic()
+        timer.call(timer.reset, timer.reset_request)
+        last_ms = round(duration_s * 1000)
+        if not timer.spin_until(lambda: timer.received and timer.received[-1][0] >= last_ms,
+                                duration_s / max(real_time_factor, 0.05) * 20 + 60):
+            raise RuntimeError('the run did not finish')
+        wall_s = time.monotonic() - wall_start
+        cpu = {name: round(100.0 * (_cpu_seconds(node.process.pid) - cpu_before[name]) / wall_s, 1)
+               for name, node in nodes.items()}
+        cpu['bench_latency'] = round(100.0 * (time.process_time() - own_cpu_before) / wall_s, 1)
+        load_after = os.getloadavg()
+        timer.call(timer.pause, timer.pause_request)
+        timer.spin_until(lambda: False, 1.0)
+    finally:
+        if timer is not None:
+            timer.node.destroy_node()
+        rclpy.try_shutdown(context=context)
+        stop_nodes(nodes)
+
+    published = {int(k): t for k, t in np.load(publish_times)}
+    received = {}
+    for k, t in timer.received:
+        received.setdefault(k, t)
+    samples = [k for k in sorted(published) if k <= last_ms]
+    latencies = np.array([received[k] - published[k] for k in samples if k in received])
+    simulated_s = samples[-1] / 1000.0
+    return {
+        'duration_s': simulated_s,
+        'wall_s': round(wall_s, 3),
+        'real_time_factor_target': real_time_factor,
+        'real_time_factor': round(simulated_s / wall_s, 4),
+        'samples_published': len(samples),
+        'states_received': int(latencies.size),
+        'dropped_samples': len(samples) - int(latencies.size),
+        'latency_ms': _percentiles_ms(latencies),
+        'cpu_percent': cpu,
+        'load_average': {'before': [round(x, 2) for x in load_before],
+                         'after': [round(x, 2) for x in load_after]},
+        'cpus': os.cpu_count(),
+        'python': platform.python_version(),
+        'logs': str(tmp),
+    }
+
+
+def main() -> None:
+    if len(sys.argv) > 2 and sys.argv[1] == _SIMULATOR_CHILD:
+        sys.exit(_run_timed_simulator(Path(sys.argv[2]), sys.argv[3:]))
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--duration', type=float, default=60.0,
+                        help='simulated seconds (default 60)')
+    parser.add_argument('--real-time-factor', type=float, default=1.0,
+                        help='simulator pacing: 1.0 = real time (default), 0 = as fast as possible')
+    parser.add_argument('--model', type=Path, default=None, help='model file')
+    parser.add_argument('--domain-id', type=int, default=None)
+    args = parser.parse_args()
+    result = run_benchmark(args.duration, args.real_time_factor, args.model,
+                           default_domain_id() if args.domain_id is None else args.domain_id)
+    print(json.dumps(result, indent=1))
+
+
+if __name__ == '__main__':
+    main()

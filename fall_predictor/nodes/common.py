@@ -1,0 +1,316 @@
+"""Plumbing shared by the fall_predictor nodes: parameters, run detection, diagnostics, main().
+
+The nodes are thin rclpy wrappers around the core library; this module holds what they have
+in common so that each node file only says what is specific to it:
+
+* :class:`ParamSpec` / :func:`declare_parameters`: parameters declared with a
+  ``ParameterDescriptor`` (range, description, read-only flag) and validated by an
+  ``on_set_parameters`` callback that rejects bad values with a reason;
+* :class:`RunTracker`: notices when sample time goes backwards (the simulator was reset,
+  a new trajectory started) so that stateful nodes reset themselves;
+* :class:`Diagnostics`: a 1 Hz ``/diagnostics`` status per node (wall-clock timer);
+* :func:`run_node`: the ``main()`` body of every node (SingleThreadedExecutor, clean
+  shutdown, a clear one-line error and exit code 1 when the node cannot start).
+
+It also defines the one topic that is not part of :mod:`fall_predictor.wire`: the push
+request (:data:`PUSH_REQUEST`), an input of the simulator node.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from enum import Enum
+from typing import Any, Optional, Union
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                SetParametersResult)
+from rclpy.clock import Clock, ClockType
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.publisher import Publisher
+from rclpy.subscription import Subscription
+
+from fall_predictor import ros_qos
+from fall_predictor.wire import DIAGNOSTICS, DIAGNOSTICS_RATE_HZ, EVENT_QOS, SIM_RATE_HZ, TopicSpec
+
+#: Frame of a push request's force and torque: the robot's heading frame (x forward along
+#: the pelvis yaw, y to the left, z up), origin at the CoM. An empty frame_id means the same.
+PUSH_REQUEST_FRAME = 'heading'
+
+#: Input of the simulator node: a push to apply. ``header.stamp`` = requested onset in
+#: simulation time (a time already past means "at the next step"); ``wrench.force`` = the
+#: horizontal force [N] in :data:`PUSH_REQUEST_FRAME`; ``wrench.torque`` = its moment about
+#: the CoM [N m], ``(0, 0, h) x force`` for an application point ``h`` metres above the CoM.
+#: The force lasts ``PUSH_DURATION_S`` (0.1 s, SPEC §3).
+PUSH_REQUEST = TopicSpec(
+    '/fall_predictor/push_request', 'geometry_msgs/msg/WrenchStamped', EVENT_QOS, None,
+    PUSH_REQUEST_FRAME, None,
+    'push to apply: onset (stamp), heading-frame force [N], torque about the CoM [N m]')
+
+#: Period of the 1 kHz sample streams [s] (the simulator's step).
+SAMPLE_PERIOD_S = 1.0 / SIM_RATE_HZ
+ParamValue = Union[bool, int, float, str]
+#: A cross-parameter check: proposed values of all parameters -> reason to reject, or None.
+CrossCheck = Callable[[Mapping[str, ParamValue]], Optional[str]]
+
+
+def create_publisher(node: Node, msg_type: type, spec: TopicSpec) -> Publisher:
+    """A publisher on ``spec``'s topic with its wire QoS.
+
+    Without rclpy's default QoS-event handlers (incompatible QoS / type warnings): each one is
+    a waitable that the executor polls on every wake-up, a measurable cost at 1 kHz, and the
+    QoS of every topic comes from :mod:`fall_predictor.wire`, so they cannot disagree.
+    """
+    return node.create_publisher(msg_type, spec.name, ros_qos.qos_profile(spec.qos),
+                                 event_callbacks=PublisherEventCallbacks(
+                                     use_default_callbacks=False))
+
+
+def create_subscription(node: Node, msg_type: type, spec: TopicSpec,
+                        callback: Callable[[Any], None], raw: bool = False) -> Subscription:
+    """A subscription to ``spec``'s topic with its wire QoS (no QoS-event handlers, see
+    :func:`create_publisher`); ``raw`` delivers the serialized bytes."""
+    return node.create_subscription(msg_type, spec.name, callback, ros_qos.qos_profile(spec.qos),
+                                    event_callbacks=SubscriptionEventCallbacks(
+                                        use_default_callbacks=False),
+                                    raw=raw)
+
+
+class NodeStartupError(RuntimeError):
+    """A node cannot start (missing model, bad configuration); the message says why."""
+
+
+# --------------------------------------------------------------------------------------------
+# Parameters
+# --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One node parameter: default (its type is the parameter's type), description with the
+    unit, optional inclusive range [low, high] for numbers, and whether it is read-only
+    (settable only at start-up, from a params file or ``-p``)."""
+
+    name: str
+    default: ParamValue
+    description: str
+    low: Optional[float] = None
+    high: Optional[float] = None
+    read_only: bool = False
+
+    def descriptor(self) -> ParameterDescriptor:
+        descriptor = ParameterDescriptor(description=self.description, read_only=self.read_only)
+        if self.low is not None and self.high is not None:
+            if isinstance(self.default, float):
+                descriptor.floating_point_range = [
+                    FloatingPointRange(from_value=float(self.low), to_value=float(self.high))]
+            elif isinstance(self.default, int) and not isinstance(self.default, bool):
+                descriptor.integer_range = [
+                    IntegerRange(from_value=int(self.low), to_value=int(self.high), step=1)]
+        return descriptor
+
+    def check(self, value: object) -> Optional[str]:
+        """Why ``value`` is not acceptable for this parameter, or None if it is."""
+        kind = type(self.default)
+        if type(value) is not kind:
+            return f'{self.name} must be a {kind.__name__}, got {value!r}'
+        if isinstance(value, float) and not math.isfinite(value):
+            return f'{self.name} must be finite, got {value!r}'
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            if (self.low is not None and value < self.low) or (
+                    self.high is not None and value > self.high):
+                return f'{self.name} = {value!r} is outside [{self.low}, {self.high}]'
+        return None
+
+
+def declare_parameters(node: Node, specs: Sequence[ParamSpec],
+                       cross_check: Optional[CrossCheck] = None) -> dict[str, ParamValue]:
+    """Declare ``specs`` on ``node`` behind a validating on-set-parameters callback.
+
+    The callback is registered first, so values from a params file or ``-p`` are validated at
+    declaration too; any rejection at start-up raises :class:`NodeStartupError` with the
+    reason. ``cross_check`` sees the proposed values of every parameter (current values with
+    the change applied) once all are declared. Returns the declared values by name.
+    """
+    by_name = {spec.name: spec for spec in specs}
+
+    def validate(parameters: list[Parameter]) -> SetParametersResult:
+        proposed: dict[str, ParamValue] = {}
+        for parameter in parameters:
+            spec = by_name.get(parameter.name)
+            if spec is None:
+                continue            # not ours (e.g. use_sim_time): leave it to its owner
+            reason = spec.check(parameter.value)
+            if reason is not None:
+                return SetParametersResult(successful=False, reason=reason)
+            proposed[parameter.name] = parameter.value
+        if cross_check is not None and all(node.has_parameter(name) for name in by_name):
+            merged = {name: node.get_parameter(name).value for name in by_name}
+            merged.update(proposed)
+            reason = cross_check(merged)
+            if reason is not None:
+                return SetParametersResult(successful=False, reason=reason)
+        return SetParametersResult(successful=True)
+
+    node.add_on_set_parameters_callback(validate)
+    try:
+        for spec in specs:
+            node.declare_parameter(spec.name, spec.default, spec.descriptor())
+    except ParameterException as error:
+        raise NodeStartupError(f'invalid parameter: {error}') from error
+    values = {spec.name: node.get_parameter(spec.name).value for spec in specs}
+    if cross_check is not None:
+        reason = cross_check(values)
+        if reason is not None:
+            raise NodeStartupError(f'invalid parameters: {reason}')
+    return values
+
+
+# --------------------------------------------------------------------------------------------
+# Runs (trajectories) in a stream of sample times
+# --------------------------------------------------------------------------------------------
+
+class Sample(Enum):
+    """How a sample time relates to the previous one of the same stream."""
+
+    NEXT = 'next'           #: later than the previous sample (or the first sample)
+    NEW_RUN = 'new_run'     #: time went backwards: a new trajectory started
+    REPEAT = 'repeat'       #: the same time again: a duplicate
+
+
+class RunTracker:
+    """Splits one stream of sample times into runs.
+
+    Time going backwards starts a new run. With ``restart_at_zero`` a sample at exactly
+    t = 0 also starts one even after another t = 0 sample: every fresh simulator world
+    starts at t = 0, so a reset before the first step is still noticed. With
+    ``max_start_t_s`` a jump back only starts a run if it lands before that time (runs start
+    at t = 0); a smaller jump back is taken as an out-of-order sample of the same run.
+    """
+
+    def __init__(self, restart_at_zero: bool = True, max_start_t_s: float = math.inf) -> None:
+        self.restart_at_zero = restart_at_zero
+        self.max_start_t_s = max_start_t_s
+        self.last_t: Optional[float] = None
+        self.runs = 0               #: number of runs started after the first
+
+    def classify(self, t: float) -> Sample:
+        """Classify sample time ``t`` [s] and remember it (a REPEAT leaves the state as is)."""
+        last = self.last_t
+        if last is None or (t > last or (t < last and t >= self.max_start_t_s)):
+            kind = Sample.NEXT
+        elif t == last and not (self.restart_at_zero and t == 0.0):
+            return Sample.REPEAT
+        else:
+            kind = Sample.NEW_RUN
+            self.runs += 1
+        self.last_t = t
+        return kind
+
+
+# --------------------------------------------------------------------------------------------
+# Diagnostics
+# --------------------------------------------------------------------------------------------
+
+#: /diagnostics key listing the input topics without a matched publisher (space-separated).
+UNMATCHED_INPUTS = 'unmatched_inputs'
+#: A node's health report: (level, message, key values).
+Report = tuple[int, str, Mapping[str, object]]
+
+
+def steady_clock() -> Clock:
+    """A wall clock for watchdogs: never simulation time, never jumps."""
+    return Clock(clock_type=ClockType.STEADY_TIME)
+
+
+class Diagnostics:
+    """Publishes ``report()`` on ``/diagnostics`` every ``period_s`` wall seconds.
+
+    The status is named after the node; its header stamp is the node's latest sample time
+    [s] (simulation time, like every stamp of the package), from ``sample_time()``. The value
+    ``unmatched_inputs`` lists the topics of ``inputs`` no publisher is matched with yet
+    (empty when every input is connected): a run should start only once it is empty
+    everywhere, or its first samples are lost for the unmatched subscriber.
+    """
+
+    def __init__(self, node: Node, report: Callable[[], Report],
+                 sample_time: Callable[[], float], inputs: Sequence[Subscription] = (),
+                 period_s: float = 1.0 / DIAGNOSTICS_RATE_HZ) -> None:
+        self._node = node
+        self._report = report
+        self._sample_time = sample_time
+        self._inputs = inputs
+        self._publisher = create_publisher(node, DiagnosticArray, DIAGNOSTICS)
+        self._timer = node.create_timer(period_s, self.publish, clock=steady_clock())
+
+    def publish(self) -> None:
+        """Publish the current report now."""
+        level, message, values = self._report()
+        unmatched = ' '.join(s.topic_name for s in self._inputs if s.get_publisher_count() == 0)
+        status = DiagnosticStatus(
+            level=bytes((level,)), name=self._node.get_fully_qualified_name(), message=message,
+            hardware_id='fall_predictor',
+            values=[KeyValue(key=key, value=str(value)) for key, value in values.items()]
+            + [KeyValue(key=UNMATCHED_INPUTS, value=unmatched)])
+        msg = DiagnosticArray(status=[status])
+        msg.header.stamp = ros_qos.stamp(max(0.0, self._sample_time()))
+        self._publisher.publish(msg)
+
+
+class InputErrors:
+    """Counts rejected inputs and logs them, throttled to one line per ``throttle_s``."""
+
+    def __init__(self, node: Node, throttle_s: float = 1.0) -> None:
+        self._node = node
+        self._throttle_s = throttle_s
+        self.count = 0
+        self.last: str = ''
+        self._reported = 0
+
+    def reject(self, what: str, error: Exception) -> None:
+        self.count += 1
+        self.last = f'{what}: {error}'
+        self._node.get_logger().warning(
+            f'dropped {self.last} ({self.count} dropped so far)',
+            throttle_duration_sec=self._throttle_s)
+
+    def new_since_last_call(self) -> int:
+        """Inputs rejected since the previous call (for a periodic health report)."""
+        new, self._reported = self.count - self._reported, self.count
+        return new
+
+
+# --------------------------------------------------------------------------------------------
+# main()
+# --------------------------------------------------------------------------------------------
+
+def run_node(factory: Callable[[], Node], name: str, args: Optional[list[str]] = None) -> int:
+    """Create the node with ``factory`` and spin it until Ctrl-C / SIGTERM / shutdown.
+
+    Returns the process exit code: 0 after a normal shutdown, 1 if the node could not start
+    (the reason is logged as one FATAL line, no traceback).
+    """
+    rclpy.init(args=args)
+    node: Optional[Node] = None
+    try:
+        try:
+            node = factory()
+        except NodeStartupError as error:
+            rclpy.logging.get_logger(name).fatal(f'cannot start: {error}')
+            return 1
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        try:
+            executor.spin()
+        except (KeyboardInterrupt, ExternalShutdownException):
+            pass
+        return 0
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()

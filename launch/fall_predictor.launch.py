@@ -1,0 +1,55 @@
+"""Launch the onboard fall monitor: simulator, controller, feature and predictor nodes, and
+optionally the recorder.
+
+Usage (full ROS 2 install, package built with colcon)::
+
+    ros2 launch fall_predictor fall_predictor.launch.py
+    ros2 launch fall_predictor fall_predictor.launch.py real_time_factor:=0.0 record:=true \
+        bag_path:=/tmp/fall_bags model_path:=/path/to/model.json
+
+Parameters come from ``config/fall_predictor.yaml`` (``params_file``); the launch arguments
+``real_time_factor``, ``model_path`` and ``bag_path`` are applied on top of it, so they win
+over the file's values. Each node is a console script of the package (setup.py).
+"""
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument
+from launch.conditions import IfCondition
+from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
+from launch_ros.actions import Node
+from launch_ros.parameter_descriptions import ParameterValue
+from launch_ros.substitutions import FindPackageShare
+
+
+def generate_launch_description() -> LaunchDescription:
+    params_file = LaunchConfiguration('params_file')
+    arguments = [
+        DeclareLaunchArgument(
+            'params_file',
+            default_value=PathJoinSubstitution(
+                [FindPackageShare('fall_predictor'), 'config', 'fall_predictor.yaml']),
+            description='parameters of all nodes (ROS 2 params file)'),
+        DeclareLaunchArgument('model_path', default_value='',
+                              description='model file; empty = the shipped default model'),
+        DeclareLaunchArgument('real_time_factor', default_value='1.0',
+                              description='simulated seconds per wall second; 0.0 = fast'),
+        DeclareLaunchArgument('record', default_value='false',
+                              description='also run the recorder node'),
+        DeclareLaunchArgument('bag_path', default_value='',
+                              description='recorder output directory (one bag per run)'),
+    ]
+
+    def node(executable: str, overrides: dict | None = None, **kwargs) -> Node:
+        return Node(package='fall_predictor', executable=executable, name=executable,
+                    parameters=[params_file, overrides or {}], output='screen', **kwargs)
+
+    return LaunchDescription(arguments + [
+        node('simulator_node', {'real_time_factor': ParameterValue(
+            LaunchConfiguration('real_time_factor'), value_type=float)}),
+        node('controller_node'),
+        node('feature_node'),
+        node('predictor_node', {'model_path': ParameterValue(
+            LaunchConfiguration('model_path'), value_type=str)}),
+        node('recorder_node', {'bag_path': ParameterValue(
+            LaunchConfiguration('bag_path'), value_type=str)},
+            condition=IfCondition(LaunchConfiguration('record'))),
+    ])

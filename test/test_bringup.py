@@ -1,0 +1,75 @@
+"""Bring-up: the nodes as processes, two pushes in a row, JSON lines, clean shutdown."""
+from __future__ import annotations
+
+import argparse
+import io
+import json
+from pathlib import Path
+
+from test_nodes_support import test_domain_id, write_momentum_model
+
+from fall_predictor.bagio import read_trajectory
+from fall_predictor.bringup import add_arguments, run_bringup
+from fall_predictor.pushes import PushDistribution, trajectory_seed
+
+SEED = 4            # two strong pushes (472 N and 490 N) at about 2.2 s: short runs
+PUSHES = 2
+HORIZON_S = 0.5
+
+
+def _node_processes_on(domain_id: int) -> list[int]:
+    """Pids of fall_predictor node processes running on ``domain_id``."""
+    pids = []
+    for proc in Path('/proc').iterdir():
+        if not proc.name.isdigit():
+            continue
+        try:
+            cmdline = (proc / 'cmdline').read_bytes()
+            environ = (proc / 'environ').read_bytes().split(b'\0')
+        except OSError:
+            continue                                # gone, or not ours to read
+        if b'fall_predictor.nodes.' in cmdline and f'ROS_DOMAIN_ID={domain_id}'.encode() in environ:
+            pids.append(int(proc.name))
+    return pids
+
+
+def test_bringup_pushes_reports_json_and_leaves_no_process(tmp_path: Path) -> None:
+    domain = test_domain_id(140)
+    out = io.StringIO()
+    results = run_bringup(PUSHES, SEED, out, domain_id=domain,
+                          model_path=write_momentum_model(tmp_path / 'model.json'),
+                          record_dir=tmp_path / 'bags', horizon_s=HORIZON_S,
+                          log_dir=tmp_path / 'logs')
+    assert _node_processes_on(domain) == []
+    assert [json.loads(line) for line in out.getvalue().splitlines()] == results
+    for index, result in enumerate(results):
+        push = PushDistribution().sample(trajectory_seed(SEED, index))
+        assert result['index'] == index and result['seed'] == SEED
+        assert result['push']['force_n'] == push.force_n and result['push']['t_push'] == push.t_push
+        assert result['push_applied_world_n'] is not None
+        # Both pushes exceed the model's momentum threshold: predicted, C_fall took over.
+        assert push.t_push <= result['t_predict'] <= push.t_force_end
+        assert result['controller_mode'] == 'fall'
+        assert result['outcome'] in ('fall_predicted', 'predicted_no_fall')
+        assert result['fell'] == (result['t_fallen'] is not None)
+        if result['fell']:
+            assert result['lead_time_s'] == round(result['t_fallen'] - result['t_predict'], 6)
+            assert result['stopped_by'] == 'fallen'
+        else:
+            assert result['lead_time_s'] is None and result['stopped_by'] == 'horizon'
+            assert result['t_end'] >= push.t_force_end + HORIZON_S - 1e-9
+        assert not result['false_alarm_before_push']
+    bags = sorted((tmp_path / 'bags').glob('run_*'))
+    assert [b.name for b in bags] == ['run_000', 'run_001']
+    for index, bag in enumerate(bags):
+        recorded = read_trajectory(bag)
+        assert recorded.measurements[0].t == 0.0
+        assert [p.t for p in recorded.pushes] == [results[index]['push']['t_push']]
+
+
+def test_bringup_arguments() -> None:
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    args = parser.parse_args(['--pushes', '3', '--seed', '7', '--json', '--real-time-factor', '1'])
+    assert (args.pushes, args.seed, args.json, args.real_time_factor) == (3, 7, True, 1.0)
+    assert args.domain_id is None and args.record is None

@@ -1,0 +1,367 @@
+"""The five nodes as separate processes over real DDS: one scenario, several checks.
+
+The module fixture starts the recorder, predictor (hand-built momentum model), feature,
+controller and simulator nodes (lock-step, as fast as possible) on a private ROS domain and
+drives two runs through the simulator's ``~/reset``:
+
+1. 10 s of walking without a push; at t = 5 s the predictor's ``tau_his_s`` is changed from
+   the model's 0.01 s to 0.05 s at run time; at t = 3 s malformed joint commands and push
+   requests are sent to the simulator;
+2. a fresh world pushed sideways with 450 N for 0.1 s at t = 2.5 s (offline, under C_bal
+   throughout, this push makes the robot fall at t = 3.55 s), followed for 1.5 s.
+
+Then the simulator is paused, and the later tests inject malformed messages, let the inputs
+go stale, and finally stop everything and compare the bags with what the nodes published.
+The tests of this module share that live system and run in file order.
+"""
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pytest
+from geometry_msgs.msg import WrenchStamped
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+from test_nodes_support import (MODEL_TAU_HIS_S, Probe, ros_context, test_domain_id,
+                                write_momentum_model)
+
+from fall_predictor import robot_model as rm
+from fall_predictor import ros_qos
+from fall_predictor.bagio import iter_messages, read_trajectory
+from fall_predictor.bringup import (NodeProcess, default_params_file, ros_environment,
+                                    start_node, stop_nodes)
+from fall_predictor.features import extract_features
+from fall_predictor.nodes.common import create_publisher
+from fall_predictor.records import Measurement, PushSpec
+from fall_predictor.wire import (CONTROLLER_MODE, FEATURES, FEATURES_LABEL, JOINT_COMMANDS,
+                                 JOINT_STATES, LEVEL_STALE, MEASUREMENT, MEASUREMENT_LABEL, PUSH,
+                                 STATE, PredictorState)
+
+STRONG_PUSH = PushSpec(force_n=450.0, angle_deg=90.0, height_m=0.1, t_push=2.5)
+NO_PUSH_RUN_S = 10.0
+TAU_HIS_CHANGE_AT_S = 5.0           #: requested when the probe sees this sample time [s]
+NEW_TAU_HIS_S = 0.05
+FOLLOW_AFTER_PUSH_S = 1.5
+#: Wall-clock limit of each run [s] (a run normally takes 2 to 4 ms per simulated ms).
+RUN_TIMEOUT_S = 120.0
+
+
+@dataclass
+class Run:
+    """What the probe received during one run."""
+
+    samples: list[tuple[float, bool]]
+    states: list[PredictorState]
+    modes: list[tuple[float, str]]
+
+    @property
+    def t_fallen(self) -> float | None:
+        return next((t for t, fallen in self.samples if fallen), None)
+
+
+@dataclass
+class System:
+    probe: Probe
+    nodes: dict[str, NodeProcess]
+    tmp: Path
+    runs: list[Run] = field(default_factory=list)
+    t_tau_his_set: float = math.nan          #: sample time when the change was acknowledged
+
+
+def _start_nodes(tmp: Path, domain: int) -> dict[str, NodeProcess]:
+    env = ros_environment(domain)
+    params = default_params_file()
+    model = write_momentum_model(tmp / 'model.json')
+    overrides = {
+        # The recorder first, so that it is matched before anything is published.
+        'recorder_node': {'bag_path': str(tmp / 'bags')},
+        # No startup STALE states before the recorder has surely matched the predictor.
+        'predictor_node': {'model_path': str(model), 'stale_timeout_s': '5.0'},
+        'feature_node': {},
+        'controller_node': {},
+        'simulator_node': {'autostart': 'false', 'real_time_factor': '0.0'},
+    }
+    nodes = {}
+    for name, values in overrides.items():
+        nodes[name] = start_node(name, params, values, env, tmp)
+        if name == 'recorder_node':
+            time.sleep(1.0)
+    return nodes
+
+
+def _alive(nodes: dict[str, NodeProcess]) -> None:
+    for node in nodes.values():
+        assert node.process.poll() is None, f'{node.name} died:\n{node.log_tail()}'
+
+
+def _connected(probe: Probe, nodes: dict[str, NodeProcess]) -> bool:
+    _alive(nodes)
+    return (probe.all_inputs_matched(f'/{name}' for name in nodes)
+            and probe.reset_client.service_is_ready()
+            and probe.push_pub.get_subscription_count() >= 1
+            and all(s.get_publisher_count() >= 1 for s in probe.subscriptions))
+
+
+def _run(probe: Probe, nodes: dict[str, NodeProcess], until: float) -> Run:
+    """Follow the current run until sample time ``until`` [s] or fallen; what was received."""
+    deadline = time.monotonic() + RUN_TIMEOUT_S
+    while not (probe.t >= until or (probe.samples and probe.samples[-1][1])):
+        assert time.monotonic() < deadline, f'run stuck at t = {probe.t} s'
+        _alive(nodes)
+        probe.spin_for(0.2)
+    probe.spin_for(0.3)                                   # states still in flight
+    end = probe.t
+    return Run([s for s in probe.samples if s[0] <= end],
+               [s for s in probe.states if s.t <= end], list(probe.modes))
+
+
+def _send_bad_commands_and_push_requests(probe: Probe) -> None:
+    node = probe.node
+    commands = create_publisher(node, JointState, JOINT_COMMANDS)
+    # Matched with the simulator and the recorder.
+    assert probe.spin_until(lambda: commands.get_subscription_count() >= 2, 10.0)
+    wrong_names = ros_qos.joint_state_to_msg(probe.t, [f'j{i}' for i in range(26)], np.zeros(26))
+    nan_command = ros_qos.joint_state_to_msg(probe.t, rm.JOINT_NAMES, np.zeros(26))
+    nan_command.position[3] = math.nan
+    commands.publish(wrong_names)
+    commands.publish(nan_command)
+    vertical, bad_frame, bad_torque = WrenchStamped(), WrenchStamped(), WrenchStamped()
+    vertical.wrench.force.z = 100.0
+    bad_frame.header.frame_id = 'world'
+    bad_frame.wrench.force.x = 100.0
+    bad_torque.wrench.force.x = 100.0
+    bad_torque.wrench.torque.z = 5.0
+    for msg in (vertical, bad_frame, bad_torque):
+        probe.push_pub.publish(msg)
+    # The publisher stays (the node keeps it): destroying it could discard what is not
+    # acknowledged yet, and waiting for the acknowledgements would stop the probe from
+    # taking its states for up to a DDS heartbeat period (3 s).
+
+
+@pytest.fixture(scope='module')
+def system(tmp_path_factory: pytest.TempPathFactory) -> Iterator[System]:
+    tmp = tmp_path_factory.mktemp('nodes')
+    domain = test_domain_id(0)
+    nodes: dict[str, NodeProcess] = {}
+    with ros_context(domain) as context:
+        probe = Probe(context)
+        try:
+            nodes = _start_nodes(tmp, domain)
+            assert probe.spin_until(lambda: _connected(probe, nodes), 60.0), \
+                'nodes did not come up'
+            system = System(probe, nodes, tmp)
+
+            # Run 1: walking, no push; tau_his changed at run time; garbage to the simulator.
+            probe.reset_world()
+            assert probe.spin_until(lambda: probe.t >= 3.0, RUN_TIMEOUT_S)
+            _send_bad_commands_and_push_requests(probe)
+            assert probe.spin_until(lambda: probe.t >= TAU_HIS_CHANGE_AT_S, RUN_TIMEOUT_S)
+            results = probe.set_parameters('predictor_node', tau_his_s=NEW_TAU_HIS_S)
+            assert results[0].successful, results[0].reason
+            system.t_tau_his_set = probe.t
+            system.runs.append(_run(probe, nodes, NO_PUSH_RUN_S))
+
+            # Run 2: a fresh world and a strong sideways push.
+            probe.reset_world()
+            probe.request_push(STRONG_PUSH)
+            system.runs.append(_run(probe, nodes, STRONG_PUSH.t_force_end + FOLLOW_AFTER_PUSH_S))
+            _alive(nodes)
+            probe.pause_world()
+            yield system
+        finally:
+            probe.destroy()
+            stop_nodes(nodes)
+
+
+def test_no_push_gives_no_trigger_for_10_s(system: System) -> None:
+    run = system.runs[0]
+    assert run.samples[-1][0] >= NO_PUSH_RUN_S
+    assert [t for t, _ in run.samples[:3]] == [0.0, 0.001, 0.002]
+    assert run.t_fallen is None
+    assert not any(s.falling or s.atomic or s.latched for s in run.states)
+    assert {mode for _, mode in run.modes} <= {'balance'}
+    # One state per sample, each stamped with its sample's time.
+    ts = [s.t for s in run.states if s.stale_reason is None]
+    assert ts == sorted(set(ts))
+    assert ts == [t for t, _ in run.samples if t <= ts[-1]]
+
+
+def test_simulator_survived_malformed_commands_and_push_requests(system: System) -> None:
+    # The garbage of run 1 (t = 3 s) was rejected and counted; run 1 went on to 10 s.
+    status = system.probe.diagnostics['/simulator_node']
+    assert int(status.values['invalid_commands']) >= 1       # wrong names
+    assert int(status.values['push_requests_rejected']) == 3
+    assert int(status.values['pushes']) == 1                 # only the strong push
+
+
+def test_tau_his_change_takes_effect_while_running(system: System) -> None:
+    run1, run2 = system.runs
+    # One switch, in sample order, from the model's window to the new one; every sample
+    # after the change was acknowledged (the predictor lags the simulator) has the new one.
+    taus = [s.tau_his_s for s in run1.states]
+    switch = taus.index(NEW_TAU_HIS_S)
+    assert set(taus[:switch]) == {MODEL_TAU_HIS_S} and set(taus[switch:]) == {NEW_TAU_HIS_S}
+    assert 1.0 < run1.states[switch].t < system.t_tau_his_set + 0.1
+    # The new window decides the trigger: falling exactly 50 ms into the atomic run.
+    first_atomic = next(s for s in run2.states if s.atomic and s.t >= STRONG_PUSH.t_push)
+    first_falling = next(s for s in run2.states if s.falling)
+    assert first_falling.t - first_atomic.t == pytest.approx(NEW_TAU_HIS_S, abs=1e-6)
+    assert all(s.atomic for s in run2.states if first_atomic.t <= s.t <= first_falling.t)
+
+
+def test_strong_push_is_predicted_before_fallen_and_controller_switches_for_good(
+        system: System) -> None:
+    run = system.runs[1]
+    predicted = next((s for s in run.states if s.falling), None)
+    assert predicted is not None, 'the strong push was not predicted'
+    assert STRONG_PUSH.t_push <= predicted.t < STRONG_PUSH.t_force_end + 0.2
+    assert predicted.atomic and not predicted.guard           # the decision list, not the guard
+    if run.t_fallen is not None:                              # C_fall may keep it up
+        assert predicted.t < run.t_fallen
+    modes = [mode for _, mode in run.modes]
+    assert 'fall' in modes
+    assert 'balance' not in modes[modes.index('fall'):]        # one-way
+    assert all(s.latched for s in run.states if s.t >= predicted.t and s.stale_reason is None)
+    status = system.probe.fresh_diagnostics('/controller_node')
+    assert status.values['mode'] == 'fall'
+    assert float(status.values['t_switch_s']) >= predicted.t
+
+
+def test_invalid_parameters_are_rejected_with_a_reason(system: System) -> None:
+    probe = system.probe
+    out_of_range = {'predictor_node': {'tau_his_s': -0.5},
+                    'simulator_node': {'real_time_factor': -1.0},
+                    'feature_node': {'stale_timeout_s': 0.0}}
+    read_only = {'predictor_node': {'model_path': '/elsewhere.json'},
+                 'simulator_node': {'lockstep': False},
+                 'controller_node': {'walk_duration_s': 10.0}}
+    for node, values in out_of_range.items():
+        result = probe.set_parameters(node, **values)[0]
+        assert not result.successful and 'range' in result.reason, (node, result.reason)
+    for node, values in read_only.items():
+        result = probe.set_parameters(node, **values)[0]
+        assert not result.successful and 'read-only' in result.reason, (node, result.reason)
+    result = probe.set_parameters('predictor_node', tau_his_s='long')[0]
+    assert not result.successful and 'type' in result.reason, result.reason
+    assert probe.set_parameters('simulator_node', command_timeout_s=0.25)[0].successful
+    assert probe.fresh_diagnostics('/predictor_node').values['tau_his_s'] == str(NEW_TAU_HIS_S)
+    _alive(system.nodes)
+
+
+def _measurement_msg(values: list[float], size: int | None = None,
+                     label: str = MEASUREMENT_LABEL) -> Float64MultiArray:
+    msg = Float64MultiArray()
+    n = len(values) if size is None else size
+    msg.layout.dim = [MultiArrayDimension(label=label, size=n, stride=n)]
+    msg.data = [float(v) for v in values]
+    return msg
+
+
+def test_bad_input_does_not_kill_any_node_and_gives_degraded_state(system: System) -> None:
+    probe = system.probe
+    good = list(ros_qos.measurement_to_msg(_fake_measurement()).data)
+    nan_com, inf_mom = list(good), list(good)
+    nan_com[1] = math.nan
+    inf_mom[5] = math.inf
+    bad_measurements = [_measurement_msg(nan_com), _measurement_msg(inf_mom),
+                        _measurement_msg(good[:10]), _measurement_msg(good, size=3),
+                        _measurement_msg(good, label=FEATURES_LABEL)]
+    features = list(ros_qos.features_to_msg(4.2, np.zeros(15), 0).data)
+    nan_features, bad_mode = list(features), list(features)
+    nan_features[3] = math.nan
+    bad_mode[-1] = 99.0
+    bad_features = [_measurement_msg(nan_features, label=FEATURES_LABEL),
+                    _measurement_msg(bad_mode, label=FEATURES_LABEL),
+                    _measurement_msg(features[:5], label=FEATURES_LABEL),
+                    _measurement_msg([math.inf] * 17, label=FEATURES_LABEL)]
+    measurement_pub = create_publisher(probe.node, Float64MultiArray, MEASUREMENT)
+    features_pub = create_publisher(probe.node, Float64MultiArray, FEATURES)
+    assert probe.spin_until(lambda: measurement_pub.get_subscription_count() >= 3
+                            and features_pub.get_subscription_count() >= 2, 10.0)
+    probe.states.clear()
+    for msg in bad_measurements:
+        measurement_pub.publish(msg)
+    for msg in bad_features:
+        features_pub.publish(msg)
+
+    def degraded() -> list[PredictorState]:
+        return [s for s in probe.states if s.stale_reason and 'invalid' in s.stale_reason]
+
+    assert probe.spin_until(lambda: len(degraded()) == len(bad_features), 10.0), probe.states
+    assert all(s.level == LEVEL_STALE and not s.falling for s in degraded())
+    feature_status = probe.fresh_diagnostics('/feature_node')
+    assert int(feature_status.values['invalid_measurements']) == len(bad_measurements)
+    controller_status = probe.fresh_diagnostics('/controller_node')
+    assert int(controller_status.values['invalid_measurements']) == len(bad_measurements)
+    predictor_status = probe.fresh_diagnostics('/predictor_node')
+    assert int(predictor_status.values['invalid_features']) == len(bad_features)
+    _alive(system.nodes)
+
+
+def _fake_measurement() -> Measurement:
+    return Measurement(t=50.0, com=np.array([0.0, 0.0, 0.59]), lin_mom=np.zeros(3),
+                       ang_mom=np.zeros(3), heading=0.0, cop=np.zeros(3),
+                       left_contacts=np.zeros((1, 3)), right_contacts=np.zeros((0, 3)),
+                       left_foot=np.zeros(3), right_foot=np.zeros(3), non_foot_contact=False)
+
+
+def test_stale_inputs_give_stale_state_and_diagnostics(system: System) -> None:
+    probe = system.probe
+    result = probe.set_parameters('predictor_node', stale_timeout_s=0.3)[0]
+    assert result.successful
+    probe.states.clear()
+    assert probe.spin_until(lambda: any(s.stale_reason and s.stale_reason.startswith(
+        'no valid features') for s in probe.states), 5.0)
+    stale = [s for s in probe.states if s.stale_reason]
+    assert all(s.level == LEVEL_STALE and not s.falling for s in stale)
+    assert probe.fresh_diagnostics('/predictor_node').level == LEVEL_STALE
+    assert probe.fresh_diagnostics('/feature_node').level == LEVEL_STALE
+
+
+def test_recorder_bags_hold_every_published_message(system: System) -> None:
+    probe = system.probe
+    nodes = system.nodes
+    # No more STALE states from now on, so that the counts below are final.
+    assert probe.set_parameters('predictor_node', stale_timeout_s=60.0)[0].successful
+    final = {name: probe.fresh_diagnostics(f'/{name}').values
+             for name in ('simulator_node', 'controller_node', 'feature_node', 'predictor_node')}
+    simulator = final['simulator_node']
+    codes = stop_nodes(nodes)
+    assert all(code == 0 for code in codes.values()), codes
+    published = {
+        MEASUREMENT.name: int(simulator['measurements']),
+        JOINT_STATES.name: int(simulator['joint_states']),
+        PUSH.name: int(simulator['pushes']),
+        # + the probe's wrong-names command: valid on the wire, rejected by the simulator only.
+        JOINT_COMMANDS.name: int(final['controller_node']['commands']) + 1,
+        CONTROLLER_MODE.name: int(final['controller_node']['modes']),
+        FEATURES.name: int(final['feature_node']['features']),
+        STATE.name: int(final['predictor_node']['states']),
+    }
+    bags = sorted((system.tmp / 'bags').glob('run_*'))
+    assert [b.name for b in bags] == ['run_000', 'run_001']
+    in_bags = dict.fromkeys(published, 0)
+    for bag in bags:
+        for message in iter_messages(bag):
+            in_bags[message.topic] += 1
+    assert in_bags == published
+
+    runs = [read_trajectory(bag) for bag in bags]
+    for recorded in runs:
+        # What the dataset code does with a bag: features from the measurements.
+        X, mode = extract_features(recorded.measurements)
+        live = {f.t: f for f in recorded.features}
+        for i, m in enumerate(recorded.measurements):
+            assert np.array_equal(live[m.t].x, X[i]) and live[m.t].mode == mode[i]
+    assert runs[0].measurements[-1].t >= NO_PUSH_RUN_S
+    assert len(runs[1].pushes) == 1 and runs[1].pushes[0].t == STRONG_PUSH.t_push
+    # After the switch, C_fall holds one pose.
+    t_switch = float(probe.diagnostics['/controller_node'].values['t_switch_s'])
+    frozen = [m.msg.position for m in iter_messages(bags[1], [JOINT_COMMANDS.name])
+              if m.t_ns > round(t_switch * 1e9)]
+    assert frozen and all(np.array_equal(q, frozen[0]) for q in frozen)

@@ -1,0 +1,148 @@
+"""Node building blocks without a running system: push requests, run detection, parameters,
+and the predictor node's start-up (model loading, parameter validation) in and out of process."""
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from geometry_msgs.msg import WrenchStamped
+from rclpy.parameter import Parameter
+from test_nodes_support import MODEL_TAU_HIS_S, ros_context, test_domain_id, write_momentum_model
+
+from fall_predictor.bringup import ros_environment
+from fall_predictor.nodes.observer import push_request_msg
+from fall_predictor.nodes.common import NodeStartupError, ParamSpec, RunTracker, Sample
+from fall_predictor.nodes.predictor_node import PredictorNode, default_model_path
+from fall_predictor.nodes.simulator_node import MAX_PUSH_HEIGHT_M, push_from_request
+from fall_predictor.records import PushSpec
+
+DOMAIN = test_domain_id(70)
+
+
+# -- push requests ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize('push', [PushSpec(450.0, 90.0, 0.1, 2.5),
+                                  PushSpec(120.0, -135.0, -0.05, 3.0),
+                                  PushSpec(300.0, 0.0, 0.25, 2.123)])
+def test_push_request_round_trip(push: PushSpec) -> None:
+    back = push_from_request(push_request_msg(push), now_s=1.0)
+    assert back.force_n == pytest.approx(push.force_n)
+    assert back.angle_deg == pytest.approx(push.angle_deg)
+    assert back.height_m == pytest.approx(push.height_m)
+    assert back.t_push == push.t_push and back.duration_s == 0.1
+
+
+def test_push_request_onset_on_the_step_grid_and_never_in_the_past() -> None:
+    msg = push_request_msg(PushSpec(100.0, 0.0, 0.0, 2.5004))
+    assert push_from_request(msg, now_s=1.0).t_push == 2.5
+    assert push_from_request(msg, now_s=3.217).t_push == 3.217
+
+
+def _request(fx: float = 100.0, fy: float = 0.0, fz: float = 0.0, torque=(0.0, 0.0, 0.0),
+             frame: str = 'heading') -> WrenchStamped:
+    msg = WrenchStamped()
+    msg.header.frame_id = frame
+    msg.wrench.force.x, msg.wrench.force.y, msg.wrench.force.z = fx, fy, fz
+    msg.wrench.torque.x, msg.wrench.torque.y, msg.wrench.torque.z = torque
+    return msg
+
+
+@pytest.mark.parametrize('msg,problem', [
+    (_request(fz=50.0), 'horizontal'),
+    (_request(frame='world'), 'frame_id'),
+    (_request(torque=(0.0, 0.0, 3.0)), 'not (0, 0, h) x force'),
+    (_request(torque=(5.0, 0.0, 0.0)), 'not (0, 0, h) x force'),
+    (_request(torque=(0.0, 100.0 * (MAX_PUSH_HEIGHT_M + 0.5), 0.0)), 'exceeds'),
+    (_request(fx=math.nan), 'finite'),
+])
+def test_bad_push_requests_are_rejected_with_the_reason(msg: WrenchStamped, problem: str) -> None:
+    with pytest.raises(ValueError, match=problem.replace('(', r'\(').replace(')', r'\)')):
+        push_from_request(msg, now_s=0.0)
+
+
+def test_empty_frame_means_heading_frame() -> None:
+    assert push_from_request(_request(frame=''), 0.0).force_n == 100.0
+
+
+# -- runs and parameters -----------------------------------------------------------------------
+
+def test_run_tracker_notices_resets_and_repeats() -> None:
+    runs = RunTracker()
+    kinds = [runs.classify(t) for t in (0.0, 0.001, 0.001, 0.002, 0.0, 0.0, 0.001, 0.0005)]
+    assert kinds == [Sample.NEXT, Sample.NEXT, Sample.REPEAT, Sample.NEXT, Sample.NEW_RUN,
+                     Sample.NEW_RUN, Sample.NEXT, Sample.NEW_RUN]
+    assert runs.runs == 3
+
+
+def test_run_tracker_with_a_start_window_keeps_stray_samples_in_the_run() -> None:
+    runs = RunTracker(restart_at_zero=False, max_start_t_s=1.0)
+    kinds = [runs.classify(t) for t in (0.0, 0.0, 3.0, 2.999, 3.001, 0.0)]
+    assert kinds == [Sample.NEXT, Sample.REPEAT, Sample.NEXT, Sample.NEXT, Sample.NEXT,
+                     Sample.NEW_RUN]
+
+
+def test_param_spec_checks_type_finiteness_and_range() -> None:
+    spec = ParamSpec('tau_his_s', 0.05, 'window [s]', 0.0, 2.0)
+    assert spec.check(0.5) is None
+    assert 'must be a float' in spec.check(1)
+    assert 'finite' in spec.check(math.nan)
+    assert 'outside [0.0, 2.0]' in spec.check(2.5)
+    descriptor = spec.descriptor()
+    assert descriptor.floating_point_range[0].to_value == 2.0
+    assert ParamSpec('seed', 0, 'seed', 0, 10).descriptor().integer_range[0].to_value == 10
+    assert ParamSpec('on', True, 'flag').check(True) is None
+
+
+# -- predictor start-up ------------------------------------------------------------------------
+
+def test_predictor_node_defaults_tau_his_to_the_models_recommendation(tmp_path: Path) -> None:
+    model = write_momentum_model(tmp_path / 'model.json')
+    with ros_context(DOMAIN) as context:
+        node = PredictorNode(context=context,
+                             parameter_overrides=[Parameter('model_path', value=str(model))])
+        try:
+            assert node.get_parameter('tau_his_s').value == MODEL_TAU_HIS_S
+        finally:
+            node.destroy_node()
+
+
+def test_predictor_node_refuses_a_missing_model_in_process(tmp_path: Path) -> None:
+    missing = tmp_path / 'nowhere.json'
+    with ros_context(DOMAIN) as context:
+        with pytest.raises(NodeStartupError, match='nowhere.json'):
+            PredictorNode(context=context,
+                          parameter_overrides=[Parameter('model_path', value=str(missing))])
+
+
+def test_default_model_is_looked_up_in_the_package_models_directory() -> None:
+    assert default_model_path().parts[-2:] == ('models', 'default_model.json')
+
+
+def test_predictor_process_refuses_to_start_with_a_clear_error(tmp_path: Path) -> None:
+    """Missing model, corrupt model, invalid parameter: exit code 1, one FATAL line naming
+    the problem, no traceback (three processes started at once)."""
+    good = write_momentum_model(tmp_path / 'good.json')
+    corrupt = tmp_path / 'corrupt.json'
+    corrupt.write_text(good.read_text()[:200])
+    cases = {
+        'missing': (['-p', f'model_path:={tmp_path / "missing.json"}'], 'missing.json'),
+        'corrupt': (['-p', f'model_path:={corrupt}'], 'malformed or truncated JSON'),
+        'bad tau_his': (['-p', f'model_path:={good}', '-p', 'tau_his_s:=5.0'], 'tau_his_s'),
+    }
+    env = ros_environment(DOMAIN)
+    processes = {
+        name: subprocess.Popen(
+            [sys.executable, '-m', 'fall_predictor.nodes.predictor_node', '--ros-args', *args],
+            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+        for name, (args, _) in cases.items()}
+    for name, process in processes.items():
+        output, _ = process.communicate(timeout=60)
+        expected = cases[name][1]
+        assert process.returncode == 1, (name, output)
+        assert 'Traceback' not in output, (name, output)
+        fatal = [line for line in output.splitlines() if '[FATAL]' in line]
+        assert len(fatal) == 1 and 'cannot start' in fatal[0] and expected in fatal[0], output
+
