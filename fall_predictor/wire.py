@@ -28,8 +28,8 @@ Features layout v1 (17 float64): ``[0]`` t [s], ``[1:16]`` the 15 features in
 :data:`~fall_predictor.records.FEATURE_NAMES` order, ``[16]`` the contact mode index
 (:data:`~fall_predictor.records.CONTACT_MODE_NAMES`).
 
-Header stamps and bag log times are simulation time (nodes run with ``use_sim_time`` and
-``/clock``). Every malformed input raises :class:`WireFormatError` naming the field.
+Header stamps and bag log times are simulation time, taken from the samples themselves (the
+nodes do not need ``use_sim_time``; ``/clock`` is published for tools that do). Every malformed input raises :class:`WireFormatError` naming the field.
 """
 from __future__ import annotations
 
@@ -132,6 +132,17 @@ JOINT_STATES = TopicSpec(
 PUSH = TopicSpec(
     '/fall_predictor/push', 'geometry_msgs/msg/WrenchStamped', EVENT_QOS, None,
     WORLD_FRAME, None, f'push onset (stamp) and world force [N], lasting {PUSH_DURATION_S} s')
+#: Frame of a push request's force: the robot's heading frame (x forward, y left, z up).
+PUSH_REQUEST_FRAME = 'heading'
+#: Input of the simulator node: a push to apply. ``header.stamp`` = requested onset in
+#: simulation time (a time already past means "at the next step"); ``wrench.force`` = the
+#: horizontal force [N] in :data:`PUSH_REQUEST_FRAME`; ``wrench.torque`` = its moment about
+#: the CoM [N m], ``(0, 0, h) x force`` for an application point ``h`` metres above the CoM.
+#: The force lasts ``PUSH_DURATION_S`` (0.1 s, SPEC §3).
+PUSH_REQUEST = TopicSpec(
+    '/fall_predictor/push_request', 'geometry_msgs/msg/WrenchStamped', EVENT_QOS, None,
+    PUSH_REQUEST_FRAME, None,
+    'push to apply: onset (stamp), heading-frame force [N], torque about the CoM [N m]')
 CONTROLLER_MODE = TopicSpec(
     '/fall_predictor/controller_mode', 'std_msgs/msg/String', LATCHED_QOS, None,
     None, None, "active controller: 'balance' or 'fall'")
@@ -147,8 +158,8 @@ DIAGNOSTICS = TopicSpec(
 
 #: The interface table, in README order.
 TOPICS: tuple[TopicSpec, ...] = (
-    MEASUREMENT, FEATURES, STATE, JOINT_STATES, PUSH, CONTROLLER_MODE, JOINT_COMMANDS, CLOCK,
-    DIAGNOSTICS,
+    MEASUREMENT, FEATURES, STATE, JOINT_STATES, PUSH, PUSH_REQUEST, CONTROLLER_MODE,
+    JOINT_COMMANDS, CLOCK, DIAGNOSTICS,
 )
 TOPICS_BY_NAME: dict[str, TopicSpec] = {spec.name: spec for spec in TOPICS}
 

@@ -36,22 +36,13 @@ from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
 from rclpy.subscription import Subscription
 
-from fall_predictor import ros_qos
+from fall_predictor import ros_qos, wire
 from fall_predictor.wire import DIAGNOSTICS, DIAGNOSTICS_RATE_HZ, EVENT_QOS, SIM_RATE_HZ, TopicSpec
 
 #: Frame of a push request's force and torque: the robot's heading frame (x forward along
 #: the pelvis yaw, y to the left, z up), origin at the CoM. An empty frame_id means the same.
-PUSH_REQUEST_FRAME = 'heading'
-
-#: Input of the simulator node: a push to apply. ``header.stamp`` = requested onset in
-#: simulation time (a time already past means "at the next step"); ``wrench.force`` = the
-#: horizontal force [N] in :data:`PUSH_REQUEST_FRAME`; ``wrench.torque`` = its moment about
-#: the CoM [N m], ``(0, 0, h) x force`` for an application point ``h`` metres above the CoM.
-#: The force lasts ``PUSH_DURATION_S`` (0.1 s, SPEC §3).
-PUSH_REQUEST = TopicSpec(
-    '/fall_predictor/push_request', 'geometry_msgs/msg/WrenchStamped', EVENT_QOS, None,
-    PUSH_REQUEST_FRAME, None,
-    'push to apply: onset (stamp), heading-frame force [N], torque about the CoM [N m]')
+# The push-request topic is part of the contract: see wire.PUSH_REQUEST.
+PUSH_REQUEST, PUSH_REQUEST_FRAME = wire.PUSH_REQUEST, wire.PUSH_REQUEST_FRAME
 
 #: Period of the 1 kHz sample streams [s] (the simulator's step).
 SAMPLE_PERIOD_S = 1.0 / SIM_RATE_HZ
