@@ -124,6 +124,10 @@ def save_model(path: PathLike, lists: PerModeDecisionLists, metadata: ModelMetad
     try:
         with os.fdopen(handle, 'w', encoding='utf-8') as stream:
             stream.write(text)
+        # mkstemp creates 0600; a model is data to share (installed with the package).
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(temporary, 0o666 & ~umask)
         os.replace(temporary, path)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)

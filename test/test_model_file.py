@@ -145,3 +145,7 @@ def test_save_rejects_metadata_that_would_not_load(tmp_path):
     with pytest.raises(ModelFileError, match='weight'):
         save_model(path, example_lists(), bad_weight)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_saved_model_is_readable_by_others(model_path):
+    assert model_path.stat().st_mode & 0o044 == 0o044
