@@ -198,14 +198,17 @@ def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
                 model_path: Optional[Path] = None, params_file: Optional[Path] = None,
                 record_dir: Optional[Path] = None, horizon_s: float = 3.0,
                 log_dir: Optional[Path] = None, startup_timeout_s: float = 60.0,
-                push_distribution: Optional[PushDistribution] = None) -> list[dict]:
+                push_distribution: Optional[PushDistribution] = None,
+                fall_trigger: bool = True) -> list[dict]:
     """Start the nodes, push the robot ``pushes`` times, stop everything; see the module docs.
 
     ``real_time_factor`` 0 runs as fast as the lock-stepped pipeline allows (the outcome does
     not depend on it); ``record_dir`` also runs the recorder (one bag per push run);
     ``horizon_s`` is the simulation time [s] watched after a push ends if the robot does not
     fall; node logs go to ``log_dir`` (default: a new temporary directory);
-    ``push_distribution`` defaults to SPEC §3's. Raises :class:`BringupError` if a node fails
+    ``push_distribution`` defaults to SPEC §3's. With ``fall_trigger`` false the predictor
+    still runs and is reported, but C_bal stays in charge throughout (SPEC §4: the recording
+    then carries valid hindsight labels for training). Raises :class:`BringupError` if a node fails
     to start or dies, or the simulation gets stuck.
     """
     if pushes < 0:
@@ -225,7 +228,8 @@ def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
         'simulator_node': {'real_time_factor': repr(float(real_time_factor)),
                            'autostart': 'false', 'lockstep': 'true'},
         'predictor_node': {'model_path': str(Path(model_path).resolve())} if model_path else {},
-        'feature_node': {}, 'controller_node': {},
+        'feature_node': {},
+        'controller_node': {} if fall_trigger else {'fall_trigger_enabled': 'false'},
     }
     names = list(PIPELINE_NODES)
     if record_dir is not None:
@@ -315,6 +319,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help='simulated s watched after a push ends if no fall (default 3)')
     parser.add_argument('--log-dir', type=Path, default=None,
                         help='node logs (default: a new temporary directory)')
+    parser.add_argument('--no-fall-trigger', dest='fall_trigger', action='store_false',
+                        help='monitor only: C_bal stays in charge (record training data this way)')
 
 
 def cmd_bringup(args: argparse.Namespace) -> int:
@@ -324,7 +330,7 @@ def cmd_bringup(args: argparse.Namespace) -> int:
                               domain_id=args.domain_id, real_time_factor=args.real_time_factor,
                               model_path=args.model, params_file=args.params_file,
                               record_dir=args.record, horizon_s=args.horizon,
-                              log_dir=args.log_dir)
+                              log_dir=args.log_dir, fall_trigger=args.fall_trigger)
     except BringupError as error:
         print(f'error: {error}', file=sys.stderr)
         return 1

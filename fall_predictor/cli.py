@@ -333,6 +333,22 @@ def cmd_sweep(args) -> int:
     return 0
 
 
+def cmd_import_bags(args) -> int:
+    from fall_predictor.dataset import DatasetError, import_recordings
+
+    try:
+        report = import_recordings(args.bags, args.out)
+    except DatasetError as error:
+        print(f'fall-predictor import-bags: error: {error}', file=sys.stderr)
+        return 2
+    payload = {'out': str(args.out), 'imported': len(report.rows),
+               'fallen': sum(r.fallen for r in report.rows), 'rejected': report.rejected}
+    lines = [f'{len(report.rows)} recordings imported into {args.out} ({payload["fallen"]} fallen)']
+    lines += [f'REJECTED {bag}: {why}' for bag, why in report.rejected.items()]
+    _emit(args, payload, lines)
+    return 0 if report.rows else 1
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog='fall-predictor', description=__doc__)
     sub = parser.add_subparsers(dest='command', metavar='<command>')
@@ -374,6 +390,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--jobs', type=_positive_int, default=1)
     p.add_argument('--json', action='store_true')
     p.set_defaults(func=cmd_stats)
+
+    p = sub.add_parser('import-bags', help='make a dataset from live recordings (recorder_node bags)',
+                       description='Copy recorded bags (one push each, C_bal throughout: record with '
+                                   '`bringup --record DIR --no-fall-trigger`) into a new dataset directory '
+                                   'with an index, so that train/evaluate/sweep can use them.')
+    p.add_argument('bags', nargs='+', type=Path, help='bag directories')
+    p.add_argument('--out', type=Path, required=True, help='new dataset directory')
+    p.add_argument('--json', action='store_true')
+    p.set_defaults(func=cmd_import_bags)
 
     from fall_predictor.bringup import add_arguments as add_bringup_arguments, cmd_bringup
     p = sub.add_parser('bringup', help='start the ROS 2 nodes and push the robot N times',

@@ -6,6 +6,8 @@ import io
 import json
 from pathlib import Path
 
+import pytest
+
 from test_nodes_support import test_domain_id, write_momentum_model
 
 from fall_predictor.bagio import read_trajectory
@@ -73,3 +75,37 @@ def test_bringup_arguments() -> None:
     args = parser.parse_args(['--pushes', '3', '--seed', '7', '--json', '--real-time-factor', '1'])
     assert (args.pushes, args.seed, args.json, args.real_time_factor) == (3, 7, True, 1.0)
     assert args.domain_id is None and args.record is None
+
+
+def test_record_live_with_c_bal_throughout_then_import_and_train(tmp_path: Path) -> None:
+    """Offline from live: bring-up records (C_bal in charge), import the bags, train on them."""
+    from fall_predictor.cli import main as cli_main
+    from fall_predictor.dataset import import_recordings
+    from fall_predictor.model_file import load_model
+
+    results = run_bringup(PUSHES, SEED, None, domain_id=test_domain_id(150),
+                          model_path=write_momentum_model(tmp_path / 'model.json'),
+                          record_dir=tmp_path / 'bags', horizon_s=2.0, log_dir=tmp_path / 'logs',
+                          fall_trigger=False)
+    # The predictor still says falling, but the controller never hands over.
+    assert all(r['controller_mode'] == 'balance' and r['t_predict'] is not None for r in results)
+    report = import_recordings(sorted((tmp_path / 'bags').glob('run_*')), tmp_path / 'data')
+    assert not report.rejected and len(report.rows) == PUSHES
+    for row, result in zip(report.rows, results):
+        assert row.t_push == result['push']['t_push']
+        assert row.force_n == pytest.approx(result['push']['force_n'], rel=1e-6)
+        assert row.fallen == result['fell'] and row.t_fallen == result['t_fallen']
+    assert cli_main(['train', '--data', str(tmp_path / 'data'), '--tau-plus=0', '--out',
+                     str(tmp_path / 'trained.json')]) == 0
+    lists, metadata = load_model(tmp_path / 'trained.json')
+    assert metadata.tau_plus_s == 0.0 and sum(lists.rule_sizes) > 0
+
+
+def test_recordings_where_c_fall_took_over_are_rejected(tmp_path: Path) -> None:
+    from fall_predictor.dataset import import_recordings
+
+    run_bringup(1, SEED, None, domain_id=test_domain_id(160),
+                model_path=write_momentum_model(tmp_path / 'model.json'),
+                record_dir=tmp_path / 'bags', horizon_s=HORIZON_S, log_dir=tmp_path / 'logs')
+    report = import_recordings(sorted((tmp_path / 'bags').glob('run_*')), tmp_path / 'data')
+    assert report.rows == [] and 'C_fall took over' in next(iter(report.rejected.values()))
