@@ -15,7 +15,6 @@ from fall_predictor.bagio import (
     read_trajectory,
     typestore,
 )
-from fall_predictor.records import Measurement
 from fall_predictor.wire import (
     CONTROLLER_MODE,
     FEATURES,
@@ -27,19 +26,11 @@ from fall_predictor.wire import (
     PredictorState,
     pack_measurement,
 )
+from random_records import make_measurement
 
 N_SAMPLES = 300
 JOINTS = ('l_hip_yaw', 'l_knee_pitch', 'r_hip_yaw', 'r_knee_pitch')
 
-
-def make_measurement(rng, n_left, n_right, t=0.123):
-    return Measurement(
-        t=t, com=rng.normal(size=3), lin_mom=rng.normal(size=3), ang_mom=rng.normal(size=3),
-        heading=float(rng.normal()),
-        cop=rng.normal(size=3) if n_left + n_right else np.full(3, np.nan),
-        left_contacts=rng.normal(size=(n_left, 3)), right_contacts=rng.normal(size=(n_right, 3)),
-        left_foot=rng.normal(size=3), right_foot=rng.normal(size=3),
-        non_foot_contact=bool(rng.integers(2)), push_force=rng.normal(size=3))
 
 
 def trajectory(seed=0):

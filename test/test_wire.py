@@ -6,7 +6,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from fall_predictor.records import CONTACT_MODE_NAMES, N_FEATURES, Measurement
+from fall_predictor.records import CONTACT_MODE_NAMES, N_FEATURES
 from fall_predictor.wire import (
     CONTROLLER_MODE,
     FEATURES_LABEL,
@@ -35,16 +35,7 @@ from fall_predictor.wire import (
     unpack_features,
     unpack_measurement,
 )
-
-
-def make_measurement(rng, n_left, n_right, t=0.123):
-    return Measurement(
-        t=t, com=rng.normal(size=3), lin_mom=rng.normal(size=3), ang_mom=rng.normal(size=3),
-        heading=float(rng.normal()),
-        cop=rng.normal(size=3) if n_left + n_right else np.full(3, np.nan),
-        left_contacts=rng.normal(size=(n_left, 3)), right_contacts=rng.normal(size=(n_right, 3)),
-        left_foot=rng.normal(size=3), right_foot=rng.normal(size=3),
-        non_foot_contact=bool(rng.integers(2)), push_force=rng.normal(size=3))
+from random_records import make_measurement
 
 
 def assert_same_measurement(a, b):
