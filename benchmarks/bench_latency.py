@@ -43,7 +43,7 @@ from fall_predictor.bringup import (NodeProcess, default_domain_id, default_para
                                     stop_nodes)
 from fall_predictor.decision_list import Condition, DecisionList, PerModeDecisionLists, Rule
 from fall_predictor.model_file import ModelMetadata, save_model
-from fall_predictor.nodes.common import UNMATCHED_INPUTS, create_subscription, run_node
+from fall_predictor.nodes.common import UNMATCHED_INPUTS, create_subscription, run_node, spin_until
 from fall_predictor.nodes.simulator_node import NODE_NAME, SimulatorNode
 from fall_predictor.records import FALLING, FEATURE_NAMES, N_CONTACT_MODES, Measurement
 from fall_predictor.wire import DIAGNOSTICS, LEVEL_STALE, STATE
@@ -113,12 +113,7 @@ class _Timer:
         create_subscription(self.node, DiagnosticArray, DIAGNOSTICS, on_diagnostics)
 
     def spin_until(self, done: Callable[[], bool], timeout_s: float) -> bool:
-        deadline = time.monotonic() + timeout_s
-        while not done():
-            if time.monotonic() > deadline:
-                return False
-            self.executor.spin_once(timeout_sec=0.05)
-        return True
+        return spin_until(self.executor, done, timeout_s)
 
     def call(self, client: Client, request: Any) -> None:
         future = client.call_async(request)

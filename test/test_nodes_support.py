@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import math
 import os
-import time
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -35,7 +34,7 @@ from fall_predictor.nodes.observer import push_request_msg
 from fall_predictor.decision_list import Condition, DecisionList, PerModeDecisionLists, Rule
 from fall_predictor.model_file import ModelMetadata, save_model
 from fall_predictor.nodes.common import (PUSH_REQUEST, UNMATCHED_INPUTS, create_publisher,
-                                         create_subscription)
+                                         create_subscription, spin_until)
 from fall_predictor.records import FALLING, FEATURE_NAMES, N_CONTACT_MODES, PushSpec
 from fall_predictor.wire import (CONTROLLER_MODE, DIAGNOSTICS, MEASUREMENT, STATE,
                                  PredictorState, WireFormatError)
@@ -167,12 +166,7 @@ class Probe:
 
     # -- driving ---------------------------------------------------------------------------
     def spin_until(self, done: Callable[[], bool], timeout_s: float) -> bool:
-        deadline = time.monotonic() + timeout_s
-        while not done():
-            if time.monotonic() > deadline:
-                return False
-            self.executor.spin_once(timeout_sec=0.05)
-        return True
+        return spin_until(self.executor, done, timeout_s)
 
     def spin_for(self, seconds: float) -> None:
         self.spin_until(lambda: False, seconds)

@@ -18,10 +18,11 @@ request (:data:`PUSH_REQUEST`), an input of the simulator node.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from enum import Enum
-from typing import Any, Optional, Union
+from typing import Any, Callable, Optional, Union
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -30,7 +31,7 @@ from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescr
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
@@ -305,3 +306,19 @@ def run_node(factory: Callable[[], Node], name: str, args: Optional[list[str]] =
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+
+
+def spin_until(executor: Executor, done: Callable[[], bool], timeout_s: float,
+               check: Callable[[], None] = lambda: None) -> bool:
+    """Spin ``executor`` until ``done()`` or ``timeout_s`` wall seconds; ``check()`` may raise.
+
+    Returns whether ``done()`` became true.
+    """
+    deadline = time.monotonic() + timeout_s
+    while not done():
+        check()
+        remaining = deadline - time.monotonic()
+        if remaining <= 0:
+            return False
+        executor.spin_once(timeout_sec=min(0.05, remaining))
+    return True

@@ -23,7 +23,7 @@ from fall_predictor import ros_qos
 from fall_predictor.bringup import (PAUSE_SERVICE, PIPELINE_NODES, RECORDER_NODE, RESET_SERVICE,
                                     BringupError)
 from fall_predictor.nodes.common import (PUSH_REQUEST, PUSH_REQUEST_FRAME, UNMATCHED_INPUTS,
-                                         create_publisher, create_subscription)
+                                         create_publisher, create_subscription, spin_until)
 from fall_predictor.records import PushSpec
 from fall_predictor.wire import CONTROLLER_MODE, DIAGNOSTICS, MEASUREMENT, STATE, WireFormatError
 
@@ -131,14 +131,7 @@ class Observer:
     def spin_until(self, done: Callable[[], bool], timeout_s: float,
                    check: Callable[[], None] = lambda: None) -> bool:
         """Spin until ``done()`` or ``timeout_s`` wall seconds; ``check()`` may raise."""
-        deadline = time.monotonic() + timeout_s
-        while not done():
-            check()
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                return False
-            self.executor.spin_once(timeout_sec=min(0.05, remaining))
-        return True
+        return spin_until(self.executor, done, timeout_s, check)
 
     def connected(self, with_recorder: bool) -> bool:
         """Every node reports all its inputs matched, and so is this node."""
