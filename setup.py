@@ -8,7 +8,7 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test', 'test.*']),
-    package_data={package_name: ['data/*.urdf']},
+    package_data={package_name: ['robot/*.urdf']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -38,11 +38,11 @@ setup(
     entry_points={
         'console_scripts': [
             'fall-predictor = fall_predictor.cli:main',
-            'simulator_node = fall_predictor.nodes.simulator_node:main',
-            'controller_node = fall_predictor.nodes.controller_node:main',
-            'feature_node = fall_predictor.nodes.feature_node:main',
-            'predictor_node = fall_predictor.nodes.predictor_node:main',
-            'recorder_node = fall_predictor.nodes.recorder_node:main',
+            'simulator_node = fall_predictor.ros.simulator_node:main',
+            'controller_node = fall_predictor.ros.controller_node:main',
+            'feature_node = fall_predictor.ros.feature_node:main',
+            'predictor_node = fall_predictor.ros.predictor_node:main',
+            'recorder_node = fall_predictor.ros.recorder_node:main',
         ],
     },
 )

@@ -26,27 +26,26 @@ import platform
 import sys
 import tempfile
 import time
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Optional
+from typing import Optional
 
 import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from rclpy.client import Client
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from std_srvs.srv import SetBool, Trigger
+from rclpy.subscription import Subscription
 
-from fall_predictor.bringup import (NodeProcess, default_domain_id, default_params_file,
+from fall_predictor.ros.bringup import (NodeProcess, default_domain_id, default_params_file,
                                     node_command, ros_environment, start_node, start_process,
                                     stop_nodes)
-from fall_predictor.decision_list import Condition, DecisionList, PerModeDecisionLists, Rule
-from fall_predictor.model_file import ModelMetadata, save_model
-from fall_predictor.nodes.common import UNMATCHED_INPUTS, create_subscription, run_node, spin_until
-from fall_predictor.nodes.simulator_node import NODE_NAME, SimulatorNode
-from fall_predictor.records import FALLING, FEATURE_NAMES, N_CONTACT_MODES, Measurement
-from fall_predictor.wire import DIAGNOSTICS, LEVEL_STALE, STATE
+from fall_predictor.monitor.decision_list import Condition, DecisionList, PerModeDecisionLists, Rule
+from fall_predictor.monitor.model_file import ModelMetadata, save_model
+from fall_predictor.ros.common import create_subscription, run_node
+from fall_predictor.ros.observer import Observer
+from fall_predictor.ros.simulator_node import NODE_NAME, SimulatorNode
+from fall_predictor.monitor.records import FALLING, FEATURE_NAMES, N_CONTACT_MODES, Measurement
+from fall_predictor.data.topics import STATE
+from fall_predictor.data.wire import LEVEL_STALE
 
 _SIMULATOR_CHILD = '--simulator-child'
 
@@ -83,42 +82,19 @@ def _cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
-class _Timer:
-    """This process's ROS node: starts the run and notes when each state arrives."""
+def _subscribe_timed_states(node: Node, arrivals: list[tuple[int, float]]) -> Subscription:
+    """Note (sample time [ms], wall time [s]) of each non-STALE state as it arrives.
 
-    def __init__(self, context: rclpy.Context) -> None:
-        self.node = Node('bench_latency', context=context)
-        self.executor = SingleThreadedExecutor(context=context)
-        self.executor.add_node(self.node)
-        self.reset = self.node.create_client(Trigger, '/simulator_node/reset')
-        self.pause = self.node.create_client(SetBool, '/simulator_node/pause')
-        self.pause_request = SetBool.Request(data=True)
-        self.reset_request = Trigger.Request()
-        self.received: list[tuple[int, float]] = []      # (sample time [ms], wall [s])
-        self.unmatched: dict[str, str] = {}
+    The benchmark's own subscription (its observer follows no stream): the time is taken
+    first thing and only the stamp is read, so that little of this process's work is counted.
+    """
+    def on_state(msg: DiagnosticArray) -> None:
+        now = time.monotonic()
+        if msg.status[0].level[0] != LEVEL_STALE:
+            stamp = msg.header.stamp
+            arrivals.append((round(stamp.sec * 1000 + stamp.nanosec / 1e6), now))
 
-        def on_state(msg: DiagnosticArray) -> None:
-            now = time.monotonic()
-            if msg.status[0].level[0] != LEVEL_STALE:
-                stamp = msg.header.stamp
-                self.received.append((round(stamp.sec * 1000 + stamp.nanosec / 1e6), now))
-
-        def on_diagnostics(msg: DiagnosticArray) -> None:
-            for status in msg.status:
-                for kv in status.values:
-                    if kv.key == UNMATCHED_INPUTS:
-                        self.unmatched[status.name] = kv.value
-
-        self.state_sub = create_subscription(self.node, DiagnosticArray, STATE, on_state)
-        create_subscription(self.node, DiagnosticArray, DIAGNOSTICS, on_diagnostics)
-
-    def spin_until(self, done: Callable[[], bool], timeout_s: float) -> bool:
-        return spin_until(self.executor, done, timeout_s)
-
-    def call(self, client: Client, request: Any) -> None:
-        future = client.call_async(request)
-        if not self.spin_until(future.done, 10.0):
-            raise RuntimeError(f'{client.srv_name} did not answer')
+    return create_subscription(node, DiagnosticArray, STATE, on_state)
 
 
 def _percentiles_ms(latencies_s: np.ndarray) -> dict[str, float]:
@@ -139,7 +115,8 @@ def run_benchmark(duration_s: float, real_time_factor: float, model: Optional[Pa
     context = rclpy.Context()
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     rclpy.init(context=context, domain_id=domain_id)
-    timer: Optional[_Timer] = None
+    observer: Optional[Observer] = None
+    state_arrivals: list[tuple[int, float]] = []     # (sample time [ms], wall [s])
     try:
         for name, overrides in (('predictor_node', {'model_path': str(model)}),
                                 ('feature_node', {}), ('controller_node', {})):
@@ -150,44 +127,46 @@ def run_benchmark(duration_s: float, real_time_factor: float, model: Optional[Pa
         nodes['simulator_node'] = start_process(
             'simulator_node', [sys.executable, __file__, _SIMULATOR_CHILD, str(publish_times),
                                *ros_args], env, tmp)
-        timer = _Timer(context)
-        names = [f'/{name}' for name in nodes]
+        # No stream subscriptions but the timed one: this process must not load the system.
+        observer = Observer(context, 'bench_latency', follow_streams=False)
+        state_sub = _subscribe_timed_states(observer.node, state_arrivals)
 
-        def up() -> bool:
+        def check_alive() -> None:
             for node in nodes.values():
                 if node.process.poll() is not None:
                     raise RuntimeError(f'{node.name} exited:\n{node.log_tail()}')
-            return (all(timer.unmatched.get(n) == '' for n in names)
-                    and timer.reset.service_is_ready()
-                    and timer.state_sub.get_publisher_count() >= 1)
 
-        if not timer.spin_until(up, 60.0):
+        if not observer.spin_until(lambda: observer.connected(nodes.keys())
+                                   and state_sub.get_publisher_count() >= 1, 60.0, check_alive):
             raise RuntimeError(f'the nodes did not come up (logs in {tmp})')
         load_before = os.getloadavg()
         cpu_before = {name: _cpu_seconds(node.process.pid) for name, node in nodes.items()}
         own_cpu_before = time.process_time()
         wall_start = time.monotonic()
-        timer.call(timer.reset, timer.reset_request)
+        observer.reset_world()
         last_ms = round(duration_s * 1000)
-        if not timer.spin_until(lambda: timer.received and timer.received[-1][0] >= last_ms,
-                                duration_s / max(real_time_factor, 0.05) * 20 + 60):
+
+        def finished() -> bool:
+            return bool(state_arrivals) and state_arrivals[-1][0] >= last_ms
+
+        if not observer.spin_until(finished, duration_s / max(real_time_factor, 0.05) * 20 + 60):
             raise RuntimeError('the run did not finish')
         wall_s = time.monotonic() - wall_start
         cpu = {name: round(100.0 * (_cpu_seconds(node.process.pid) - cpu_before[name]) / wall_s, 1)
                for name, node in nodes.items()}
         cpu['bench_latency'] = round(100.0 * (time.process_time() - own_cpu_before) / wall_s, 1)
         load_after = os.getloadavg()
-        timer.call(timer.pause, timer.pause_request)
-        timer.spin_until(lambda: False, 1.0)
+        observer.pause_world()
+        observer.spin_for(1.0)
     finally:
-        if timer is not None:
-            timer.node.destroy_node()
+        if observer is not None:
+            observer.destroy()
         rclpy.try_shutdown(context=context)
         stop_nodes(nodes)
 
     published = {int(k): t for k, t in np.load(publish_times)}
     received = {}
-    for k, t in timer.received:
+    for k, t in state_arrivals:
         received.setdefault(k, t)
     samples = [k for k in sorted(published) if k <= last_ms]
     latencies = np.array([received[k] - published[k] for k in samples if k in received])

@@ -20,10 +20,10 @@ import time
 
 import numpy as np
 
-from fall_predictor.decision_list import PerModeDecisionLists
-from fall_predictor.learning import TreeListLearner
-from fall_predictor.predictor import OnlinePredictor
-from fall_predictor.records import BALANCED, N_CONTACT_MODES, N_FEATURES
+from fall_predictor.monitor.decision_list import PerModeDecisionLists
+from fall_predictor.learning.learners import TreeListLearner
+from fall_predictor.monitor.predictor import OnlinePredictor
+from fall_predictor.monitor.records import BALANCED, N_CONTACT_MODES, N_FEATURES
 
 
 def timing_summary(durations_ns: list[int]) -> dict[str, float]:

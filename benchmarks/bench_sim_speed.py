@@ -17,8 +17,8 @@ import time
 
 import pybullet as pb
 
-from fall_predictor.controllers import BalanceController, ControllerSwitch
-from fall_predictor.simulator import Simulator, SimulatorConfig
+from fall_predictor.robot.controllers import BalanceController, ControllerSwitch
+from fall_predictor.sim.simulator import Simulator, SimulatorConfig
 
 
 def _rates(steps: int, wall: float, cpu: float) -> dict:

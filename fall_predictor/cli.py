@@ -3,28 +3,17 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-
-def _finite(kind):
-    def parse(text: str):
-        value = kind(text)
-        if not math.isfinite(value):
-            raise argparse.ArgumentTypeError(f'{text!r} is not a finite number')
-        return value
-    return parse
+from fall_predictor import cli_args as argtypes
 
 
-def _positive(text: str) -> float:
-    value = _finite(float)(text)
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f'{text!r} must be > 0')
-    return value
+
+
 
 
 def _emit(args, payload: dict, lines: list[str]) -> None:
@@ -38,10 +27,10 @@ def _emit(args, payload: dict, lines: list[str]) -> None:
 
 # -- simulate --------------------------------------------------------------------------------
 def cmd_simulate(args) -> int:
-    from fall_predictor.pushes import PushDistribution
-    from fall_predictor.records import PushSpec
-    from fall_predictor.simulator import SimulatorConfig
-    from fall_predictor.trajectory import run_trajectory
+    from fall_predictor.sim.pushes import PushDistribution
+    from fall_predictor.monitor.records import PushSpec
+    from fall_predictor.sim.simulator import SimulatorConfig
+    from fall_predictor.sim.trajectory import run_trajectory
 
     rng = np.random.default_rng(args.seed)
     push = None
@@ -81,15 +70,10 @@ def cmd_simulate(args) -> int:
 
 
 # -- generate -----------------------------------------------------------------------------
-def _positive_int(text: str) -> int:
-    value = int(text)
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f'{text!r} must be a positive integer')
-    return value
 
 
 def cmd_generate(args) -> int:
-    from fall_predictor.dataset import GenerationConfig, generate_dataset
+    from fall_predictor.data.generation import GenerationConfig, generate_dataset
 
     config = GenerationConfig(seed=args.seed, horizon_after_push_s=args.horizon)
     start = time.perf_counter()
@@ -109,8 +93,8 @@ def cmd_generate(args) -> int:
 
 # -- stats --------------------------------------------------------------------------------
 def cmd_stats(args) -> int:
-    from fall_predictor.dataset import load_features, read_index
-    from fall_predictor.stats import dataset_stats, plot_fig6
+    from fall_predictor.data.dataset import load_features, read_index
+    from fall_predictor.data.stats import dataset_stats, plot_fig6
 
     rows = read_index(args.data)
     report = load_features(args.data, jobs=args.jobs, progress=not args.json)
@@ -134,43 +118,12 @@ def cmd_stats(args) -> int:
 
 
 # -- train, rules, evaluate, sweep --------------------------------------------------------
-def _nonnegative(text: str) -> float:
-    value = _finite(float)(text)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f'{text!r} must be >= 0')
-    return value
 
 
-def _at_least_two(text: str) -> int:
-    value = int(text)
-    if value < 2:
-        raise argparse.ArgumentTypeError(f'{text!r} must be an integer >= 2')
-    return value
 
 
-def _list_of(element):
-    """Parser of a comma-separated list whose elements ``element`` parses."""
-    def parse(text: str) -> tuple:
-        try:
-            values = tuple(element(part) for part in text.split(',') if part.strip())
-        except ValueError as error:
-            raise argparse.ArgumentTypeError(f'{text!r}: {error}') from error
-        if not values:
-            raise argparse.ArgumentTypeError(f'{text!r}: expected a comma-separated list')
-        return values
-    return parse
 
 
-def _learner_param(text: str) -> tuple:
-    """``KEY=VALUE``; VALUE is read as JSON (``8``, ``0.5``, ``null``) or else kept as a string."""
-    key, separator, raw = text.partition('=')
-    if not separator or not key.strip():
-        raise argparse.ArgumentTypeError(f'{text!r}: expected KEY=VALUE')
-    try:
-        value = json.loads(raw)
-    except json.JSONDecodeError:
-        value = raw
-    return key.strip(), value
 
 
 def _fail(command: str, error: Exception | str) -> int:
@@ -180,20 +133,20 @@ def _fail(command: str, error: Exception | str) -> int:
 
 
 def _add_learner_arguments(p: argparse.ArgumentParser) -> None:
-    from fall_predictor.experiments import DEFAULT_SAMPLE_STRIDE, LEARNER_CLASSES
+    from fall_predictor.learning.training import DEFAULT_SAMPLE_STRIDE, LEARNER_CLASSES
     p.add_argument('--learner', choices=sorted(LEARNER_CLASSES), default='tree',
                    help='tree: CART tree rewritten as a list; covering: RIPPER-like sequential '
                         'covering (default tree)')
-    p.add_argument('--param', type=_learner_param, action='append', default=[], metavar='KEY=VALUE',
+    p.add_argument('--param', type=argtypes.learner_param, action='append', default=[], metavar='KEY=VALUE',
                    help='learner hyper-parameter, repeatable (e.g. --param max_depth=10); VALUE is JSON')
-    p.add_argument('--stride', type=_positive_int, default=DEFAULT_SAMPLE_STRIDE,
+    p.add_argument('--stride', type=argtypes.positive_int, default=DEFAULT_SAMPLE_STRIDE,
                    help=f'train on every K-th 1 kHz sample, weights x K (default {DEFAULT_SAMPLE_STRIDE})')
 
 
 def cmd_train(args) -> int:
-    from fall_predictor.dataset import DatasetError
-    from fall_predictor.experiments import make_learner, train_model
-    from fall_predictor.model_file import ModelFileError, save_model
+    from fall_predictor.data.dataset import DatasetError
+    from fall_predictor.learning.training import make_learner, train_model
+    from fall_predictor.monitor.model_file import ModelFileError, save_model
 
     try:
         make_learner(args.learner, dict(args.param))
@@ -222,8 +175,8 @@ def cmd_train(args) -> int:
 
 
 def cmd_rules(args) -> int:
-    from fall_predictor.experiments import rules_summary
-    from fall_predictor.model_file import ModelFileError, load_model
+    from fall_predictor.learning.training import rules_summary
+    from fall_predictor.monitor.model_file import ModelFileError, load_model
 
     try:
         lists, metadata = load_model(args.model)
@@ -244,9 +197,9 @@ def cmd_rules(args) -> int:
 
 
 def cmd_evaluate(args) -> int:
-    from fall_predictor.dataset import DatasetError
-    from fall_predictor.experiments import evaluate_model, evaluation_json
-    from fall_predictor.model_file import ModelFileError, load_model
+    from fall_predictor.data.dataset import DatasetError
+    from fall_predictor.learning.evaluation import evaluate_model, evaluation_json
+    from fall_predictor.monitor.model_file import ModelFileError, load_model
 
     try:
         lists, metadata = load_model(args.model)
@@ -284,8 +237,9 @@ def cmd_evaluate(args) -> int:
 def cmd_sweep(args) -> int:
     import shlex
 
-    from fall_predictor.dataset import DatasetError
-    from fall_predictor.experiments import SweepConfig, pareto_mean_lead, run_sweep
+    from fall_predictor.data.dataset import DatasetError
+    from fall_predictor.learning.selection import pareto_mean_lead
+    from fall_predictor.learning.sweep import SweepConfig, run_sweep
 
     settings = {'folds': args.folds, 'seed': args.seed, 'learner_name': args.learner,
                 'learner_params': dict(args.param), 'sample_stride': args.stride,
@@ -334,7 +288,8 @@ def cmd_sweep(args) -> int:
 
 
 def cmd_import_bags(args) -> int:
-    from fall_predictor.dataset import DatasetError, import_recordings
+    from fall_predictor.data.dataset import DatasetError
+    from fall_predictor.data.generation import import_recordings
 
     try:
         report = import_recordings(args.bags, args.out)
@@ -349,6 +304,22 @@ def cmd_import_bags(args) -> int:
     return 0 if report.rows else 1
 
 
+
+
+
+
+
+
+
+
+def cmd_bringup(args) -> int:
+    try:
+        from fall_predictor.ros.bringup import cmd_bringup as run
+    except ImportError as error:
+        return _fail('bringup', f'bringup needs ROS 2 (rclpy and common_interfaces): {error}')
+    return run(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog='fall-predictor', description=__doc__)
     sub = parser.add_subparsers(dest='command', metavar='<command>')
@@ -356,12 +327,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser('simulate', help='walk, optionally push once, and report the outcome',
                        description='Simulate the humanoid walking under C_bal; optionally push it once '
                                    '(a constant force for 0.1 s on the torso) and report whether it fell.')
-    p.add_argument('--duration', type=_positive, default=6.0, help='simulated seconds (default 6)')
-    p.add_argument('--push-force', type=_finite(float), default=0.0, help='push force [N]; 0 = no push')
-    p.add_argument('--push-angle', type=_finite(float), default=0.0,
+    p.add_argument('--duration', type=argtypes.positive, default=6.0, help='simulated seconds (default 6)')
+    p.add_argument('--push-force', type=argtypes.finite(float), default=0.0, help='push force [N]; 0 = no push')
+    p.add_argument('--push-angle', type=argtypes.finite(float), default=0.0,
                    help='push direction [deg] from the heading, counter-clockwise (90 = to the left)')
-    p.add_argument('--push-height', type=_finite(float), default=0.1, help='height above the CoM [m]')
-    p.add_argument('--push-time', type=_finite(float), default=None,
+    p.add_argument('--push-height', type=argtypes.finite(float), default=0.1, help='height above the CoM [m]')
+    p.add_argument('--push-time', type=argtypes.finite(float), default=None,
                    help='push onset [s]; default: a random instant of the walk cycle drawn from --seed')
     p.add_argument('--seed', type=int, default=0, help='random seed (push onset)')
     p.add_argument('--gui', action='store_true', help='open the PyBullet GUI')
@@ -372,11 +343,11 @@ def build_parser() -> argparse.ArgumentParser:
                        description='Generate N push trajectories (SPEC §3, C_bal throughout) into DIR: one '
                                    'rosbag2 bag per trajectory plus an index. Deterministic per seed; '
                                    'rerunning finishes an interrupted run without redoing finished trajectories.')
-    p.add_argument('--trajectories', type=_positive_int, required=True)
+    p.add_argument('--trajectories', type=argtypes.positive_int, required=True)
     p.add_argument('--seed', type=int, default=0)
     p.add_argument('--out', type=Path, required=True, help='dataset directory')
-    p.add_argument('--jobs', type=_positive_int, default=1, help='parallel processes')
-    p.add_argument('--horizon', type=_positive, default=4.0,
+    p.add_argument('--jobs', type=argtypes.positive_int, default=1, help='parallel processes')
+    p.add_argument('--horizon', type=argtypes.positive, default=4.0,
                    help='simulated seconds after the push ends before a trajectory counts as balanced')
     p.add_argument('--json', action='store_true')
     p.set_defaults(func=cmd_generate)
@@ -387,7 +358,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    'Exits 1 if some bags are unreadable (they are listed).')
     p.add_argument('data', type=Path, help='dataset directory')
     p.add_argument('--plots', default=None, help='where to write PNGs (default DATA/plots)')
-    p.add_argument('--jobs', type=_positive_int, default=1)
+    p.add_argument('--jobs', type=argtypes.positive_int, default=1)
     p.add_argument('--json', action='store_true')
     p.set_defaults(func=cmd_stats)
 
@@ -400,13 +371,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--json', action='store_true')
     p.set_defaults(func=cmd_import_bags)
 
-    from fall_predictor.bringup import add_arguments as add_bringup_arguments, cmd_bringup
     p = sub.add_parser('bringup', help='start the ROS 2 nodes and push the robot N times',
                        description='Start simulator, feature, predictor and controller nodes (and '
                                    'optionally the recorder) as separate processes with the shipped '
                                    'config and model, push the robot N times and print one JSON '
                                    'line per push.')
-    add_bringup_arguments(p)
+    argtypes.add_bringup_arguments(p)
     p.set_defaults(func=cmd_bringup)
 
     p = sub.add_parser('train', help='learn per-mode decision lists and write a model file',
@@ -416,14 +386,14 @@ def build_parser() -> argparse.ArgumentParser:
                                    'falling states 1 (per 1 kHz sample). Exit code 2 if the dataset or a '
                                    'setting cannot be used.')
     p.add_argument('--data', type=Path, required=True, help='dataset directory')
-    p.add_argument('--tau-plus', type=_finite(float), required=True,
+    p.add_argument('--tau-plus', type=argtypes.finite(float), required=True,
                    help='tau_plus [s]: falling states are trained on from t_height_drop + tau_plus '
                         '(may be < 0; write --tau-plus=-0.25)')
     p.add_argument('--out', type=Path, required=True, help='model file to write (JSON)')
     _add_learner_arguments(p)
-    p.add_argument('--tau-his-recommended', type=_nonnegative, default=None,
+    p.add_argument('--tau-his-recommended', type=argtypes.nonnegative, default=None,
                    help='history window [s] to store as the model\'s run-time default')
-    p.add_argument('--jobs', type=_positive_int, default=1, help='processes loading features')
+    p.add_argument('--jobs', type=argtypes.positive_int, default=1, help='processes loading features')
     p.add_argument('--skip-unreadable', action='store_true',
                    help='leave out unreadable bags instead of failing')
     p.add_argument('--json', action='store_true', help='print one JSON object')
@@ -447,11 +417,11 @@ def build_parser() -> argparse.ArgumentParser:
                                    'was not trained on. Exit code 2 if the model or dataset cannot be used.')
     p.add_argument('--data', type=Path, required=True, help='dataset directory')
     p.add_argument('--model', type=Path, required=True, help='model file (JSON)')
-    p.add_argument('--tau-his', type=_nonnegative, default=None,
+    p.add_argument('--tau-his', type=argtypes.nonnegative, default=None,
                    help='history window [s] (default: the model\'s recommended value)')
     p.add_argument('--baselines', action='store_true',
                    help='also evaluate the CoM-height, momentum and capture-point baselines')
-    p.add_argument('--jobs', type=_positive_int, default=1)
+    p.add_argument('--jobs', type=argtypes.positive_int, default=1)
     p.add_argument('--skip-unreadable', action='store_true',
                    help='leave out unreadable bags instead of failing')
     p.add_argument('--json', action='store_true', help='print one JSON object')
@@ -467,16 +437,16 @@ def build_parser() -> argparse.ArgumentParser:
                                    'or a setting cannot be used.')
     p.add_argument('--data', type=Path, required=True, help='dataset directory')
     p.add_argument('--out', type=Path, required=True, help='output directory')
-    p.add_argument('--folds', type=_at_least_two, default=10, help='cross-validation folds (default 10)')
+    p.add_argument('--folds', type=argtypes.at_least_two, default=10, help='cross-validation folds (default 10)')
     p.add_argument('--seed', type=int, default=0, help='fold assignment and learning-curve subsets')
     _add_learner_arguments(p)
-    p.add_argument('--tau-plus', type=_list_of(_finite(float)), default=None, metavar='LIST',
+    p.add_argument('--tau-plus', type=argtypes.list_of(argtypes.finite(float)), default=None, metavar='LIST',
                    help='comma-separated tau_plus values [s]; write --tau-plus=-1.5,-0.25 (a leading '
                         'minus needs the =); default -1.5,-1.25,...,0.5')
-    p.add_argument('--tau-his', type=_list_of(_nonnegative), default=None, metavar='LIST',
+    p.add_argument('--tau-his', type=argtypes.list_of(argtypes.nonnegative), default=None, metavar='LIST',
                    help='comma-separated tau_his values [s] '
                         '(default 0,0.004,0.008,0.016,0.03,0.044,0.06,0.08,0.1)')
-    p.add_argument('--learning-curve', type=_list_of(_positive_int), default=None, metavar='LIST',
+    p.add_argument('--learning-curve', type=argtypes.list_of(argtypes.positive_int), default=None, metavar='LIST',
                    help='training-set sizes of the learning curve (default 50,100,250,500,900)')
     p.add_argument('--no-learning-curve', action='store_true', help='skip the learning curve')
     p.add_argument('--no-capture-point', action='store_true',
@@ -484,7 +454,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--quick', action='store_true',
                    help='reduced grid: 5 tau_plus, 5 tau_his, learning curve 10,25,50, coarse baselines '
                         '(explicit --tau-plus/--tau-his/--learning-curve still apply)')
-    p.add_argument('--jobs', type=_positive_int, default=1, help='parallel trainings')
+    p.add_argument('--jobs', type=argtypes.positive_int, default=1, help='parallel trainings')
     p.add_argument('--skip-unreadable', action='store_true',
                    help='leave out unreadable bags instead of failing')
     p.add_argument('--json', action='store_true', help='print one JSON summary object')

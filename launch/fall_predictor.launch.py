@@ -46,7 +46,9 @@ def generate_launch_description() -> LaunchDescription:
         node('simulator_node', {'real_time_factor': ParameterValue(
             LaunchConfiguration('real_time_factor'), value_type=float)}),
         node('controller_node'),
-        node('feature_node'),
+        # Both read the model: the feature node for the feature settings it was trained with.
+        node('feature_node', {'model_path': ParameterValue(
+            LaunchConfiguration('model_path'), value_type=str)}),
         node('predictor_node', {'model_path': ParameterValue(
             LaunchConfiguration('model_path'), value_type=str)}),
         node('recorder_node', {'bag_path': ParameterValue(

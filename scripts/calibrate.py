@@ -17,8 +17,8 @@ import numpy as np
 from joblib import Parallel, delayed
 from tqdm import tqdm
 
-from fall_predictor.pushes import PushDistribution, trajectory_seed
-from fall_predictor.trajectory import run_trajectory
+from fall_predictor.sim.pushes import PushDistribution, trajectory_seed
+from fall_predictor.sim.trajectory import run_trajectory
 
 HORIZON_AFTER_PUSH_S = 6.0   # generous here: this run measures how long falls take
 

@@ -19,14 +19,14 @@ import numpy as np
 from joblib import Parallel, delayed
 from tqdm import tqdm
 
-from fall_predictor.records import PushSpec
+from fall_predictor.monitor.records import PushSpec
 
 _PREFIX = {}
 
 
 def _prefix(t_push: float, horizon_s: float):
-    from fall_predictor.simulator import Simulator
-    from fall_predictor.trajectory import WalkPrefix
+    from fall_predictor.sim.simulator import Simulator
+    from fall_predictor.sim.trajectory import WalkPrefix
 
     key = (t_push, horizon_s)
     if key not in _PREFIX:
@@ -37,7 +37,7 @@ def _prefix(t_push: float, horizon_s: float):
 
 def one(force: float, angle: float, height: float, t_push: float, horizon_s: float, model: str | None,
         tau_his_s: float) -> dict:
-    from fall_predictor.trajectory import run_trajectory
+    from fall_predictor.sim.trajectory import run_trajectory
 
     push = PushSpec(force, angle, height, t_push)
     result = run_trajectory(push, push.t_force_end + horizon_s, prefix=_prefix(t_push, horizon_s))
@@ -45,9 +45,9 @@ def one(force: float, angle: float, height: float, t_push: float, horizon_s: flo
            'time_to_fall_s': None if not result.fallen else result.t_fallen - t_push,
            't_reflex': result.t_reflex}
     if model:
-        from fall_predictor.features import extract_features
-        from fall_predictor.model_file import load_model
-        from fall_predictor.predictor import predict_trajectory
+        from fall_predictor.monitor.features import extract_features
+        from fall_predictor.monitor.model_file import load_model
+        from fall_predictor.monitor.predictor import predict_trajectory
 
         lists, _ = load_model(model)
         X, mode = extract_features(result.measurements)

@@ -3,7 +3,7 @@ from pathlib import Path
 
 import pytest
 
-from fall_predictor.simulator import Simulator
+from fall_predictor.sim.simulator import Simulator
 
 #: A small dataset generated once per test session with the real generator (seed chosen so
 #: that it holds both outcomes). Horizon shortened to keep the suite fast.
@@ -22,7 +22,7 @@ def sim():
 @pytest.fixture(scope='session')
 def small_dataset(tmp_path_factory) -> Path:
     """Directory of a generated 8-trajectory dataset (bags, index, no feature cache yet)."""
-    from fall_predictor.dataset import GenerationConfig, generate_dataset
+    from fall_predictor.data.generation import GenerationConfig, generate_dataset
 
     out = tmp_path_factory.mktemp('dataset') / 'small'
     config = GenerationConfig(seed=SMALL_DATASET_SEED, horizon_after_push_s=SMALL_DATASET_HORIZON_S,

@@ -1,7 +1,7 @@
 """Random but well-formed records for round-trip tests of the wire and bag formats."""
 import numpy as np
 
-from fall_predictor.records import Measurement
+from fall_predictor.monitor.records import Measurement
 
 
 def make_measurement(rng, n_left, n_right, t=0.123):

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fall_predictor.records import CONTACT_MODE_NAMES, FEATURE_NAMES, TrajectoryFeatures
+from fall_predictor.monitor.records import CONTACT_MODE_NAMES, FEATURE_NAMES, TrajectoryFeatures
 
 DT_S = 0.001
 T_PUSH_S = 0.5

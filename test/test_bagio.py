@@ -7,7 +7,7 @@ import yaml
 from rosbags.rosbag2 import Writer
 from rosbags.rosbag2.enums import StoragePlugin
 
-from fall_predictor.bagio import (
+from fall_predictor.data.bagio import (
     BagError,
     BagWriter,
     decode,
@@ -15,17 +15,8 @@ from fall_predictor.bagio import (
     read_trajectory,
     typestore,
 )
-from fall_predictor.wire import (
-    CONTROLLER_MODE,
-    FEATURES,
-    JOINT_COMMANDS,
-    JOINT_STATES,
-    MEASUREMENT,
-    PUSH,
-    STATE,
-    PredictorState,
-    pack_measurement,
-)
+from fall_predictor.data.topics import (CONTROLLER_MODE, FEATURES, JOINT_COMMANDS, JOINT_STATES, MEASUREMENT, PUSH, STATE)
+from fall_predictor.data.wire import PredictorState, pack_measurement
 from random_records import make_measurement
 
 N_SAMPLES = 300

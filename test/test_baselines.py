@@ -4,12 +4,12 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from fall_predictor.baselines import (capture_point_curve, capture_point_distances,
+from fall_predictor.learning.baselines import (capture_point_curve, capture_point_distances,
                                       com_height_curve, momentum_curve, pareto_front,
                                       signed_distance_to_support)
-from fall_predictor.gait import GRAVITY
-from fall_predictor.records import FEATURE_NAMES, Measurement, TrajectoryFeatures
-from fall_predictor.robot_model import TOTAL_MASS_KG
+from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2 as GRAVITY
+from fall_predictor.monitor.records import FEATURE_NAMES, Measurement, TrajectoryFeatures
+from fall_predictor.robot.model import TOTAL_MASS_KG
 
 DT = 0.001
 COM_Z = FEATURE_NAMES.index('com_z')
@@ -104,7 +104,7 @@ def test_capture_point_distances():
         measurement(0.0, [], []),                       # no support at all
         measurement(0.0, [(0.0, 0.05)], []),            # a single contact point
         measurement(0.0, [(-0.1, 0.05), (0.1, 0.05)], [], com_z=0.3),   # a segment
-    ])
+    ], total_mass_kg=TOTAL_MASS_KG)
     assert distances == pytest.approx([-0.1, 0.2, math.inf, 0.05, 0.05])
 
 

@@ -1,7 +1,6 @@
 """Bring-up: the nodes as processes, two pushes in a row, JSON lines, clean shutdown."""
 from __future__ import annotations
 
-import argparse
 import io
 import json
 from pathlib import Path
@@ -10,9 +9,10 @@ import pytest
 
 from test_nodes_support import test_domain_id, write_momentum_model
 
-from fall_predictor.bagio import read_trajectory
-from fall_predictor.bringup import add_arguments, run_bringup
-from fall_predictor.pushes import PushDistribution, trajectory_seed
+from fall_predictor.data.bagio import read_trajectory
+from fall_predictor.cli import build_parser
+from fall_predictor.ros.bringup import run_bringup
+from fall_predictor.sim.pushes import PushDistribution, trajectory_seed
 
 SEED = 4            # two strong pushes (472 N and 490 N) at about 2.2 s: short runs
 PUSHES = 2
@@ -30,7 +30,7 @@ def _node_processes_on(domain_id: int) -> list[int]:
             environ = (proc / 'environ').read_bytes().split(b'\0')
         except OSError:
             continue                                # gone, or not ours to read
-        if b'fall_predictor.nodes.' in cmdline and f'ROS_DOMAIN_ID={domain_id}'.encode() in environ:
+        if b'fall_predictor.ros.' in cmdline and f'ROS_DOMAIN_ID={domain_id}'.encode() in environ:
             pids.append(int(proc.name))
     return pids
 
@@ -70,9 +70,8 @@ def test_bringup_pushes_reports_json_and_leaves_no_process(tmp_path: Path) -> No
 
 
 def test_bringup_arguments() -> None:
-    parser = argparse.ArgumentParser()
-    add_arguments(parser)
-    args = parser.parse_args(['--pushes', '3', '--seed', '7', '--json', '--real-time-factor', '1'])
+    args = build_parser().parse_args(['bringup', '--pushes', '3', '--seed', '7', '--json',
+                                      '--real-time-factor', '1'])
     assert (args.pushes, args.seed, args.json, args.real_time_factor) == (3, 7, True, 1.0)
     assert args.domain_id is None and args.record is None
 
@@ -80,8 +79,8 @@ def test_bringup_arguments() -> None:
 def test_record_live_with_c_bal_throughout_then_import_and_train(tmp_path: Path) -> None:
     """Offline from live: bring-up records (C_bal in charge), import the bags, train on them."""
     from fall_predictor.cli import main as cli_main
-    from fall_predictor.dataset import import_recordings
-    from fall_predictor.model_file import load_model
+    from fall_predictor.data.generation import import_recordings
+    from fall_predictor.monitor.model_file import load_model
 
     results = run_bringup(PUSHES, SEED, None, domain_id=test_domain_id(150),
                           model_path=write_momentum_model(tmp_path / 'model.json'),
@@ -106,7 +105,7 @@ def test_record_live_with_c_bal_throughout_then_import_and_train(tmp_path: Path)
 
 
 def test_recordings_where_c_fall_took_over_are_rejected(tmp_path: Path) -> None:
-    from fall_predictor.dataset import import_recordings
+    from fall_predictor.data.generation import import_recordings
 
     run_bringup(1, SEED, None, domain_id=test_domain_id(160),
                 model_path=write_momentum_model(tmp_path / 'model.json'),

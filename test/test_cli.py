@@ -1,4 +1,4 @@
-"""The fall-predictor command line: simulate, generate and stats."""
+"""The fall-predictor command line: every subcommand, with and without ROS installed."""
 import json
 import shutil
 import subprocess
@@ -31,11 +31,10 @@ def test_invalid_arguments_are_rejected_with_a_message(capsys):
     assert main(['simulate', '--duration', '1.0', '--push-force', '100', '--push-time', '2.0']) == 2
 
 
-def test_module_entry_point_has_help_for_every_subcommand():
-    for command in ('simulate', 'generate', 'stats'):
-        done = subprocess.run([sys.executable, '-m', 'fall_predictor', command, '--help'],
-                              capture_output=True, text=True, timeout=60)
-        assert done.returncode == 0 and 'usage' in done.stdout
+def test_module_entry_point_runs_the_tool():
+    done = subprocess.run([sys.executable, '-m', 'fall_predictor', 'simulate', '--help'],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0 and done.stdout.startswith('usage: fall-predictor simulate')
 
 
 def test_stats_json_and_exit_code_on_a_damaged_dataset(small_dataset, tmp_path, capsys):
@@ -50,3 +49,73 @@ def test_stats_json_and_exit_code_on_a_damaged_dataset(small_dataset, tmp_path, 
     assert main(['stats', str(damaged), '--plots', str(tmp_path / 'q'), '--json']) == 1
     stats = json.loads(capsys.readouterr().out)
     assert list(stats['unreadable_bags']) == ['traj_00001']
+
+
+SUBCOMMANDS = ('simulate', 'generate', 'stats', 'train', 'rules', 'evaluate', 'sweep',
+               'import-bags', 'bringup')
+
+#: Makes every ROS 2 Python package unimportable (rclpy, message packages, ament, launch), as
+#: on a machine without ROS; then runs the command line given as JSON on argv[1], one
+#: invocation per list element, and prints the exit codes and whether ROS got imported.
+_WITHOUT_ROS = r'''
+import importlib.abc, json, sys
+
+class NoRos(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path=None, target=None):
+        top = name.split('.')[0]
+        if (top.startswith(('rclpy', 'rosidl', 'rcl_', 'ament', 'launch', 'builtin_interfaces'))
+                or top.endswith(('_msgs', '_srvs', '_interfaces'))):
+            raise ModuleNotFoundError(f'No module named {name!r} (ROS blocked by the test)')
+        return None
+
+sys.meta_path.insert(0, NoRos())
+from fall_predictor.cli import main
+codes = []
+for argv in json.loads(sys.argv[1]):
+    try:
+        codes.append(main(argv))
+    except SystemExit as done:
+        codes.append(done.code)
+ros = sorted(m for m in sys.modules if m.split('.')[0] == 'rclpy' or m.endswith('_msgs'))
+print(json.dumps({'codes': codes, 'ros_modules': ros}))
+'''
+
+
+def _run_without_ros(invocations: list[list[str]], timeout_s: float = 600) -> dict:
+    done = subprocess.run([sys.executable, '-c', _WITHOUT_ROS, json.dumps(invocations)],
+                          capture_output=True, text=True, timeout=timeout_s)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return json.loads(done.stdout.strip().splitlines()[-1]) | {'stderr': done.stderr}
+
+
+def test_help_for_the_tool_and_every_subcommand_needs_no_ros():
+    from fall_predictor.cli import build_parser
+    subparsers = next(a for a in build_parser()._actions if a.dest == 'command')
+    assert set(subparsers.choices) == set(SUBCOMMANDS)     # a new subcommand joins this test
+    result = _run_without_ros([['--help']] + [[command, '--help'] for command in SUBCOMMANDS])
+    assert result['codes'] == [0] * (1 + len(SUBCOMMANDS))
+    assert result['ros_modules'] == []
+
+
+def test_every_offline_subcommand_runs_without_ros(small_dataset, tmp_path):
+    data = tmp_path / 'data'
+    shutil.copytree(small_dataset, data)
+    model = tmp_path / 'model.json'
+    result = _run_without_ros([
+        ['simulate', '--duration', '0.3', '--json'],
+        ['generate', '--trajectories', '1', '--seed', '3', '--horizon', '0.2',
+         '--out', str(tmp_path / 'generated'), '--json'],
+        ['stats', str(data), '--plots', str(tmp_path / 'plots'), '--json'],
+        ['train', '--data', str(data), '--tau-plus', '0', '--out', str(model)],
+        ['rules', str(model)],
+        ['evaluate', '--data', str(data), '--model', str(model), '--tau-his', '0.01', '--json'],
+        ['sweep', '--data', str(data), '--out', str(tmp_path / 'sweep'), '--folds', '2',
+         '--tau-plus', '0', '--tau-his', '0,0.01', '--no-learning-curve', '--no-capture-point'],
+        ['import-bags', str(data / 'bags' / 'traj_00000'), '--out', str(tmp_path / 'imported')],
+        ['bringup', '--pushes', '1'],
+    ])
+    assert result['codes'] == [0, 0, 0, 0, 0, 0, 0, 0, 2], result['stderr'][-3000:]
+    assert result['ros_modules'] == []
+    assert 'bringup needs ROS 2' in result['stderr']
+    assert (tmp_path / 'generated' / 'index' / 'traj_00000.json').exists()
+    assert (tmp_path / 'sweep' / 'sweep.json').exists() and model.exists()

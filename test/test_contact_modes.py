@@ -3,9 +3,9 @@ import math
 import numpy as np
 import pytest
 
-from fall_predictor.contact_modes import (ContactMode, classify_contact_mode,
+from fall_predictor.monitor.contact_modes import (ContactMode, classify_contact_mode,
                                           classify_contact_mode_and_cop, mode_from_parts)
-from fall_predictor.records import CONTACT_MODE_NAMES, Measurement
+from fall_predictor.monitor.records import CONTACT_MODE_NAMES, Measurement
 
 M = ContactMode
 LENGTH, WIDTH = 0.225, 0.157            # SPEC §1 foot sole

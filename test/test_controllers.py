@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from fall_predictor.controllers import BalanceController, ControllerSwitch, GaitConfig
-from fall_predictor.records import PushSpec
-from fall_predictor.trajectory import run_trajectory
+from fall_predictor.robot.controllers import BalanceController, ControllerSwitch, GaitConfig
+from fall_predictor.monitor.records import PushSpec
+from fall_predictor.sim.trajectory import run_trajectory
 
 
 def test_walks_60_s_without_falling_or_reflex():
@@ -22,13 +22,16 @@ def test_walks_60_s_without_falling_or_reflex():
 
 def test_moderate_push_fires_the_reflex_widens_the_stance_and_lowers_the_com():
     push = PushSpec(force_n=120.0, angle_deg=90.0, height_m=0.1, t_push=2.3)
-    result = run_trajectory(push, 6.0)
+    result = run_trajectory(push, 8.0)
     assert not result.fallen
     assert result.t_reflex is not None and push.t_push <= result.t_reflex < push.t_force_end + 0.3
     last = result.measurements[-1]
     assert abs(last.left_foot[1] - last.right_foot[1]) >= 0.25     # wider than 0.18 walking
     assert last.com[2] < result.measurements[0].com[2] - 0.03
-    assert np.abs(last.lin_mom[:2]).max() < 1.0                        # settled
+    # Settled: the recovery steps take a few seconds (issue "A credible robot" tightens this);
+    # over the last 0.5 s the horizontal momentum stays below 1 kg m/s.
+    final = [m for m in result.measurements if m.t >= 7.5]
+    assert max(np.abs(m.lin_mom[:2]).max() for m in final) < 1.0
 
 
 def test_strong_push_ends_fallen():
@@ -42,8 +45,22 @@ def test_switch_to_fall_control_is_one_way_and_freezes_the_target():
     result = run_trajectory(PushSpec(300.0, 0.0, 0.1, 2.3), 4.0,
                             fall_trigger=lambda m: m.t >= t_trigger)
     assert result.t_switch == pytest.approx(t_trigger)
+
+    # Drive a switch and a free-running C_bal with the same walking measurements: after the
+    # trigger the switch must hold the last C_bal target while C_bal itself moves on.
+    walk = run_trajectory(None, 1.2).measurements
     switch = ControllerSwitch(BalanceController(GaitConfig()))
-    q0, _ = switch.balance.initial_posture()
-    assert switch.trigger_fall(1.0) is True
-    assert switch.trigger_fall(2.0) is False
-    assert switch.mode == 'fall' and switch.t_switch == 1.0
+    reference = BalanceController(GaitConfig())
+    n_before = 600
+    for m in walk[:n_before]:
+        last_balance_target = switch.update(m)
+        assert np.array_equal(last_balance_target, reference.update(m))
+    assert switch.trigger_fall(walk[n_before].t) is True
+    assert switch.mode == 'fall' and switch.t_switch == walk[n_before].t
+    moved = 0.0
+    for m in walk[n_before:]:
+        assert np.array_equal(switch.update(m), last_balance_target)
+        moved = max(moved, float(np.abs(reference.update(m) - last_balance_target).max()))
+        assert switch.trigger_fall(m.t) is False           # one-way: no second switch
+    assert moved > 0.05       # C_bal's own targets moved by more than 0.05 rad meanwhile
+    assert switch.mode == 'fall' and switch.t_switch == walk[n_before].t

@@ -6,11 +6,11 @@ import shutil
 import numpy as np
 import pytest
 
-from fall_predictor.bagio import read_trajectory
-from fall_predictor.dataset import (DatasetError, GenerationConfig, generate_dataset, load_features,
-                                    read_index)
-from fall_predictor.records import FALLEN_COM_HEIGHT_M
-from fall_predictor.stats import dataset_stats, plot_fig6
+from fall_predictor.data.bagio import read_trajectory
+from fall_predictor.data.dataset import DatasetError, load_features, read_index
+from fall_predictor.data.generation import GenerationConfig, generate_dataset
+from fall_predictor.monitor.records import FALLEN_COM_HEIGHT_M
+from fall_predictor.data.stats import dataset_stats, plot_fig6
 
 
 def test_each_trajectory_has_a_complete_bag_and_index_row(small_dataset):

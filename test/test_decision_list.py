@@ -3,9 +3,9 @@ import math
 import numpy as np
 import pytest
 
-from fall_predictor.decision_list import (Condition, DecisionList, PerModeDecisionLists, Rule,
+from fall_predictor.monitor.decision_list import (Condition, DecisionList, PerModeDecisionLists, Rule,
                                           simplify_conditions)
-from fall_predictor.records import BALANCED, CONTACT_MODE_NAMES, FALLING, FEATURE_NAMES, N_CONTACT_MODES
+from fall_predictor.monitor.records import BALANCED, CONTACT_MODE_NAMES, FALLING, FEATURE_NAMES, N_CONTACT_MODES
 
 COM_Z = FEATURE_NAMES.index('com_z')
 LIN_MOM_X = FEATURE_NAMES.index('lin_mom_x')

@@ -3,9 +3,10 @@ import math
 import numpy as np
 import pytest
 
-from fall_predictor.contact_modes import ContactMode
-from fall_predictor.features import FeatureExtractor, extract_features
-from fall_predictor.records import FEATURE_NAMES, Measurement
+from fall_predictor.monitor.contact_modes import ContactMode
+from fall_predictor.monitor.features import (FeatureExtractor, FeatureSettings, FeatureSettingsMismatch,
+                                             extract_features)
+from fall_predictor.monitor.records import FEATURE_NAMES, Measurement
 from test_contact_modes import LEFT_FOOT, RIGHT_FOOT, corners, rotated
 
 DT = 0.001
@@ -40,15 +41,42 @@ def random_trajectory(n=300, seed=0):
     return out
 
 
-def test_batch_equals_streaming_exactly():
+def features_by_hand(traj, i, window_samples=10):
+    """SPEC §6 features of sample ``i`` computed directly, without the extractor: a rotation
+    matrix into the heading frame, the CoP (or, with no contact, the CoM's ground projection)
+    as origin, and momentum rates as differences to the sample ``window_samples`` back (or the
+    first sample)."""
+    m = traj[i]
+    c, s = math.cos(m.heading), math.sin(m.heading)
+    world_to_heading = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+    in_contact = len(m.left_contacts) + len(m.right_contacts) > 0
+    origin = np.array([m.cop[0], m.cop[1], 0.0] if in_contact else [m.com[0], m.com[1], 0.0])
+    j = max(0, i - window_samples)
+    span = m.t - traj[j].t
+    force = (m.lin_mom - traj[j].lin_mom) / span if i else np.zeros(3)
+    moment = (m.ang_mom - traj[j].ang_mom) / span if i else np.zeros(3)
+    return np.concatenate([world_to_heading @ v for v in (m.com - origin, m.lin_mom, m.ang_mom,
+                                                          force, moment)])
+
+
+# Samples from every contact phase of random_trajectory: the first sample, samples within and
+# past the first rate window, double support, left only, flight and right only.
+CHECKED_SAMPLES = (0, 1, 5, 9, 10, 11, 39, 45, 85, 130, 199, 299)
+
+
+def test_batch_and_streaming_features_match_a_direct_computation():
     traj = random_trajectory()
     X, mode = extract_features(traj)
-    extractor = FeatureExtractor()
-    for i, m in enumerate(traj):
-        x, md = extractor.update(m)
-        assert np.array_equal(x, X[i]) and md == mode[i]
     assert X.shape == (len(traj), len(FEATURE_NAMES)) and mode.shape == (len(traj),)
-    assert ContactMode.OUTSIDE in mode and ContactMode.LR_INSIDE in mode
+    extractor = FeatureExtractor()
+    streamed = [extractor.update(m) for m in traj]
+    for i in CHECKED_SAMPLES:
+        expected = features_by_hand(traj, i)
+        assert X[i] == pytest.approx(expected, rel=1e-12, abs=1e-12), f'batch, sample {i}'
+        assert streamed[i][0] == pytest.approx(expected, rel=1e-12, abs=1e-12), f'stream, sample {i}'
+        assert streamed[i][1] == mode[i]
+    # Flight (samples 80-119) is OUTSIDE; a centred CoP between two flat feet is LR-INSIDE.
+    assert mode[85] == ContactMode.OUTSIDE and mode[5] == ContactMode.LR_INSIDE
 
 
 def test_empty_sequence():
@@ -186,3 +214,31 @@ class TestValidation:
     def test_window_must_cover_a_sample(self):
         with pytest.raises(ValueError):
             FeatureExtractor(rate_window_s=0.0005, dt_s=0.001)
+
+
+class TestFeatureSettings:
+    def test_unset_values_adopt_the_models_and_equal_ones_pass(self):
+        model = FeatureSettings(rate_window_s=0.02, edge_tolerance_m=0.0)
+        assert model.resolve({'rate_window_s': None, 'edge_tolerance_m': 0.0}) == model
+        assert model.resolve({}) == model
+
+    def test_every_difference_is_named(self):
+        with pytest.raises(FeatureSettingsMismatch) as error:
+            FeatureSettings().resolve({'rate_window_s': 0.02, 'guard_com_height_m': 0.5,
+                                       'sample_period_s': 0.001}, what='model m.json')
+        message = str(error.value)
+        assert 'rate_window_s = 0.02 but model m.json was trained with 0.01' in message
+        assert 'guard_com_height_m = 0.5' in message and 'sample_period_s' not in message
+
+    def test_unknown_names_and_impossible_settings_are_refused(self):
+        with pytest.raises(KeyError):
+            FeatureSettings().resolve({'window': 0.01})
+        with pytest.raises(ValueError, match='sample_period_s <= rate_window_s'):
+            FeatureSettings(rate_window_s=0.001, sample_period_s=0.002)
+        with pytest.raises(ValueError, match='edge_tolerance_m'):
+            FeatureSettings(edge_tolerance_m=float('nan'))
+
+    def test_the_extractor_uses_the_settings(self):
+        extractor = FeatureSettings(rate_window_s=0.02, sample_period_s=0.002,
+                                    edge_tolerance_m=0.005).extractor()
+        assert (extractor.window_samples, extractor.dt_s, extractor.edge_tolerance_m) == (10, 0.002, 0.005)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.spatial import ConvexHull
 
-from fall_predictor.geometry import (closest_point_on_boundary, closest_point_on_segment,
+from fall_predictor.monitor.geometry import (closest_point_on_boundary, closest_point_on_segment,
                                      convex_hull, edge_segment_distances, edges_near_point,
                                      point_in_convex_polygon, point_segment_distance,
                                      signed_edge_distances, to_yaw_frame)

@@ -3,8 +3,8 @@ import numpy as np
 import pybullet as pb
 import pytest
 
-from fall_predictor import kinematics as kin
-from fall_predictor import robot_model as rm
+from fall_predictor.robot import kinematics as kin
+from fall_predictor.robot import model as rm
 
 
 def _random_leg_angles(rng):

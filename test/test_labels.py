@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
-from fall_predictor.labels import (first_fallen_time, height_drop_time, label_states,
-                                   training_mask_and_weights)
-from fall_predictor.records import BALANCED, FALLEN, FALLING, TrajectoryFeatures
+from fall_predictor.data.outcomes import first_fallen_time, height_drop_time
+from fall_predictor.learning.labels import label_states, training_mask_and_weights
+from fall_predictor.monitor.records import BALANCED, FALLEN, FALLING, TrajectoryFeatures
 
 DT = 0.001
 T = np.arange(3000) * DT            # 0 .. 2.999 s

@@ -2,12 +2,12 @@ import numpy as np
 import pytest
 from sklearn.base import clone
 
-from fall_predictor.decision_list import Condition
-from fall_predictor.learning import (CoveringListLearner, TreeListLearner, fit_predictor,
+from fall_predictor.monitor.decision_list import Condition
+from fall_predictor.learning.learners import (CoveringListLearner, TreeListLearner, fit_predictor,
                                      float32_threshold_as_float64, learner_description,
                                      training_set)
-from fall_predictor.metrics import evaluate_lists
-from fall_predictor.records import BALANCED, FALLING, N_CONTACT_MODES, N_FEATURES
+from fall_predictor.learning.metrics import evaluate_lists
+from fall_predictor.monitor.records import BALANCED, FALLING, N_CONTACT_MODES, N_FEATURES
 
 from synthetic_trajectories import FALLING_MODE, LIN_MOM_Y, make_dataset
 

@@ -3,12 +3,9 @@ import math
 import numpy as np
 import pytest
 
-from fall_predictor.learning import CoveringListLearner, TreeListLearner
-from fall_predictor.metrics import (TrajectoryAlarms, cross_validate, evaluate, evaluate_atomic,
-                                    stratified_trajectory_folds, trajectory_alarms)
-from fall_predictor.records import FEATURE_NAMES, TrajectoryFeatures
-
-from synthetic_trajectories import make_dataset
+from fall_predictor.learning.metrics import (TrajectoryAlarms, evaluate, evaluate_atomic,
+                                             mean_or_nan, std_or_nan, trajectory_alarms)
+from fall_predictor.monitor.records import FEATURE_NAMES, TrajectoryFeatures
 
 DT = 0.001
 COM_Z = FEATURE_NAMES.index('com_z')
@@ -102,34 +99,10 @@ def test_evaluate_from_alarm_times():
         evaluate([fallen], [])
 
 
-def test_folds_are_stratified_and_never_split_a_trajectory():
-    trajectories = [trajectory(f'f{i}', True, duration_s=0.01) for i in range(13)] + \
-                   [trajectory(f'b{i}', False, duration_s=0.01) for i in range(17)]
-    folds = stratified_trajectory_folds(trajectories, folds=4, seed=0)
-    assert sorted(np.concatenate(folds).tolist()) == list(range(30))
-    assert sorted(len(f) for f in folds) == [7, 7, 8, 8]
-    fallen_counts = [sum(trajectories[i].fallen for i in fold) for fold in folds]
-    assert max(fallen_counts) - min(fallen_counts) <= 1
-    assert [f.tolist() for f in folds] == [f.tolist() for f in stratified_trajectory_folds(trajectories, 4, 0)]
-    assert [f.tolist() for f in folds] != [f.tolist() for f in stratified_trajectory_folds(trajectories, 4, 1)]
-    with pytest.raises(ValueError):
-        stratified_trajectory_folds(trajectories, folds=1, seed=0)
-
-
-@pytest.mark.parametrize('learner', [TreeListLearner(), CoveringListLearner()],
-                         ids=lambda learner: type(learner).__name__)
-def test_cross_validation_on_synthetic_data(learner):
-    trajectories = make_dataset(n_fallen=8, n_balanced=8, seed=31, duration_s=1.6)
-    result = cross_validate(trajectories, folds=4, seed=0, tau_plus_s=0.0,
-                            tau_his_values=(0.0, 0.01), learner=learner)
-    assert len(result.per_fold) == 4
-    ids = [i for fold in result.test_folds for i in fold]
-    assert sorted(ids) == sorted(traj.trajectory_id for traj in trajectories)
-    pooled = result.pooled[0.01]
-    assert pooled.n_trajectories == 16 and pooled.n_fallen == 8
-    assert pooled.fpr == 0.0
-    assert pooled.tau_lead_s == pytest.approx(0.49)       # t_fallen - t_height_drop - tau_his
-    assert pooled.mean_rule_size == pytest.approx(1 / 16)
-    assert result.mean[0.01].tau_lead_s == pytest.approx(0.49)
-    assert result.mean[0.01].fpr == 0.0 and result.mean[0.0].tau_lead_std_s == pytest.approx(0.0)
-    assert result.per_fold[0][0.0].n_trajectories == 4
+def test_mean_and_std_leave_nan_out_and_are_nan_without_values():
+    assert math.isnan(mean_or_nan([])) and math.isnan(std_or_nan([]))
+    assert math.isnan(mean_or_nan([math.nan, math.nan])) and math.isnan(std_or_nan([math.nan]))
+    assert mean_or_nan([1.0, math.nan, 3.0]) == 2.0
+    assert std_or_nan([1.0, math.nan, 3.0]) == 1.0           # population standard deviation
+    assert mean_or_nan((0.5,)) == 0.5 and std_or_nan((0.5,)) == 0.0
+    assert mean_or_nan([1.0, math.inf]) == math.inf           # only NaN is left out

@@ -3,11 +3,12 @@ from pathlib import Path
 
 import pytest
 
-from fall_predictor.decision_list import Condition, DecisionList, PerModeDecisionLists, Rule
-from fall_predictor.learning import TreeListLearner, learner_description
-from fall_predictor.model_file import (SCHEMA_NAME, SCHEMA_VERSION, ModelFileError, ModelMetadata,
+from fall_predictor.monitor.decision_list import Condition, DecisionList, PerModeDecisionLists, Rule
+from fall_predictor.learning.learners import TreeListLearner, learner_description
+from fall_predictor.monitor.features import FeatureSettings
+from fall_predictor.monitor.model_file import (SCHEMA_NAME, SCHEMA_VERSION, ModelFileError, ModelMetadata,
                                        load_model, save_model)
-from fall_predictor.records import BALANCED, FALLING, N_CONTACT_MODES
+from fall_predictor.monitor.records import BALANCED, FALLING, N_CONTACT_MODES
 
 
 def example_lists() -> PerModeDecisionLists:
@@ -25,7 +26,10 @@ def example_metadata() -> ModelMetadata:
     learner = learner_description(TreeListLearner(max_depth=5))
     return ModelMetadata(tau_plus_s=-0.25, balanced_weight=4.0, falling_weight=1.0,
                          learner_name=learner['name'], learner_params=learner['params'],
-                         dataset_fingerprint='sha256:0123abcd', recommended_tau_his_s=0.06)
+                         dataset_fingerprint='sha256:0123abcd', recommended_tau_his_s=0.06,
+                         feature_settings=FeatureSettings(rate_window_s=0.02, edge_tolerance_m=0.005,
+                                                          sample_period_s=0.002,
+                                                          guard_com_height_m=0.45))
 
 
 @pytest.fixture
@@ -44,6 +48,7 @@ def test_round_trip_is_exact(model_path):
     assert (metadata.tau_plus_s, metadata.balanced_weight, metadata.falling_weight,
             metadata.learner_name, metadata.dataset_fingerprint, metadata.recommended_tau_his_s) == (
         -0.25, 4.0, 1.0, 'TreeListLearner', 'sha256:0123abcd', 0.06)
+    assert metadata.feature_settings == FeatureSettings(0.02, 0.005, 0.002, 0.45)
     document = json.loads(model_path.read_text())
     assert document['schema'] == SCHEMA_NAME and document['schema_version'] == SCHEMA_VERSION
     assert document['lists'][6]['rules'][0]['conditions'][0] == {'feature': 10, 'op': '>', 'threshold': -64.5}
@@ -67,7 +72,12 @@ def set_condition(key, value):
 
 @pytest.mark.parametrize('change, message', [
     (lambda d: d.update(schema='something.else'), 'schema'),
-    (lambda d: d.update(schema_version=2), 'unsupported version 2'),
+    (lambda d: d.update(schema_version=1), 'unsupported version 1'),
+    (lambda d: d.pop('features'), 'missing key.*features'),
+    (lambda d: d['features'].update(rate_window_s=-0.01), 'features'),
+    (lambda d: d['features'].update(sample_period_s=0.05), 'sample_period_s <= rate_window_s'),
+    (lambda d: d['features'].update(edge_tolerance_m='0.01'), 'features.edge_tolerance_m'),
+    (lambda d: d['features'].update(extra=1.0), 'unknown key'),
     (lambda d: d.update(schema_version=True), 'unsupported version'),
     (lambda d: d['feature_names'].__setitem__(0, 'com_X'), 'feature_names'),
     (lambda d: d['feature_names'].pop(), 'feature_names'),

@@ -1,8 +1,10 @@
 """The five nodes as separate processes over real DDS: one scenario, several checks.
 
-The module fixture starts the recorder, predictor (hand-built momentum model), feature,
-controller and simulator nodes (lock-step, as fast as possible) on a private ROS domain and
-drives two runs through the simulator's ``~/reset``:
+The module fixture ``system`` starts the recorder, predictor (hand-built momentum model),
+feature, controller and simulator nodes (lock-step, as fast as possible) on a private ROS
+domain with the package's :class:`~fall_predictor.ros.observer.Observer` as the tests' node,
+and waits until they are connected. The fixture ``runs`` then drives two runs through the
+simulator's ``~/reset``:
 
 1. 10 s of walking without a push; at t = 5 s the predictor's ``tau_his_s`` is changed from
    the model's 0.01 s to 0.05 s at run time; at t = 3 s malformed joint commands and push
@@ -12,52 +14,64 @@ drives two runs through the simulator's ``~/reset``:
 
 Then the simulator is paused, and the later tests inject malformed messages, let the inputs
 go stale, and finally stop everything and compare the bags with what the nodes published.
-The tests of this module share that live system and run in file order.
+
+The fixtures check nothing: they record what was received and acknowledged, and each check is
+made by the test named after it, so one failing check fails one test. They raise
+:class:`SystemNotRunning` only when the system cannot be driven at all (a node died, the nodes
+never connected, a run stopped advancing). The tests of this module share that live system
+and run in file order.
 """
 from __future__ import annotations
 
 import math
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pytest
 from geometry_msgs.msg import WrenchStamped
+from rcl_interfaces.msg import SetParametersResult
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
-from test_nodes_support import (MODEL_TAU_HIS_S, Probe, ros_context, test_domain_id,
-                                write_momentum_model)
+from test_nodes_support import MODEL_TAU_HIS_S, ros_context, test_domain_id, write_momentum_model
 
-from fall_predictor import robot_model as rm
-from fall_predictor import ros_qos
-from fall_predictor.bagio import iter_messages, read_trajectory
-from fall_predictor.bringup import (NodeProcess, default_params_file, ros_environment,
+from fall_predictor.robot import model as rm
+from fall_predictor.ros import conversions as ros_qos
+from fall_predictor.data.bagio import iter_messages, read_trajectory
+from fall_predictor.ros.bringup import (NodeProcess, default_params_file, ros_environment,
                                     start_node, stop_nodes)
-from fall_predictor.features import extract_features
-from fall_predictor.nodes.common import create_publisher
-from fall_predictor.records import Measurement, PushSpec
-from fall_predictor.wire import (CONTROLLER_MODE, FEATURES, FEATURES_LABEL, JOINT_COMMANDS,
-                                 JOINT_STATES, LEVEL_STALE, MEASUREMENT, MEASUREMENT_LABEL, PUSH,
-                                 STATE, PredictorState)
+from fall_predictor.monitor.features import extract_features
+from fall_predictor.ros.common import UNMATCHED_INPUTS, create_publisher
+from fall_predictor.ros.observer import ModeChange, Observer, ReceivedSample
+from fall_predictor.monitor.records import Measurement, PushSpec
+from fall_predictor.data.topics import (CONTROLLER_MODE, FEATURES, FEATURES_LABEL, JOINT_COMMANDS, JOINT_STATES, MEASUREMENT, MEASUREMENT_LABEL, PUSH, STATE)
+from fall_predictor.data.wire import LEVEL_STALE, PredictorState
 
 STRONG_PUSH = PushSpec(force_n=450.0, angle_deg=90.0, height_m=0.1, t_push=2.5)
 NO_PUSH_RUN_S = 10.0
-TAU_HIS_CHANGE_AT_S = 5.0           #: requested when the probe sees this sample time [s]
+GARBAGE_AT_S = 3.0                  #: malformed commands sent when the observer sees this [s]
+TAU_HIS_CHANGE_AT_S = 5.0           #: requested when the observer sees this sample time [s]
 NEW_TAU_HIS_S = 0.05
 FOLLOW_AFTER_PUSH_S = 1.5
 #: Wall-clock limit of each run [s] (a run normally takes 2 to 4 ms per simulated ms).
 RUN_TIMEOUT_S = 120.0
+#: Wall-clock limit for the nodes to start and connect [s].
+CONNECT_TIMEOUT_S = 60.0
+
+
+class SystemNotRunning(RuntimeError):
+    """The system under test could not be started or driven (not a failed check)."""
 
 
 @dataclass
 class Run:
-    """What the probe received during one run."""
+    """What the observer received during one run."""
 
-    samples: list[tuple[float, bool]]
+    samples: list[ReceivedSample]
     states: list[PredictorState]
-    modes: list[tuple[float, str]]
+    modes: list[ModeChange]
 
     @property
     def t_fallen(self) -> float | None:
@@ -66,14 +80,28 @@ class Run:
 
 @dataclass
 class System:
-    probe: Probe
+    """The running nodes and the tests' observer."""
+
+    observer: Observer
     nodes: dict[str, NodeProcess]
     tmp: Path
-    runs: list[Run] = field(default_factory=list)
-    t_tau_his_set: float = math.nan          #: sample time when the change was acknowledged
 
 
-def _start_nodes(tmp: Path, domain: int) -> dict[str, NodeProcess]:
+@dataclass
+class Runs:
+    """What the two runs produced, recorded for the tests to check."""
+
+    no_push: Run
+    strong_push: Run
+    #: The predictor's answer to the run-time change of ``tau_his_s``.
+    tau_his_change: list[SetParametersResult]
+    t_tau_his_set: float                     #: sample time when the change was acknowledged
+    #: The malformed joint commands had both their subscribers (simulator, recorder).
+    bad_commands_matched: bool
+
+
+def _start_nodes(tmp: Path, domain: int, nodes: dict[str, NodeProcess]) -> None:
+    """Start the five nodes into ``nodes`` (filled as they start, so all can be stopped)."""
     env = ros_environment(domain)
     params = default_params_file()
     model = write_momentum_model(tmp / 'model.json')
@@ -86,47 +114,51 @@ def _start_nodes(tmp: Path, domain: int) -> dict[str, NodeProcess]:
         'controller_node': {},
         'simulator_node': {'autostart': 'false', 'real_time_factor': '0.0'},
     }
-    nodes = {}
     for name, values in overrides.items():
         nodes[name] = start_node(name, params, values, env, tmp)
         if name == 'recorder_node':
             time.sleep(1.0)
-    return nodes
 
 
-def _alive(nodes: dict[str, NodeProcess]) -> None:
-    for node in nodes.values():
-        assert node.process.poll() is None, f'{node.name} died:\n{node.log_tail()}'
+def _dead_nodes(nodes: dict[str, NodeProcess]) -> str:
+    """Each node process that has exited, with the end of its log ('' while all run)."""
+    return '\n'.join(f'{node.name} died:\n{node.log_tail()}' for node in nodes.values()
+                     if node.process.poll() is not None)
 
 
-def _connected(probe: Probe, nodes: dict[str, NodeProcess]) -> bool:
-    _alive(nodes)
-    return (probe.all_inputs_matched(f'/{name}' for name in nodes)
-            and probe.reset_client.service_is_ready()
-            and probe.push_pub.get_subscription_count() >= 1
-            and all(s.get_publisher_count() >= 1 for s in probe.subscriptions))
+def _check_alive(nodes: dict[str, NodeProcess]) -> None:
+    dead = _dead_nodes(nodes)
+    if dead:
+        raise SystemNotRunning(dead)
 
 
-def _run(probe: Probe, nodes: dict[str, NodeProcess], until: float) -> Run:
+def _follow(observer: Observer, nodes: dict[str, NodeProcess], until: float) -> None:
+    """Spin until sample time ``until`` [s] or fallen."""
+    def reached() -> bool:
+        return observer.t_last >= until or bool(observer.samples and observer.samples[-1].fallen)
+
+    if not observer.spin_until(reached, RUN_TIMEOUT_S, lambda: _check_alive(nodes)):
+        raise SystemNotRunning(f'run stuck at t = {observer.t_last} s (waiting for {until} s)')
+
+
+def _run(observer: Observer, nodes: dict[str, NodeProcess], until: float) -> Run:
     """Follow the current run until sample time ``until`` [s] or fallen; what was received."""
-    deadline = time.monotonic() + RUN_TIMEOUT_S
-    while not (probe.t >= until or (probe.samples and probe.samples[-1][1])):
-        assert time.monotonic() < deadline, f'run stuck at t = {probe.t} s'
-        _alive(nodes)
-        probe.spin_for(0.2)
-    probe.spin_for(0.3)                                   # states still in flight
-    end = probe.t
-    return Run([s for s in probe.samples if s[0] <= end],
-               [s for s in probe.states if s.t <= end], list(probe.modes))
+    _follow(observer, nodes, until)
+    observer.spin_for(0.3, lambda: _check_alive(nodes))          # states still in flight
+    end = observer.t_last
+    return Run([s for s in observer.samples if s.t <= end],
+               [s for s in observer.states if s.t <= end], list(observer.modes))
 
 
-def _send_bad_commands_and_push_requests(probe: Probe) -> None:
-    node = probe.node
+def _send_bad_commands_and_push_requests(observer: Observer) -> bool:
+    """Send malformed joint commands and push requests; whether the commands were matched."""
+    node = observer.node
     commands = create_publisher(node, JointState, JOINT_COMMANDS)
     # Matched with the simulator and the recorder.
-    assert probe.spin_until(lambda: commands.get_subscription_count() >= 2, 10.0)
-    wrong_names = ros_qos.joint_state_to_msg(probe.t, [f'j{i}' for i in range(26)], np.zeros(26))
-    nan_command = ros_qos.joint_state_to_msg(probe.t, rm.JOINT_NAMES, np.zeros(26))
+    matched = observer.spin_until(lambda: commands.get_subscription_count() >= 2, 10.0)
+    wrong_names = ros_qos.joint_state_to_msg(observer.t_last, [f'j{i}' for i in range(26)],
+                                             np.zeros(26))
+    nan_command = ros_qos.joint_state_to_msg(observer.t_last, rm.JOINT_NAMES, np.zeros(26))
     nan_command.position[3] = math.nan
     commands.publish(wrong_names)
     commands.publish(nan_command)
@@ -137,49 +169,60 @@ def _send_bad_commands_and_push_requests(probe: Probe) -> None:
     bad_torque.wrench.force.x = 100.0
     bad_torque.wrench.torque.z = 5.0
     for msg in (vertical, bad_frame, bad_torque):
-        probe.push_pub.publish(msg)
+        observer.push_pub.publish(msg)
     # The publisher stays (the node keeps it): destroying it could discard what is not
-    # acknowledged yet, and waiting for the acknowledgements would stop the probe from
+    # acknowledged yet, and waiting for the acknowledgements would stop the observer from
     # taking its states for up to a DDS heartbeat period (3 s).
+    return matched
 
 
 @pytest.fixture(scope='module')
 def system(tmp_path_factory: pytest.TempPathFactory) -> Iterator[System]:
+    """The five nodes started and connected with the tests' observer; nothing run yet."""
     tmp = tmp_path_factory.mktemp('nodes')
     domain = test_domain_id(0)
     nodes: dict[str, NodeProcess] = {}
     with ros_context(domain) as context:
-        probe = Probe(context)
+        observer = Observer(context, 'test_observer')
         try:
-            nodes = _start_nodes(tmp, domain)
-            assert probe.spin_until(lambda: _connected(probe, nodes), 60.0), \
-                'nodes did not come up'
-            system = System(probe, nodes, tmp)
-
-            # Run 1: walking, no push; tau_his changed at run time; garbage to the simulator.
-            probe.reset_world()
-            assert probe.spin_until(lambda: probe.t >= 3.0, RUN_TIMEOUT_S)
-            _send_bad_commands_and_push_requests(probe)
-            assert probe.spin_until(lambda: probe.t >= TAU_HIS_CHANGE_AT_S, RUN_TIMEOUT_S)
-            results = probe.set_parameters('predictor_node', tau_his_s=NEW_TAU_HIS_S)
-            assert results[0].successful, results[0].reason
-            system.t_tau_his_set = probe.t
-            system.runs.append(_run(probe, nodes, NO_PUSH_RUN_S))
-
-            # Run 2: a fresh world and a strong sideways push.
-            probe.reset_world()
-            probe.request_push(STRONG_PUSH)
-            system.runs.append(_run(probe, nodes, STRONG_PUSH.t_force_end + FOLLOW_AFTER_PUSH_S))
-            _alive(nodes)
-            probe.pause_world()
-            yield system
+            _start_nodes(tmp, domain, nodes)
+            if not observer.spin_until(lambda: observer.connected(nodes.keys()), CONNECT_TIMEOUT_S,
+                                       lambda: _check_alive(nodes)):
+                unmatched = {name: status.values.get(UNMATCHED_INPUTS)
+                             for name, status in observer.diagnostics.items()}
+                raise SystemNotRunning(f'the nodes did not connect within {CONNECT_TIMEOUT_S} s '
+                                       f'(unmatched inputs: {unmatched}; logs in {tmp})')
+            yield System(observer, nodes, tmp)
         finally:
-            probe.destroy()
+            observer.destroy()
             stop_nodes(nodes)
 
 
-def test_no_push_gives_no_trigger_for_10_s(system: System) -> None:
-    run = system.runs[0]
+@pytest.fixture(scope='module')
+def runs(system: System) -> Runs:
+    """The two runs of the module docstring, then the simulator paused."""
+    observer, nodes = system.observer, system.nodes
+
+    # Run 1: walking, no push; tau_his changed at run time; garbage to the simulator.
+    observer.reset_world()
+    _follow(observer, nodes, GARBAGE_AT_S)
+    bad_commands_matched = _send_bad_commands_and_push_requests(observer)
+    _follow(observer, nodes, TAU_HIS_CHANGE_AT_S)
+    tau_his_change = observer.set_parameters('predictor_node', tau_his_s=NEW_TAU_HIS_S)
+    t_tau_his_set = observer.t_last
+    no_push = _run(observer, nodes, NO_PUSH_RUN_S)
+
+    # Run 2: a fresh world and a strong sideways push.
+    observer.reset_world()
+    observer.request_push(STRONG_PUSH)
+    strong_push = _run(observer, nodes, STRONG_PUSH.t_force_end + FOLLOW_AFTER_PUSH_S)
+    _check_alive(nodes)
+    observer.pause_world()
+    return Runs(no_push, strong_push, tau_his_change, t_tau_his_set, bad_commands_matched)
+
+
+def test_no_push_gives_no_trigger_for_10_s(runs: Runs) -> None:
+    run = runs.no_push
     assert run.samples[-1][0] >= NO_PUSH_RUN_S
     assert [t for t, _ in run.samples[:3]] == [0.0, 0.001, 0.002]
     assert run.t_fallen is None
@@ -191,24 +234,28 @@ def test_no_push_gives_no_trigger_for_10_s(system: System) -> None:
     assert ts == [t for t, _ in run.samples if t <= ts[-1]]
 
 
-def test_simulator_survived_malformed_commands_and_push_requests(system: System) -> None:
+def test_simulator_survived_malformed_commands_and_push_requests(system: System,
+                                                                  runs: Runs) -> None:
     # The garbage of run 1 (t = 3 s) was rejected and counted; run 1 went on to 10 s.
-    status = system.probe.diagnostics['/simulator_node']
+    assert runs.bad_commands_matched, 'malformed commands not matched with simulator and recorder'
+    status = system.observer.diagnostics['/simulator_node']
     assert int(status.values['invalid_commands']) >= 1       # wrong names
     assert int(status.values['push_requests_rejected']) == 3
     assert int(status.values['pushes']) == 1                 # only the strong push
 
 
-def test_tau_his_change_takes_effect_while_running(system: System) -> None:
-    run1, run2 = system.runs
+def test_tau_his_change_takes_effect_while_running(runs: Runs) -> None:
+    accepted = runs.tau_his_change[0]
+    assert accepted.successful, accepted.reason
+    run1, run2 = runs.no_push, runs.strong_push
     # One switch, in sample order, from the model's window to the new one; every sample
     # after the change was acknowledged (the predictor lags the simulator) has the new one.
     taus = [s.tau_his_s for s in run1.states]
     switch = taus.index(NEW_TAU_HIS_S)
     assert set(taus[:switch]) == {MODEL_TAU_HIS_S} and set(taus[switch:]) == {NEW_TAU_HIS_S}
-    # The probe's notion of "now" lags the predictor by up to ~1.4 s on a saturated 2-core
-    # machine (benchmarks/bench_latency.py), hence the generous upper bound.
-    assert 1.0 < run1.states[switch].t < system.t_tau_his_set + 1.5
+    # The observer's notion of "now" lags the predictor by up to ~1.4 s on a saturated
+    # 2-core machine (benchmarks/bench_latency.py), hence the generous upper bound.
+    assert 1.0 < run1.states[switch].t < runs.t_tau_his_set + 1.5
     # The new window decides the trigger: falling exactly 50 ms into the atomic run.
     first_atomic = next(s for s in run2.states if s.atomic and s.t >= STRONG_PUSH.t_push)
     first_falling = next(s for s in run2.states if s.falling)
@@ -217,8 +264,8 @@ def test_tau_his_change_takes_effect_while_running(system: System) -> None:
 
 
 def test_strong_push_is_predicted_before_fallen_and_controller_switches_for_good(
-        system: System) -> None:
-    run = system.runs[1]
+        system: System, runs: Runs) -> None:
+    run = runs.strong_push
     predicted = next((s for s in run.states if s.falling), None)
     assert predicted is not None, 'the strong push was not predicted'
     assert STRONG_PUSH.t_push <= predicted.t < STRONG_PUSH.t_force_end + 0.2
@@ -229,13 +276,14 @@ def test_strong_push_is_predicted_before_fallen_and_controller_switches_for_good
     assert 'fall' in modes
     assert 'balance' not in modes[modes.index('fall'):]        # one-way
     assert all(s.latched for s in run.states if s.t >= predicted.t and s.stale_reason is None)
-    status = system.probe.fresh_diagnostics('/controller_node')
+    status = system.observer.fresh_diagnostics('controller_node')
     assert status.values['mode'] == 'fall'
     assert float(status.values['t_switch_s']) >= predicted.t
 
 
+@pytest.mark.usefixtures('runs')                # after the runs, the simulator paused
 def test_invalid_parameters_are_rejected_with_a_reason(system: System) -> None:
-    probe = system.probe
+    observer = system.observer
     out_of_range = {'predictor_node': {'tau_his_s': -0.5},
                     'simulator_node': {'real_time_factor': -1.0},
                     'feature_node': {'stale_timeout_s': 0.0}}
@@ -243,16 +291,16 @@ def test_invalid_parameters_are_rejected_with_a_reason(system: System) -> None:
                  'simulator_node': {'lockstep': False},
                  'controller_node': {'walk_duration_s': 10.0}}
     for node, values in out_of_range.items():
-        result = probe.set_parameters(node, **values)[0]
+        result = observer.set_parameters(node, **values)[0]
         assert not result.successful and 'range' in result.reason, (node, result.reason)
     for node, values in read_only.items():
-        result = probe.set_parameters(node, **values)[0]
+        result = observer.set_parameters(node, **values)[0]
         assert not result.successful and 'read-only' in result.reason, (node, result.reason)
-    result = probe.set_parameters('predictor_node', tau_his_s='long')[0]
+    result = observer.set_parameters('predictor_node', tau_his_s='long')[0]
     assert not result.successful and 'type' in result.reason, result.reason
-    assert probe.set_parameters('simulator_node', command_timeout_s=0.25)[0].successful
-    assert probe.fresh_diagnostics('/predictor_node').values['tau_his_s'] == str(NEW_TAU_HIS_S)
-    _alive(system.nodes)
+    assert observer.set_parameters('simulator_node', command_timeout_s=0.25)[0].successful
+    assert observer.fresh_diagnostics('predictor_node').values['tau_his_s'] == str(NEW_TAU_HIS_S)
+    assert _dead_nodes(system.nodes) == ''
 
 
 def _measurement_msg(values: list[float], size: int | None = None,
@@ -264,8 +312,9 @@ def _measurement_msg(values: list[float], size: int | None = None,
     return msg
 
 
+@pytest.mark.usefixtures('runs')
 def test_bad_input_does_not_kill_any_node_and_gives_degraded_state(system: System) -> None:
-    probe = system.probe
+    observer = system.observer
     good = list(ros_qos.measurement_to_msg(_fake_measurement()).data)
     nan_com, inf_mom = list(good), list(good)
     nan_com[1] = math.nan
@@ -281,28 +330,28 @@ def test_bad_input_does_not_kill_any_node_and_gives_degraded_state(system: Syste
                     _measurement_msg(bad_mode, label=FEATURES_LABEL),
                     _measurement_msg(features[:5], label=FEATURES_LABEL),
                     _measurement_msg([math.inf] * 17, label=FEATURES_LABEL)]
-    measurement_pub = create_publisher(probe.node, Float64MultiArray, MEASUREMENT)
-    features_pub = create_publisher(probe.node, Float64MultiArray, FEATURES)
-    assert probe.spin_until(lambda: measurement_pub.get_subscription_count() >= 3
+    measurement_pub = create_publisher(observer.node, Float64MultiArray, MEASUREMENT)
+    features_pub = create_publisher(observer.node, Float64MultiArray, FEATURES)
+    assert observer.spin_until(lambda: measurement_pub.get_subscription_count() >= 3
                             and features_pub.get_subscription_count() >= 2, 10.0)
-    probe.states.clear()
+    observer.states.clear()
     for msg in bad_measurements:
         measurement_pub.publish(msg)
     for msg in bad_features:
         features_pub.publish(msg)
 
     def degraded() -> list[PredictorState]:
-        return [s for s in probe.states if s.stale_reason and 'invalid' in s.stale_reason]
+        return [s for s in observer.states if s.stale_reason and 'invalid' in s.stale_reason]
 
-    assert probe.spin_until(lambda: len(degraded()) == len(bad_features), 10.0), probe.states
+    assert observer.spin_until(lambda: len(degraded()) == len(bad_features), 10.0), observer.states
     assert all(s.level == LEVEL_STALE and not s.falling for s in degraded())
-    feature_status = probe.fresh_diagnostics('/feature_node')
+    feature_status = observer.fresh_diagnostics('feature_node')
     assert int(feature_status.values['invalid_measurements']) == len(bad_measurements)
-    controller_status = probe.fresh_diagnostics('/controller_node')
+    controller_status = observer.fresh_diagnostics('controller_node')
     assert int(controller_status.values['invalid_measurements']) == len(bad_measurements)
-    predictor_status = probe.fresh_diagnostics('/predictor_node')
+    predictor_status = observer.fresh_diagnostics('predictor_node')
     assert int(predictor_status.values['invalid_features']) == len(bad_features)
-    _alive(system.nodes)
+    assert _dead_nodes(system.nodes) == ''
 
 
 def _fake_measurement() -> Measurement:
@@ -312,25 +361,27 @@ def _fake_measurement() -> Measurement:
                        left_foot=np.zeros(3), right_foot=np.zeros(3), non_foot_contact=False)
 
 
+@pytest.mark.usefixtures('runs')
 def test_stale_inputs_give_stale_state_and_diagnostics(system: System) -> None:
-    probe = system.probe
-    result = probe.set_parameters('predictor_node', stale_timeout_s=0.3)[0]
+    observer = system.observer
+    result = observer.set_parameters('predictor_node', stale_timeout_s=0.3)[0]
     assert result.successful
-    probe.states.clear()
-    assert probe.spin_until(lambda: any(s.stale_reason and s.stale_reason.startswith(
-        'no valid features') for s in probe.states), 5.0)
-    stale = [s for s in probe.states if s.stale_reason]
+    observer.states.clear()
+    assert observer.spin_until(lambda: any(s.stale_reason and s.stale_reason.startswith(
+        'no valid features') for s in observer.states), 5.0)
+    stale = [s for s in observer.states if s.stale_reason]
     assert all(s.level == LEVEL_STALE and not s.falling for s in stale)
-    assert probe.fresh_diagnostics('/predictor_node').level == LEVEL_STALE
-    assert probe.fresh_diagnostics('/feature_node').level == LEVEL_STALE
+    assert observer.fresh_diagnostics('predictor_node').level == LEVEL_STALE
+    assert observer.fresh_diagnostics('feature_node').level == LEVEL_STALE
 
 
+@pytest.mark.usefixtures('runs')
 def test_recorder_bags_hold_every_published_message(system: System) -> None:
-    probe = system.probe
+    observer = system.observer
     nodes = system.nodes
     # No more STALE states from now on, so that the counts below are final.
-    assert probe.set_parameters('predictor_node', stale_timeout_s=60.0)[0].successful
-    final = {name: probe.fresh_diagnostics(f'/{name}').values
+    assert observer.set_parameters('predictor_node', stale_timeout_s=60.0)[0].successful
+    final = {name: observer.fresh_diagnostics(name).values
              for name in ('simulator_node', 'controller_node', 'feature_node', 'predictor_node')}
     simulator = final['simulator_node']
     codes = stop_nodes(nodes)
@@ -339,7 +390,7 @@ def test_recorder_bags_hold_every_published_message(system: System) -> None:
         MEASUREMENT.name: int(simulator['measurements']),
         JOINT_STATES.name: int(simulator['joint_states']),
         PUSH.name: int(simulator['pushes']),
-        # + the probe's wrong-names command: valid on the wire, rejected by the simulator only.
+        # + the observer's wrong-names command: valid on the wire, rejected by the simulator only.
         JOINT_COMMANDS.name: int(final['controller_node']['commands']) + 1,
         CONTROLLER_MODE.name: int(final['controller_node']['modes']),
         FEATURES.name: int(final['feature_node']['features']),
@@ -353,17 +404,17 @@ def test_recorder_bags_hold_every_published_message(system: System) -> None:
             in_bags[message.topic] += 1
     assert in_bags == published
 
-    runs = [read_trajectory(bag) for bag in bags]
-    for recorded in runs:
+    recorded_runs = [read_trajectory(bag) for bag in bags]
+    for recorded in recorded_runs:
         # What the dataset code does with a bag: features from the measurements.
         X, mode = extract_features(recorded.measurements)
         live = {f.t: f for f in recorded.features}
         for i, m in enumerate(recorded.measurements):
             assert np.array_equal(live[m.t].x, X[i]) and live[m.t].mode == mode[i]
-    assert runs[0].measurements[-1].t >= NO_PUSH_RUN_S
-    assert len(runs[1].pushes) == 1 and runs[1].pushes[0].t == STRONG_PUSH.t_push
+    assert recorded_runs[0].measurements[-1].t >= NO_PUSH_RUN_S
+    assert len(recorded_runs[1].pushes) == 1 and recorded_runs[1].pushes[0].t == STRONG_PUSH.t_push
     # After the switch, C_fall holds one pose.
-    t_switch = float(probe.diagnostics['/controller_node'].values['t_switch_s'])
+    t_switch = float(observer.diagnostics['/controller_node'].values['t_switch_s'])
     frozen = [m.msg.position for m in iter_messages(bags[1], [JOINT_COMMANDS.name])
               if m.t_ns > round(t_switch * 1e9)]
     assert frozen and all(np.array_equal(q, frozen[0]) for q in frozen)

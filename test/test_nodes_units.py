@@ -2,6 +2,8 @@
 and the predictor node's start-up (model loading, parameter validation) in and out of process."""
 from __future__ import annotations
 
+import dataclasses
+
 import math
 import subprocess
 import sys
@@ -12,12 +14,16 @@ from geometry_msgs.msg import WrenchStamped
 from rclpy.parameter import Parameter
 from test_nodes_support import MODEL_TAU_HIS_S, ros_context, test_domain_id, write_momentum_model
 
-from fall_predictor.bringup import ros_environment
-from fall_predictor.nodes.observer import push_request_msg
-from fall_predictor.nodes.common import NodeStartupError, ParamSpec, RunTracker, Sample
-from fall_predictor.nodes.predictor_node import PredictorNode, default_model_path
-from fall_predictor.nodes.simulator_node import MAX_PUSH_HEIGHT_M, push_from_request
-from fall_predictor.records import PushSpec
+from fall_predictor.ros.bringup import ros_environment
+from fall_predictor.ros.common import NodeStartupError, ParamSpec, RunTracker, Sample
+from fall_predictor.ros.feature_node import FeatureNode
+from fall_predictor.ros.predictor_node import PredictorNode
+from fall_predictor.monitor.features import FeatureSettings
+from fall_predictor.monitor.model_file import load_model, save_model
+from fall_predictor.ros.share import default_model_path
+from fall_predictor.ros.conversions import (MAX_PUSH_HEIGHT_M, push_request_from_msg,
+                                            push_request_to_msg)
+from fall_predictor.monitor.records import PushSpec
 
 DOMAIN = test_domain_id(70)
 
@@ -28,7 +34,7 @@ DOMAIN = test_domain_id(70)
                                   PushSpec(120.0, -135.0, -0.05, 3.0),
                                   PushSpec(300.0, 0.0, 0.25, 2.123)])
 def test_push_request_round_trip(push: PushSpec) -> None:
-    back = push_from_request(push_request_msg(push), now_s=1.0)
+    back = push_request_from_msg(push_request_to_msg(push), now_s=1.0, dt_s=0.001)
     assert back.force_n == pytest.approx(push.force_n)
     assert back.angle_deg == pytest.approx(push.angle_deg)
     assert back.height_m == pytest.approx(push.height_m)
@@ -36,9 +42,9 @@ def test_push_request_round_trip(push: PushSpec) -> None:
 
 
 def test_push_request_onset_on_the_step_grid_and_never_in_the_past() -> None:
-    msg = push_request_msg(PushSpec(100.0, 0.0, 0.0, 2.5004))
-    assert push_from_request(msg, now_s=1.0).t_push == 2.5
-    assert push_from_request(msg, now_s=3.217).t_push == 3.217
+    msg = push_request_to_msg(PushSpec(100.0, 0.0, 0.0, 2.5004))
+    assert push_request_from_msg(msg, now_s=1.0, dt_s=0.001).t_push == 2.5
+    assert push_request_from_msg(msg, now_s=3.217, dt_s=0.001).t_push == 3.217
 
 
 def _request(fx: float = 100.0, fy: float = 0.0, fz: float = 0.0, torque=(0.0, 0.0, 0.0),
@@ -60,11 +66,11 @@ def _request(fx: float = 100.0, fy: float = 0.0, fz: float = 0.0, torque=(0.0, 0
 ])
 def test_bad_push_requests_are_rejected_with_the_reason(msg: WrenchStamped, problem: str) -> None:
     with pytest.raises(ValueError, match=problem.replace('(', r'\(').replace(')', r'\)')):
-        push_from_request(msg, now_s=0.0)
+        push_request_from_msg(msg, now_s=0.0, dt_s=0.001)
 
 
 def test_empty_frame_means_heading_frame() -> None:
-    assert push_from_request(_request(frame=''), 0.0).force_n == 100.0
+    assert push_request_from_msg(_request(frame=''), 0.0, 0.001).force_n == 100.0
 
 
 # -- runs and parameters -----------------------------------------------------------------------
@@ -117,6 +123,54 @@ def test_predictor_node_refuses_a_missing_model_in_process(tmp_path: Path) -> No
                           parameter_overrides=[Parameter('model_path', value=str(missing))])
 
 
+def _model_with_settings(path: Path, settings: FeatureSettings) -> Path:
+    lists, metadata = load_model(write_momentum_model(path))
+    save_model(path, lists, dataclasses.replace(metadata, feature_settings=settings))
+    return path
+
+
+def test_feature_and_predictor_nodes_adopt_the_models_feature_settings(tmp_path: Path) -> None:
+    settings = FeatureSettings(rate_window_s=0.02, edge_tolerance_m=0.005, sample_period_s=0.002,
+                               guard_com_height_m=0.4)
+    model = _model_with_settings(tmp_path / 'model.json', settings)
+    with ros_context(DOMAIN) as context:
+        features = FeatureNode(context=context,
+                               parameter_overrides=[Parameter('model_path', value=str(model))])
+        predictor = PredictorNode(context=context,
+                                  parameter_overrides=[Parameter('model_path', value=str(model))])
+        try:
+            extractor = features._extractor
+            assert (extractor.rate_window_s, extractor.dt_s, extractor.edge_tolerance_m) == (
+                0.02, 0.002, 0.005)
+            assert extractor.window_samples == 10
+            assert predictor._predictor.dt_s == 0.002
+            assert predictor._predictor.guard_com_height_m == 0.4
+        finally:
+            features.destroy_node()
+            predictor.destroy_node()
+
+
+@pytest.mark.parametrize('node_class, parameter, value', [
+    (FeatureNode, 'rate_window_s', 0.02),
+    (FeatureNode, 'edge_tolerance_m', 0.0),
+    (FeatureNode, 'sample_period_s', 0.002),
+    (PredictorNode, 'guard_com_height_m', 0.5),
+    (PredictorNode, 'sample_period_s', 0.002),
+])
+def test_nodes_refuse_feature_settings_that_differ_from_the_models(tmp_path, node_class, parameter,
+                                                                    value) -> None:
+    model = write_momentum_model(tmp_path / 'model.json')       # the default settings
+    with ros_context(DOMAIN) as context:
+        with pytest.raises(NodeStartupError, match=f'{parameter} = {value} but model'):
+            node_class(context=context, parameter_overrides=[
+                Parameter('model_path', value=str(model)), Parameter(parameter, value=value)])
+        # The same value as the model's is accepted.
+        same = getattr(FeatureSettings(), parameter)
+        node = node_class(context=context, parameter_overrides=[
+            Parameter('model_path', value=str(model)), Parameter(parameter, value=same)])
+        node.destroy_node()
+
+
 def test_default_model_is_looked_up_in_the_package_models_directory() -> None:
     assert default_model_path().parts[-2:] == ('models', 'default_model.json')
 
@@ -135,7 +189,7 @@ def test_predictor_process_refuses_to_start_with_a_clear_error(tmp_path: Path) -
     env = ros_environment(DOMAIN)
     processes = {
         name: subprocess.Popen(
-            [sys.executable, '-m', 'fall_predictor.nodes.predictor_node', '--ros-args', *args],
+            [sys.executable, '-m', 'fall_predictor.ros.predictor_node', '--ros-args', *args],
             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
         for name, (args, _) in cases.items()}
     for name, process in processes.items():

@@ -3,10 +3,10 @@ import math
 import numpy as np
 import pytest
 
-from fall_predictor.decision_list import Condition, DecisionList, PerModeDecisionLists, Rule
-from fall_predictor.learning import TreeListLearner
-from fall_predictor.predictor import OnlinePredictor, predict_trajectory
-from fall_predictor.records import FALLING, FEATURE_NAMES, N_CONTACT_MODES, N_FEATURES
+from fall_predictor.monitor.decision_list import Condition, DecisionList, PerModeDecisionLists, Rule
+from fall_predictor.learning.learners import TreeListLearner
+from fall_predictor.monitor.predictor import OnlinePredictor, predict_trajectory
+from fall_predictor.monitor.records import FALLING, FEATURE_NAMES, N_CONTACT_MODES, N_FEATURES
 
 COM_Z = FEATURE_NAMES.index('com_z')
 LIN_MOM_X = FEATURE_NAMES.index('lin_mom_x')

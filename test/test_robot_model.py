@@ -1,10 +1,9 @@
 """The URDF read back through PyBullet matches SPEC §1."""
-import numpy as np
 import pybullet as pb
 import pytest
 
-from fall_predictor import robot_model as rm
-from fall_predictor.controllers import BalanceController
+from fall_predictor.robot import model as rm
+from fall_predictor.robot.controllers import BalanceController
 
 
 @pytest.fixture

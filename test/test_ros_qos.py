@@ -11,16 +11,9 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
-from fall_predictor import ros_qos
-from fall_predictor.wire import (
-    CONTROLLER_MODE,
-    MEASUREMENT,
-    MEASUREMENT_LABEL,
-    TOPICS,
-    PredictorState,
-    WireFormatError,
-    pack_measurement,
-)
+from fall_predictor.ros import conversions as ros_qos
+from fall_predictor.data.topics import (CONTROLLER_MODE, MEASUREMENT, MEASUREMENT_LABEL, TOPICS, WireFormatError)
+from fall_predictor.data.wire import PredictorState, pack_measurement
 from random_records import make_measurement
 
 
@@ -96,7 +89,7 @@ def test_bag_and_live_serialisations_are_interchangeable(rng, tmp_path):
     """
     from rosbags.rosbag2 import Reader
 
-    from fall_predictor.bagio import BagWriter, typestore
+    from fall_predictor.data.bagio import BagWriter, typestore
 
     m = make_measurement(rng, 3, 2, t=0.002)
     with BagWriter(tmp_path / 'bag') as writer:
@@ -116,9 +109,9 @@ def test_bag_and_live_serialisations_are_interchangeable(rng, tmp_path):
 
 _STRICT_SCRIPT = '''
 import numpy as np
-from fall_predictor import ros_qos
-from fall_predictor.records import Measurement
-from fall_predictor.wire import PredictorState
+from fall_predictor.ros import conversions as ros_qos
+from fall_predictor.monitor.records import Measurement
+from fall_predictor.data.wire import PredictorState
 m = Measurement(t=0.1, com=np.zeros(3), lin_mom=np.zeros(3), ang_mom=np.zeros(3), heading=0.0,
                 cop=np.full(3, np.nan), left_contacts=np.zeros((2, 3)),
                 right_contacts=np.zeros((0, 3)), left_foot=np.zeros(3), right_foot=np.zeros(3),

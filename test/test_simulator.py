@@ -3,10 +3,10 @@ import numpy as np
 import pybullet as pb
 import pytest
 
-from fall_predictor.controllers import BalanceController
-from fall_predictor.records import PushSpec
-from fall_predictor.simulator import GRAVITY
-from fall_predictor.trajectory import run_trajectory
+from fall_predictor.robot.controllers import BalanceController
+from fall_predictor.monitor.records import PushSpec
+from fall_predictor.sim.simulator import GRAVITY
+from fall_predictor.sim.trajectory import run_trajectory
 
 
 def _stand(sim, seconds):
@@ -97,7 +97,7 @@ def test_an_unsupported_robot_ends_fallen(sim):
 
 
 def test_a_trajectory_from_a_walk_prefix_equals_one_from_a_fresh_world(sim):
-    from fall_predictor.trajectory import WalkPrefix
+    from fall_predictor.sim.trajectory import WalkPrefix
     prefix = WalkPrefix(sim, until_s=1.6, walk_duration_s=10.0)
     for push in (PushSpec(160.0, 120.0, 0.05, 1.234), PushSpec(90.0, -60.0, 0.2, 1.55)):
         warm = run_trajectory(push, 3.0, prefix=prefix)

@@ -6,35 +6,10 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from fall_predictor.records import CONTACT_MODE_NAMES, N_FEATURES
-from fall_predictor.wire import (
-    CONTROLLER_MODE,
-    FEATURES_LABEL,
-    LATCHED_QOS,
-    MEASUREMENT_HEADER_LEN,
-    MEASUREMENT_LABEL,
-    SIM_RATE_HZ,
-    STREAM_QOS,
-    TOPICS,
-    TOPICS_BY_NAME,
-    JointStateSample,
-    PredictorState,
-    PushEvent,
-    QosSpec,
-    WireFormatError,
-    check_controller_mode,
-    check_layout,
-    pack_features,
-    pack_measurement,
-    push_from_wire,
-    state_from_diagnostic,
-    state_to_status,
-    time_to_ns,
-    time_to_stamp,
-    topics_markdown_table,
-    unpack_features,
-    unpack_measurement,
-)
+from fall_predictor.monitor.records import CONTACT_MODE_NAMES, N_FEATURES
+from fall_predictor.data.topics import (CONTROLLER_MODE, FEATURES_LABEL, LATCHED_QOS, MEASUREMENT_LABEL, SIM_RATE_HZ, STREAM_QOS, TOPICS, TOPICS_BY_NAME, QosSpec, WireFormatError, check_controller_mode, topics_markdown_table)
+from fall_predictor.data.wire import (MEASUREMENT_HEADER_LEN, JointStateSample, PredictorState, PushEvent, check_layout, pack_features, pack_measurement, push_from_wire, state_from_diagnostic, state_to_status, unpack_features, unpack_measurement)
+from fall_predictor.data.topics import time_to_ns, time_to_stamp
 from random_records import make_measurement
 
 

@@ -1,0 +1,109 @@
+"""Arguments of the ``fall-predictor`` command line: the types (each parses one option's text
+or raises ``argparse.ArgumentTypeError`` naming the bad value) and the bring-up options."""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+
+def finite(kind):
+    def parse(text: str):
+        value = kind(text)
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f'{text!r} is not a finite number')
+        return value
+    return parse
+
+
+def positive(text: str) -> float:
+    value = finite(float)(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f'{text!r} must be > 0')
+    return value
+
+
+def positive_int(text: str) -> int:
+    value = int(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f'{text!r} must be a positive integer')
+    return value
+
+
+def nonnegative(text: str) -> float:
+    value = finite(float)(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f'{text!r} must be >= 0')
+    return value
+
+
+def at_least_two(text: str) -> int:
+    value = int(text)
+    if value < 2:
+        raise argparse.ArgumentTypeError(f'{text!r} must be an integer >= 2')
+    return value
+
+
+def list_of(element):
+    """Parser of a comma-separated list whose elements ``element`` parses."""
+    def parse(text: str) -> tuple:
+        try:
+            values = tuple(element(part) for part in text.split(',') if part.strip())
+        except ValueError as error:
+            raise argparse.ArgumentTypeError(f'{text!r}: {error}') from error
+        if not values:
+            raise argparse.ArgumentTypeError(f'{text!r}: expected a comma-separated list')
+        return values
+    return parse
+
+
+def learner_param(text: str) -> tuple:
+    """``KEY=VALUE``; VALUE is read as JSON (``8``, ``0.5``, ``null``) or else kept as a string."""
+    key, separator, raw = text.partition('=')
+    if not separator or not key.strip():
+        raise argparse.ArgumentTypeError(f'{text!r}: expected KEY=VALUE')
+    try:
+        value = json.loads(raw)
+    except json.JSONDecodeError:
+        value = raw
+    return key.strip(), value
+
+
+def non_negative_int(text: str) -> int:
+    value = int(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f'{text!r} must be >= 0')
+    return value
+
+
+def domain_id(text: str) -> int:
+    value = int(text)
+    if not 0 <= value <= 232:
+        raise argparse.ArgumentTypeError(f'{text!r}: ROS domain ids go from 0 to 232')
+    return value
+
+
+def add_bringup_arguments(parser: argparse.ArgumentParser) -> None:
+    """The bring-up options (no ROS import: ``--help`` works without ROS)."""
+    parser.add_argument('--pushes', type=non_negative_int, default=1,
+                        help='number of pushes, each on a fresh world (default 1)')
+    parser.add_argument('--seed', type=int, default=0,
+                        help='push i is that of dataset trajectory i with this seed')
+    parser.add_argument('--json', action='store_true', help='print one JSON line per push')
+    parser.add_argument('--domain-id', type=domain_id, default=None,
+                        help='ROS_DOMAIN_ID of the nodes (default: derived from the pid)')
+    parser.add_argument('--real-time-factor', type=nonnegative, default=0.0,
+                        help='simulated s per wall s; 0 = as fast as possible (default)')
+    parser.add_argument('--model', type=Path, default=None,
+                        help='model file (default: the shipped models/default_model.json)')
+    parser.add_argument('--params-file', type=Path, default=None,
+                        help='ROS params file (default: config/fall_predictor.yaml)')
+    parser.add_argument('--record', type=Path, default=None, metavar='DIR',
+                        help='also run the recorder: one bag per push in DIR')
+    parser.add_argument('--horizon', type=nonnegative, default=3.0,
+                        help='simulated s watched after a push ends if no fall (default 3)')
+    parser.add_argument('--log-dir', type=Path, default=None,
+                        help='node logs (default: a new temporary directory)')
+    parser.add_argument('--no-fall-trigger', dest='fall_trigger', action='store_false',
+                        help='monitor only: C_bal stays in charge (record training data this way)')

@@ -1,0 +1,181 @@
+"""Push-trajectory datasets as they are read: manifest, index and features.
+
+Layout of a dataset directory (made by :mod:`fall_predictor.data.generation`)::
+
+    dataset.json              manifest: format, seed, push distribution, horizon, robot
+    bags/traj_00042/          one rosbag2 bag (MCAP) per trajectory
+    index/traj_00042.json     its index row, written only once the bag is complete
+    index.csv                 all rows in one table (rewritten after each run)
+    cache/traj_00042.npz      features derived from the bag (:mod:`fall_predictor.data.cache`)
+
+A bag that cannot be read is reported with its file named and skipped; the rest of the dataset
+stays usable.
+"""
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import os
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any, Iterable, Optional
+
+import numpy as np
+
+from fall_predictor.data.bagio import BagError, read_trajectory
+from fall_predictor.data.cache import bag_fingerprint, cached_arrays
+from fall_predictor.monitor.features import FeatureSettings, extract_features
+from fall_predictor.monitor.fileio import atomic_output
+from fall_predictor.monitor.records import PushSpec, TrajectoryFeatures
+
+FORMAT = 'fall_predictor/dataset/v1'
+CACHE_FORMAT = 'fall_predictor/features-cache/v1'
+
+
+class DatasetError(Exception):
+    """A dataset directory that cannot be used as asked (names the path and the problem)."""
+
+
+@dataclass
+class IndexRow:
+    """One trajectory of the index. Times in simulation seconds; None where not applicable."""
+
+    trajectory_id: str
+    bag: str                      #: bag directory relative to the dataset directory
+    force_n: float
+    angle_deg: float
+    height_m: float
+    t_push: float
+    t_force_end: float
+    fallen: bool
+    t_fallen: Optional[float]
+    t_height_drop: Optional[float]
+    t_reflex: Optional[float]
+    t_start: float
+    t_end: float
+    samples: int
+
+    @property
+    def push(self) -> PushSpec:
+        return PushSpec(self.force_n, self.angle_deg, self.height_m, self.t_push,
+                        round(self.t_force_end - self.t_push, 6))
+
+
+def trajectory_id(index: int) -> str:
+    return f'traj_{index:05d}'
+
+
+def read_manifest(out: str | os.PathLike) -> dict[str, Any]:
+    """The dataset's ``dataset.json``: how it was made, and the robot it was made with."""
+    path = Path(out) / 'dataset.json'
+    if not path.exists():
+        raise DatasetError(f'{out}: not a dataset directory (no dataset.json)')
+    try:
+        manifest = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise DatasetError(f'{path}: unreadable manifest: {exc}') from exc
+    if not isinstance(manifest, dict) or manifest.get('format') != FORMAT:
+        raise DatasetError(f'{path}: not a {FORMAT} manifest')
+    return manifest
+
+
+def robot_total_mass_kg(out: str | os.PathLike) -> float:
+    """The total mass [kg] of the robot a dataset was recorded with (from its manifest)."""
+    try:
+        mass = float(read_manifest(out)['robot']['total_mass_kg'])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise DatasetError(f'{out}: dataset.json does not give the robot\'s total mass '
+                           '(robot.total_mass_kg); regenerate or re-import the dataset') from exc
+    if not (mass > 0.0 and np.isfinite(mass)):
+        raise DatasetError(f'{out}: robot.total_mass_kg must be positive, got {mass}')
+    return mass
+
+
+def read_index(out: str | os.PathLike) -> list[IndexRow]:
+    """All finished trajectories of a dataset, in index order."""
+    out = Path(out)
+    if not (out / 'dataset.json').exists():
+        raise DatasetError(f'{out}: not a dataset directory (no dataset.json)')
+    rows = []
+    for path in sorted((out / 'index').glob('traj_*.json')):
+        try:
+            rows.append(IndexRow(**json.loads(path.read_text())))
+        except (OSError, json.JSONDecodeError, TypeError) as exc:
+            raise DatasetError(f'{path}: unreadable index row: {exc}') from exc
+    return rows
+
+
+def write_index_csv(out: Path, rows: Iterable[IndexRow]) -> Path:
+    path = Path(out) / 'index.csv'
+    rows = list(rows)
+    names = list(IndexRow.__dataclass_fields__)
+    with atomic_output(path) as tmp, open(tmp, 'w', newline='') as f:
+        writer = csv.DictWriter(f, fieldnames=names)
+        writer.writeheader()
+        for row in rows:
+            writer.writerow(asdict(row))
+    return path
+
+
+# -- feature cache ------------------------------------------------------------------------------
+@dataclass
+class LoadReport:
+    """What :func:`load_features` found: usable trajectories and the bags it had to skip."""
+
+    trajectories: list[TrajectoryFeatures]
+    errors: dict[str, str]           #: trajectory id -> error message (bag named)
+    rebuilt: int                     #: cache entries (re)computed from bags
+    fingerprint: str                 #: of the whole dataset as loaded
+    settings: FeatureSettings        #: how the features were computed
+
+
+def _load_or_build(out: Path, row: IndexRow, settings: FeatureSettings
+                   ) -> tuple[Optional[TrajectoryFeatures], Optional[str], bool]:
+    """Features of one trajectory (cached), or the error that kept them from being read."""
+    bag = out / row.bag
+
+    def from_bag() -> dict[str, np.ndarray]:
+        recorded = read_trajectory(bag)
+        X, mode = extract_features(recorded.measurements, settings.rate_window_s,
+                                   settings.sample_period_s, settings.edge_tolerance_m)
+        return {'t': np.array([m.t for m in recorded.measurements]), 'X': X, 'mode': mode}
+
+    try:
+        # Features computed with other settings are another kind of derived data.
+        kind = f'{CACHE_FORMAT}?{json.dumps(asdict(settings), sort_keys=True)}'
+        arrays, built = cached_arrays(out / 'cache' / f'{row.trajectory_id}.npz', bag, kind, from_bag)
+    except OSError as exc:
+        return None, f'{bag}: {exc}', False
+    except BagError as exc:
+        return None, str(exc), False
+    return TrajectoryFeatures(row.trajectory_id, arrays['t'], arrays['X'], arrays['mode'], row.fallen,
+                              row.t_push, row.t_force_end, row.t_fallen, row.t_height_drop), None, built
+
+
+def load_features(data_dir: str | os.PathLike, jobs: int = 1, progress: bool = True,
+                  settings: FeatureSettings = FeatureSettings()) -> LoadReport:
+    """Features of every trajectory of a dataset, from the cache where it is up to date.
+
+    A bag that cannot be read is reported in ``errors`` (with its file named) and skipped;
+    the rest of the dataset stays usable.
+    """
+    from joblib import Parallel, delayed
+    from tqdm import tqdm
+
+    out = Path(data_dir)
+    rows = read_index(out)
+    if not rows:
+        raise DatasetError(f'{out}: the dataset has no finished trajectories')
+    results = Parallel(n_jobs=jobs)(delayed(_load_or_build)(out, row, settings)
+                                   for row in tqdm(rows, desc='features', unit='traj', disable=not progress))
+    trajectories, errors, rebuilt = [], {}, 0
+    h = hashlib.sha256()
+    for row, (traj, error, built) in zip(rows, results):
+        if traj is None:
+            errors[row.trajectory_id] = error
+            continue
+        trajectories.append(traj)
+        rebuilt += int(built)
+        h.update(f'{row.trajectory_id}:{bag_fingerprint(out / row.bag)};'.encode())
+    return LoadReport(trajectories, errors, rebuilt, h.hexdigest()[:16], settings)

@@ -1,0 +1,228 @@
+"""Generate push-trajectory datasets: simulate, record each trajectory as a bag, index it.
+
+Generation is deterministic per seed (trajectory ``i`` draws its push from ``(seed, i)``
+alone) and resumable: a bag is written under a temporary name and renamed when complete, and
+its index row is written after that, so an interrupted run never leaves a half-written
+trajectory that looks finished; a rerun skips finished trajectories and redoes unfinished ones.
+
+The simulator (:mod:`fall_predictor.sim`) is imported inside the functions that need it, so
+reading a dataset never loads PyBullet.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Iterable, Optional
+
+import numpy as np
+
+from fall_predictor.data.bagio import BagError, BagWriter, read_trajectory
+from fall_predictor.data.dataset import (FORMAT, DatasetError, IndexRow, read_index, trajectory_id,
+                                         write_index_csv)
+from fall_predictor.data.outcomes import height_drop_time
+from fall_predictor.monitor.fileio import atomic_write_text
+
+if TYPE_CHECKING:
+    from fall_predictor.sim.pushes import PushDistribution
+
+
+def _default_push_distribution() -> PushDistribution:
+    from fall_predictor.sim.pushes import PushDistribution
+    return PushDistribution()
+
+
+def simulated_robot() -> dict[str, Any]:
+    """What a dataset records about the simulated robot (the capture-point baseline needs its
+    mass)."""
+    from fall_predictor.sim.trajectory import ROBOT_NAME, ROBOT_TOTAL_MASS_KG
+    return {'name': ROBOT_NAME, 'total_mass_kg': ROBOT_TOTAL_MASS_KG}
+
+
+@dataclass(frozen=True)
+class GenerationConfig:
+    seed: int
+    #: Simulated time after the push ends; a trajectory that has not fallen by then counts as
+    #: balanced. Justified by the calibration data (docs/results.md).
+    horizon_after_push_s: float = 4.0
+    #: Walking recorded before the push onset (the simulation itself starts from standing).
+    pre_push_s: float = 1.0
+    joint_state_rate_hz: float = 100.0
+    push_distribution: PushDistribution = field(default_factory=_default_push_distribution)
+
+    def manifest(self) -> dict:
+        return {'format': FORMAT, 'seed': self.seed, 'horizon_after_push_s': self.horizon_after_push_s,
+                'pre_push_s': self.pre_push_s, 'joint_state_rate_hz': self.joint_state_rate_hz,
+                'push_distribution': asdict(self.push_distribution), 'robot': simulated_robot()}
+
+
+def _open_dataset(out: Path, config: GenerationConfig) -> None:
+    manifest_path = out / 'dataset.json'
+    manifest = json.loads(json.dumps(config.manifest()))   # as it reads back from the file
+    if manifest_path.exists():
+        try:
+            existing = json.loads(manifest_path.read_text())
+        except (OSError, json.JSONDecodeError) as exc:
+            raise DatasetError(f'{manifest_path}: unreadable manifest: {exc}') from exc
+        if existing != manifest:
+            raise DatasetError(f'{out}: exists with different generation settings '
+                               f'({existing}); use another --out or the same settings')
+    else:
+        out.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(manifest_path, json.dumps(manifest, indent=1, sort_keys=True))
+    (out / 'bags').mkdir(exist_ok=True)
+    (out / 'index').mkdir(exist_ok=True)
+
+
+
+_WORKER_PREFIX: dict = {}
+
+
+def _walk_prefix(config: GenerationConfig):
+    """One simulator per worker process, with the unpushed walk up to the latest possible
+    push onset simulated once (trajectories then start from its snapshots, bit-identically)."""
+    from fall_predictor.sim.simulator import Simulator
+    from fall_predictor.sim.trajectory import WalkPrefix
+
+    dist = config.push_distribution
+    key = (dist.settle_s, dist.walk_cycle_s())
+    if key not in _WORKER_PREFIX:
+        until = dist.settle_s + dist.walk_cycle_s()
+        _WORKER_PREFIX[key] = WalkPrefix(Simulator(), until_s=until,
+                                         walk_duration_s=until + config.horizon_after_push_s + 5.0)
+    return _WORKER_PREFIX[key]
+
+
+def generate_one(out: Path, config: GenerationConfig, index: int) -> IndexRow:
+    """Simulate trajectory ``index`` and write its bag and index row (atomically)."""
+    from fall_predictor.sim.pushes import trajectory_seed
+    from fall_predictor.sim.trajectory import ROBOT_JOINT_NAMES, run_trajectory
+
+    tid = trajectory_id(index)
+    push = config.push_distribution.sample(trajectory_seed(config.seed, index))
+    result = run_trajectory(push, push.t_force_end + config.horizon_after_push_s, prefix=_walk_prefix(config))
+    t_start = round(push.t_push - config.pre_push_s, 6)
+    keep = [i for i, m in enumerate(result.measurements) if m.t >= t_start - 1e-9]
+    measurements = [result.measurements[i] for i in keep]
+    t_height_drop = None
+    if result.fallen:
+        t = np.array([m.t for m in measurements])
+        z = np.array([m.com[2] for m in measurements])
+        t_height_drop = height_drop_time(t, z, result.t_fallen)
+    final = out / 'bags' / tid
+    partial = out / 'bags' / (tid + '.partial')
+    shutil.rmtree(partial, ignore_errors=True)
+    shutil.rmtree(final, ignore_errors=True)
+    joint_every = max(1, int(round(1.0 / (config.joint_state_rate_hz * 0.001))))
+    with BagWriter(partial) as bag:
+        applied = next((m.push_force for m in measurements if m.push_force.any()), np.zeros(3))
+        bag.write_push(push.t_push, applied)
+        for k, i in enumerate(keep):
+            m = result.measurements[i]
+            bag.write_measurement(m)
+            if k % joint_every == 0:
+                bag.write_joint_state(m.t, ROBOT_JOINT_NAMES, result.joint_positions[i], result.joint_velocities[i])
+    # metadata.yaml names the MCAP file relative to the bag directory, so renaming the
+    # directory keeps the bag valid.
+    os.replace(partial, final)
+    row = IndexRow(trajectory_id=tid, bag=f'bags/{tid}', force_n=push.force_n, angle_deg=push.angle_deg,
+                   height_m=push.height_m, t_push=push.t_push, t_force_end=push.t_force_end,
+                   fallen=result.fallen, t_fallen=result.t_fallen, t_height_drop=t_height_drop,
+                   t_reflex=result.t_reflex, t_start=measurements[0].t, t_end=measurements[-1].t,
+                   samples=len(measurements))
+    atomic_write_text(out / 'index' / f'{tid}.json', json.dumps(asdict(row), sort_keys=True))
+    return row
+
+
+def _finished(out: Path, index: int) -> bool:
+    tid = trajectory_id(index)
+    return (out / 'index' / f'{tid}.json').exists() and (out / 'bags' / tid / 'metadata.yaml').exists()
+
+
+def generate_dataset(out: str | os.PathLike, trajectories: int, seed: int, jobs: int = 1,
+                     config: Optional[GenerationConfig] = None, progress: bool = True) -> list[IndexRow]:
+    """Generate (or finish generating) ``trajectories`` push trajectories into ``out``."""
+    from joblib import Parallel, delayed
+    from tqdm import tqdm
+
+    out = Path(out)
+    config = config or GenerationConfig(seed=seed)
+    if config.seed != seed:
+        raise ValueError('seed and config.seed differ')
+    _open_dataset(out, config)
+    pending = [i for i in range(trajectories) if not _finished(out, i)]
+    bar = tqdm(total=trajectories, initial=trajectories - len(pending), desc='trajectories',
+               unit='traj', disable=not progress)
+    if pending:
+        results = Parallel(n_jobs=jobs, return_as='generator_unordered')(
+            delayed(generate_one)(out, config, i) for i in pending)
+        for _ in results:
+            bar.update(1)
+    bar.close()
+    rows = read_index(out)
+    write_index_csv(out, rows)
+    return rows
+
+
+# -- recordings ---------------------------------------------------------------------------------
+@dataclass
+class ImportReport:
+    rows: list[IndexRow]
+    rejected: dict[str, str]         #: bag path -> why it cannot be a training trajectory
+
+
+def _recorded_row(bag: Path, tid: str) -> IndexRow:
+    from fall_predictor.data.bagio import iter_messages
+    from fall_predictor.data.outcomes import first_fallen_time
+    from fall_predictor.data.topics import CONTROLLER_MODE
+
+    recorded = read_trajectory(bag)
+    if not recorded.pushes or len(recorded.pushes) != 1:
+        raise DatasetError(f'{bag}: {len(recorded.pushes or [])} pushes recorded; a training trajectory '
+                           'holds exactly one (SPEC §3)')
+    modes = [m.msg.data for m in iter_messages(bag, [CONTROLLER_MODE.name])]
+    if 'fall' in modes:
+        raise DatasetError(f'{bag}: C_fall took over during the recording; hindsight labels need C_bal '
+                           'throughout (record with `bringup --no-fall-trigger`)')
+    ms = recorded.measurements
+    t = np.array([m.t for m in ms])
+    z = np.array([m.com[2] for m in ms])
+    t_fallen = first_fallen_time(t, z, np.array([m.non_foot_contact for m in ms]))
+    push = recorded.pushes[0]
+    at_push = ms[int(np.searchsorted(t, push.t))]
+    angle = np.degrees(np.arctan2(push.force[1], push.force[0]) - at_push.heading)
+    return IndexRow(trajectory_id=tid, bag=f'bags/{tid}', force_n=float(np.hypot(*push.force[:2])),
+                    angle_deg=float((angle + 180.0) % 360.0 - 180.0), height_m=float('nan'),
+                    t_push=push.t, t_force_end=round(push.t + 0.1, 6), fallen=t_fallen is not None,
+                    t_fallen=t_fallen, t_height_drop=None if t_fallen is None else height_drop_time(t, z, t_fallen),
+                    t_reflex=None, t_start=float(t[0]), t_end=float(t[-1]), samples=len(ms))
+
+
+def import_recordings(bags: Iterable[str | os.PathLike], out: str | os.PathLike) -> ImportReport:
+    """Make a dataset directory from live recordings (e.g. ``recorder_node`` bags), so that
+    ``train``, ``evaluate`` and ``sweep`` can use them. Bags are copied; the push height above
+    the CoM is not recorded and is NaN in the index. Bags that cannot serve as training
+    trajectories are reported in ``rejected`` with the reason, not imported."""
+    out = Path(out)
+    if out.exists():
+        raise DatasetError(f'{out}: exists; import into a new directory')
+    (out / 'bags').mkdir(parents=True)
+    (out / 'index').mkdir()
+    sources = [str(Path(b).resolve()) for b in bags]
+    atomic_write_text(out / 'dataset.json', json.dumps({'format': FORMAT, 'source': 'recordings',
+                                                        'bags': sources, 'robot': simulated_robot()}, indent=1))
+    rows, rejected = [], {}
+    for source in sources:
+        tid = trajectory_id(len(rows))
+        try:
+            row = _recorded_row(Path(source), tid)
+        except (DatasetError, BagError) as exc:
+            rejected[source] = str(exc)
+            continue
+        shutil.copytree(source, out / 'bags' / tid, copy_function=shutil.copy2)
+        atomic_write_text(out / 'index' / f'{tid}.json', json.dumps(asdict(row), sort_keys=True))
+        rows.append(row)
+    write_index_csv(out, rows)
+    return ImportReport(rows, rejected)

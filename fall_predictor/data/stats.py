@@ -1,0 +1,94 @@
+"""Dataset statistics and the paper's Fig. 6-style plots (issue: datasets, §3)."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from fall_predictor.data.dataset import IndexRow
+from fall_predictor.monitor.records import CONTACT_MODE_NAMES, N_CONTACT_MODES, TrajectoryFeatures
+
+BALANCED_COLOUR = '#2e8b57'
+FALLING_COLOUR = '#e0559a'
+
+
+def _distribution(values) -> Optional[dict]:
+    v = np.asarray(list(values), dtype=float)
+    if v.size == 0:
+        return None
+    return {'n': int(v.size), 'min': float(v.min()), 'median': float(np.median(v)), 'mean': float(v.mean()),
+            'p95': float(np.percentile(v, 95)), 'max': float(v.max())}
+
+
+def dataset_stats(rows: list[IndexRow], trajectories: list[TrajectoryFeatures]) -> dict:
+    """Counts, fall fraction, duration and oracle-lead distributions, contact-mode occupancy."""
+    fallen = [r for r in rows if r.fallen]
+    occupancy = np.zeros(N_CONTACT_MODES)
+    occupancy_falling = np.zeros(N_CONTACT_MODES)
+    for traj in trajectories:
+        occupancy += np.bincount(traj.mode, minlength=N_CONTACT_MODES)
+        if traj.fallen:
+            sel = (traj.t >= traj.t_push) & (traj.t < traj.t_fallen)
+            occupancy_falling += np.bincount(traj.mode[sel], minlength=N_CONTACT_MODES)
+    total = max(occupancy.sum(), 1)
+    total_falling = max(occupancy_falling.sum(), 1)
+    return {
+        'trajectories': len(rows),
+        'fallen': len(fallen),
+        'fall_fraction': len(fallen) / len(rows) if rows else None,
+        'samples': int(sum(r.samples for r in rows)),
+        'duration_s': _distribution(r.t_end - r.t_start for r in rows),
+        'oracle_lead_s': _distribution(r.t_fallen - r.t_push for r in fallen),
+        'fall_after_force_end_s': _distribution(r.t_fallen - r.t_force_end for r in fallen),
+        'height_drop_before_fallen_s': _distribution(r.t_fallen - r.t_height_drop for r in fallen),
+        'reflex_fired_fraction': (sum(r.t_reflex is not None for r in rows) / len(rows)) if rows else None,
+        'contact_mode_occupancy': {name: float(occupancy[i] / total) for i, name in enumerate(CONTACT_MODE_NAMES)},
+        'contact_mode_occupancy_falling': {name: float(occupancy_falling[i] / total_falling)
+                                           for i, name in enumerate(CONTACT_MODE_NAMES)},
+    }
+
+
+def plot_fig6(trajectories: list[TrajectoryFeatures], out_dir: Path, max_trajectories: int = 100,
+              seed: int = 0) -> list[Path]:
+    """Fig. 6 analogue: (a) CoM height against time after the push ends, (b) horizontal linear
+    momentum (heading frame), balanced states green and falling states pink."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(seed)
+    chosen = list(trajectories)
+    if len(chosen) > max_trajectories:
+        chosen = [chosen[i] for i in sorted(rng.choice(len(chosen), max_trajectories, replace=False))]
+    fig_a, ax_a = plt.subplots(figsize=(7, 4.2))
+    fig_b, ax_b = plt.subplots(figsize=(5.6, 5.2))
+    for traj in chosen:
+        after = traj.t >= traj.t_push - 0.1
+        t_rel = traj.t[after] - traj.t_force_end
+        colour = FALLING_COLOUR if traj.fallen else BALANCED_COLOUR
+        style = '--' if traj.fallen else '-'
+        ax_a.plot(t_rel, traj.X[after, 2], style, color=colour, lw=0.7, alpha=0.75)
+        ax_b.plot(traj.X[after, 3], traj.X[after, 4], style, color=colour, lw=0.6, alpha=0.7)
+    ax_a.axvspan(-0.1, 0.0, color='0.85', zorder=0, label='push (0.1 s)')
+    ax_a.axhline(0.33, color='k', lw=0.8, ls=':', label='fallen: 0.33 m')
+    ax_a.axhline(0.48, color='0.4', lw=0.8, ls='-.', label='CoM guard: 0.48 m')
+    ax_a.set_xlabel('time after the push ends [s]')
+    ax_a.set_ylabel('CoM height [m]')
+    for ax in (ax_a, ax_b):
+        ax.plot([], [], '-', color=BALANCED_COLOUR, label='balanced')
+        ax.plot([], [], '--', color=FALLING_COLOUR, label='falling')
+    ax_a.legend(loc='lower left', fontsize=8)
+    ax_a.set_title(f'(a) CoM height, {len(chosen)} trajectories')
+    ax_b.set_xlabel('linear momentum x (sagittal) [kg m/s]')
+    ax_b.set_ylabel('linear momentum y (frontal) [kg m/s]')
+    ax_b.set_title('(b) horizontal linear momentum')
+    ax_b.legend(loc='upper right', fontsize=8)
+    ax_b.set_aspect('equal', adjustable='datalim')
+    paths = [out_dir / 'fig6a_com_height.png', out_dir / 'fig6b_linear_momentum.png']
+    for fig, path in zip((fig_a, fig_b), paths):
+        fig.tight_layout()
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+    return paths

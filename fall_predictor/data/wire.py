@@ -1,0 +1,488 @@
+"""The array layouts on the wire: what the contract's per-sample messages hold, and time stamps.
+
+Topic names, types and QoS are in :mod:`fall_predictor.data.topics`. This module has no
+ROS imports: the rclpy nodes (through :mod:`fall_predictor.ros.conversions`) and the bag tools
+(:mod:`fall_predictor.data.bagio`) both map these definitions onto their own message objects.
+
+Only message types from ROS 2 ``common_interfaces`` are used, so fixed-layout
+``std_msgs/msg/Float64MultiArray`` arrays carry the per-sample records. Each array's layout is
+versioned by its ``layout.dim[0].label``; a reader rejects any label it does not know.
+
+Measurement layout v1 (float64, ``N = 26 + 3 * (n_left + n_right)`` values)::
+
+    [0]      t                  simulation time [s]
+    [1:4]    com                whole-body CoM, world [m]
+    [4:7]    lin_mom            linear momentum, world [kg m/s]
+    [7:10]   ang_mom            angular momentum about the CoM, world [kg m^2/s]
+    [10]     heading            pelvis yaw [rad]
+    [11:14]  cop                centre of pressure, world [m]; all three NaN if no contact
+    [14:17]  left_foot          left sole centre x, y [m] and yaw [rad]
+    [17:20]  right_foot         right sole centre x, y [m] and yaw [rad]
+    [20]     non_foot_contact   0 or 1
+    [21:24]  push_force         external push now, world [N]
+    [24]     n_left             number of left sole contact rows (a non-negative integer)
+    [25]     n_right            number of right sole contact rows
+    [26:]    n_left rows of (x [m], y [m], normal_force [N]), then n_right rows
+
+Features layout v1 (17 float64): ``[0]`` t [s], ``[1:16]`` the 15 features in
+:data:`~fall_predictor.monitor.records.FEATURE_NAMES` order, ``[16]`` the contact mode index
+(:data:`~fall_predictor.monitor.records.CONTACT_MODE_NAMES`).
+
+Header stamps and bag log times are simulation time, taken from the samples themselves (the
+nodes do not need ``use_sim_time``; ``/clock`` is published for tools that do). Every malformed input raises :class:`WireFormatError` naming the field.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import NamedTuple, Optional, Protocol
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from fall_predictor.data.topics import WORLD_FRAME, WireFormatError, ns_to_time, time_to_ns
+from fall_predictor.monitor.records import (
+    CONTACT_MODE_NAMES,
+    FEATURE_NAMES,
+    N_CONTACT_MODES,
+    N_FEATURES,
+    Measurement,
+)
+
+
+# --------------------------------------------------------------------------------------------
+# Float64MultiArray layouts
+# --------------------------------------------------------------------------------------------
+
+class LayoutDim(Protocol):
+    """Duck type of ``std_msgs/msg/MultiArrayDimension`` (rclpy and rosbags alike)."""
+
+    label: str
+    size: int
+    stride: int
+
+
+class Layout(Protocol):
+    """Duck type of ``std_msgs/msg/MultiArrayLayout``."""
+
+    dim: Sequence[LayoutDim]
+    data_offset: int
+
+
+def check_layout(layout: Layout, expected_label: str, n_data: int) -> None:
+    """Check a received layout: one dimension, the expected label, size = stride = ``n_data``."""
+    if len(layout.dim) != 1:
+        raise WireFormatError(
+            f'layout must have exactly 1 dimension labelled {expected_label!r}, '
+            f'got {len(layout.dim)}')
+    dim = layout.dim[0]
+    if dim.label != expected_label:
+        raise WireFormatError(f'layout label {dim.label!r} is not {expected_label!r}')
+    if dim.size != n_data or dim.stride != n_data:
+        raise WireFormatError(
+            f'{expected_label}: layout size/stride {dim.size}/{dim.stride} '
+            f'disagree with {n_data} data values')
+    if layout.data_offset != 0:
+        raise WireFormatError(f'{expected_label}: data_offset must be 0, got {layout.data_offset}')
+
+
+def _as_vector(data: ArrayLike, what: str) -> np.ndarray:
+    """A private float64 1-D copy of ``data``."""
+    try:
+        arr = np.array(data, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise WireFormatError(f'{what}: data is not a float64 vector ({exc})') from None
+    if arr.ndim != 1:
+        raise WireFormatError(f'{what}: data must be 1-D, got shape {arr.shape}')
+    return arr
+
+
+def _count(value: float, what: str) -> int:
+    if not (math.isfinite(value) and value >= 0 and value == int(value)):
+        raise WireFormatError(f'{what} must be a non-negative integer, got {value!r}')
+    return int(value)
+
+
+# --------------------------------------------------------------------------------------------
+# Measurement
+# --------------------------------------------------------------------------------------------
+
+I_T = 0
+S_COM = slice(1, 4)
+S_LIN_MOM = slice(4, 7)
+S_ANG_MOM = slice(7, 10)
+I_HEADING = 10
+S_COP = slice(11, 14)
+S_LEFT_FOOT = slice(14, 17)
+S_RIGHT_FOOT = slice(17, 20)
+I_NON_FOOT_CONTACT = 20
+S_PUSH_FORCE = slice(21, 24)
+I_N_LEFT = 24
+I_N_RIGHT = 25
+MEASUREMENT_HEADER_LEN = 26
+
+_MEASUREMENT_FIELDS: tuple[tuple[str, slice], ...] = (
+    ('t', slice(I_T, I_T + 1)), ('com', S_COM), ('lin_mom', S_LIN_MOM), ('ang_mom', S_ANG_MOM),
+    ('heading', slice(I_HEADING, I_HEADING + 1)), ('cop', S_COP), ('left_foot', S_LEFT_FOOT),
+    ('right_foot', S_RIGHT_FOOT),
+    ('non_foot_contact', slice(I_NON_FOOT_CONTACT, I_NON_FOOT_CONTACT + 1)),
+    ('push_force', S_PUSH_FORCE),
+)
+
+
+def _vec3(value: ArrayLike, what: str) -> np.ndarray:
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.shape != (3,):
+        raise WireFormatError(f'measurement.{what} must have shape (3,), got {arr.shape}')
+    return arr
+
+
+def _contact_rows(value: ArrayLike, what: str) -> np.ndarray:
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise WireFormatError(f'measurement.{what} must have shape (k, 3), got {arr.shape}')
+    return arr
+
+
+def pack_measurement(m: Measurement) -> np.ndarray:
+    """Measurement -> layout v1 float64 array. The result is checked as a receiver would."""
+    left = _contact_rows(m.left_contacts, 'left_contacts')
+    right = _contact_rows(m.right_contacts, 'right_contacts')
+    n_left, n_right = left.shape[0], right.shape[0]
+    out = np.empty(MEASUREMENT_HEADER_LEN + 3 * (n_left + n_right), dtype=np.float64)
+    out[I_T] = m.t
+    out[S_COM] = _vec3(m.com, 'com')
+    out[S_LIN_MOM] = _vec3(m.lin_mom, 'lin_mom')
+    out[S_ANG_MOM] = _vec3(m.ang_mom, 'ang_mom')
+    out[I_HEADING] = m.heading
+    out[S_COP] = _vec3(m.cop, 'cop')
+    out[S_LEFT_FOOT] = _vec3(m.left_foot, 'left_foot')
+    out[S_RIGHT_FOOT] = _vec3(m.right_foot, 'right_foot')
+    out[I_NON_FOOT_CONTACT] = 1.0 if m.non_foot_contact else 0.0
+    out[S_PUSH_FORCE] = _vec3(m.push_force, 'push_force')
+    out[I_N_LEFT] = n_left
+    out[I_N_RIGHT] = n_right
+    split = MEASUREMENT_HEADER_LEN + 3 * n_left
+    out[MEASUREMENT_HEADER_LEN:split] = left.ravel()
+    out[split:] = right.ravel()
+    _check_measurement(out)
+    return out
+
+
+def _check_measurement(a: np.ndarray) -> tuple[int, int]:
+    """Validate a layout v1 array; return (n_left, n_right)."""
+    if a.size < MEASUREMENT_HEADER_LEN:
+        raise WireFormatError(
+            f'measurement: {a.size} values, fewer than the {MEASUREMENT_HEADER_LEN}-value header')
+    n_left = _count(float(a[I_N_LEFT]), 'measurement n_left')
+    n_right = _count(float(a[I_N_RIGHT]), 'measurement n_right')
+    expected = MEASUREMENT_HEADER_LEN + 3 * (n_left + n_right)
+    if a.size != expected:
+        raise WireFormatError(
+            f'measurement: {a.size} values, but n_left={n_left} and n_right={n_right} '
+            f'need {expected}')
+    finite = np.isfinite(a)
+    if not (finite[S_COP].all() or np.isnan(a[S_COP]).all()):
+        raise WireFormatError(f'measurement.cop must be all finite or all NaN, got {a[S_COP]}')
+    finite[S_COP] = True
+    if not finite.all():
+        index = int(np.argmin(finite))
+        raise WireFormatError(f'measurement.{_field_at(index)} is not finite: {a[index]!r}')
+    if a[I_T] < 0.0:
+        raise WireFormatError(f'measurement.t must be >= 0 s, got {a[I_T]!r}')
+    if a[I_NON_FOOT_CONTACT] not in (0.0, 1.0):
+        raise WireFormatError(
+            f'measurement.non_foot_contact must be 0 or 1, got {a[I_NON_FOOT_CONTACT]!r}')
+    return n_left, n_right
+
+
+def _field_at(index: int) -> str:
+    for name, part in _MEASUREMENT_FIELDS:
+        if part.start <= index < part.stop:
+            return name
+    row, column = divmod(index - MEASUREMENT_HEADER_LEN, 3)
+    return f'contacts row {row} column {column}'
+
+
+def unpack_measurement(data: ArrayLike) -> Measurement:
+    """Layout v1 float64 array -> Measurement (arrays are private copies)."""
+    a = _as_vector(data, 'measurement')
+    n_left, n_right = _check_measurement(a)
+    split = MEASUREMENT_HEADER_LEN + 3 * n_left
+    return Measurement(
+        t=float(a[I_T]),
+        com=a[S_COM],
+        lin_mom=a[S_LIN_MOM],
+        ang_mom=a[S_ANG_MOM],
+        heading=float(a[I_HEADING]),
+        cop=a[S_COP],
+        left_contacts=a[MEASUREMENT_HEADER_LEN:split].reshape(n_left, 3),
+        right_contacts=a[split:].reshape(n_right, 3),
+        left_foot=a[S_LEFT_FOOT],
+        right_foot=a[S_RIGHT_FOOT],
+        non_foot_contact=bool(a[I_NON_FOOT_CONTACT]),
+        push_force=a[S_PUSH_FORCE],
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Features
+# --------------------------------------------------------------------------------------------
+
+FEATURES_LEN = 2 + N_FEATURES
+
+
+class FeatureSample(NamedTuple):
+    """One features message: time [s], the 15 features, the contact mode index."""
+
+    t: float
+    x: np.ndarray
+    mode: int
+
+
+def _mode_index(value: float, what: str) -> int:
+    mode = _count(value, what)
+    if mode >= N_CONTACT_MODES:
+        raise WireFormatError(f'{what} must be < {N_CONTACT_MODES}, got {mode}')
+    return mode
+
+
+def pack_features(t: float, x: ArrayLike, mode: int) -> np.ndarray:
+    """(t [s], 15 features, contact mode index) -> features layout v1 array."""
+    xs = np.asarray(x, dtype=np.float64)
+    if xs.shape != (N_FEATURES,):
+        raise WireFormatError(f'features must have shape ({N_FEATURES},), got {xs.shape}')
+    out = np.empty(FEATURES_LEN, dtype=np.float64)
+    out[0] = t
+    out[1:1 + N_FEATURES] = xs
+    out[-1] = mode
+    _check_features(out)
+    return out
+
+
+def _check_features(a: np.ndarray) -> int:
+    if a.size != FEATURES_LEN:
+        raise WireFormatError(f'features: {a.size} values, expected {FEATURES_LEN}')
+    finite = np.isfinite(a)
+    if not finite.all():
+        index = int(np.argmin(finite))
+        name = ('t', *FEATURE_NAMES, 'mode')[index]
+        raise WireFormatError(f'features.{name} is not finite: {a[index]!r}')
+    return _mode_index(float(a[-1]), 'features contact mode')
+
+
+def unpack_features(data: ArrayLike) -> FeatureSample:
+    """Features layout v1 array -> FeatureSample (x is a private copy)."""
+    a = _as_vector(data, 'features')
+    mode = _check_features(a)
+    return FeatureSample(float(a[0]), a[1:1 + N_FEATURES], mode)
+
+
+# --------------------------------------------------------------------------------------------
+# Predictor state (DiagnosticArray)
+# --------------------------------------------------------------------------------------------
+
+STATE_STATUS_NAME = 'fall_predictor'
+LEVEL_OK, LEVEL_WARN, LEVEL_STALE = 0, 1, 3   # diagnostic_msgs/DiagnosticStatus levels
+_STALE_PREFIX = 'stale: '
+_UNKNOWN_MODE = 'unknown'
+_STATE_KEYS = ('falling', 'atomic', 'guard', 'latched', 'contact_mode', 'tau_his_s', 't')
+
+
+@dataclass(frozen=True, slots=True)
+class PredictorState:
+    """The predictor's output for one source sample.
+
+    ``falling`` is the published decision (history filter, CoM guard and latch applied);
+    ``atomic`` the decision list's raw output; ``guard`` the CoM guard (SPEC §5); ``latched``
+    whether the one-way switch to C_fall has fired. ``stale_reason`` set means degraded.
+    """
+
+    t: float                            #: simulation time of the source sample [s]
+    falling: bool
+    atomic: bool
+    guard: bool
+    latched: bool
+    contact_mode: Optional[int]         #: index into CONTACT_MODE_NAMES; None if unknown
+    tau_his_s: float                    #: history window [s]
+    stale_reason: Optional[str] = None  #: why inputs are stale/missing/invalid
+
+    @property
+    def level(self) -> int:
+        """DiagnosticStatus level: OK balanced, WARN falling, STALE degraded."""
+        if self.stale_reason is not None:
+            return LEVEL_STALE
+        return LEVEL_WARN if self.falling else LEVEL_OK
+
+    @property
+    def message(self) -> str:
+        if self.stale_reason is not None:
+            return _STALE_PREFIX + self.stale_reason
+        return 'falling' if self.falling else 'balanced'
+
+
+class StatusFields(NamedTuple):
+    """The content of a state DiagnosticArray: header stamp and its single status."""
+
+    stamp_ns: int
+    level: int
+    name: str
+    message: str
+    values: tuple[tuple[str, str], ...]
+
+
+class KeyValueLike(Protocol):
+    """Duck type of ``diagnostic_msgs/msg/KeyValue``."""
+
+    key: str
+    value: str
+
+
+class StatusLike(Protocol):
+    """Duck type of ``diagnostic_msgs/msg/DiagnosticStatus``: rclpy (level bytes) or rosbags."""
+
+    level: int | bytes
+    name: str
+    message: str
+    values: Sequence[KeyValueLike]
+
+
+def _bool_text(value: bool) -> str:
+    return 'true' if value else 'false'
+
+
+def state_to_status(state: PredictorState) -> StatusFields:
+    """PredictorState -> DiagnosticArray content (header stamp = source sample sim time)."""
+    mode = _UNKNOWN_MODE if state.contact_mode is None else CONTACT_MODE_NAMES[state.contact_mode]
+    values = (
+        ('falling', _bool_text(state.falling)),
+        ('atomic', _bool_text(state.atomic)),
+        ('guard', _bool_text(state.guard)),
+        ('latched', _bool_text(state.latched)),
+        ('contact_mode', mode),
+        ('tau_his_s', repr(float(state.tau_his_s))),
+        ('t', repr(float(state.t))),
+    )
+    return StatusFields(time_to_ns(state.t), state.level, STATE_STATUS_NAME, state.message, values)
+
+
+def _parse_bool(text: str, key: str) -> bool:
+    if text not in ('true', 'false'):
+        raise WireFormatError(f"state value {key!r} must be 'true' or 'false', got {text!r}")
+    return text == 'true'
+
+
+def _parse_float(text: str, key: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise WireFormatError(f'state value {key!r} is not a number: {text!r}') from None
+    if not math.isfinite(value):
+        raise WireFormatError(f'state value {key!r} is not finite: {text!r}')
+    return value
+
+
+def state_from_diagnostic(stamp_ns: int, statuses: Sequence[StatusLike]) -> PredictorState:
+    """A state DiagnosticArray (header stamp, status list) -> PredictorState.
+
+    Checks every field and their consistency (level and message against ``falling``, header
+    stamp against ``t``).
+    """
+    if len(statuses) != 1:
+        raise WireFormatError(f'state must carry exactly 1 status, got {len(statuses)}')
+    status = statuses[0]
+    level = status.level[0] if isinstance(status.level, bytes) else int(status.level)
+    fields = StatusFields(stamp_ns, level, status.name, status.message,
+                          tuple((kv.key, kv.value) for kv in status.values))
+    if fields.name != STATE_STATUS_NAME:
+        raise WireFormatError(f'state status name {fields.name!r} is not {STATE_STATUS_NAME!r}')
+    values = dict(fields.values)
+    if len(values) != len(fields.values):
+        raise WireFormatError('state values contain duplicate keys')
+    if set(values) != set(_STATE_KEYS):
+        raise WireFormatError(
+            f'state values must have keys {sorted(_STATE_KEYS)}, got {sorted(values)}')
+    mode_name = values['contact_mode']
+    if mode_name != _UNKNOWN_MODE and mode_name not in CONTACT_MODE_NAMES:
+        raise WireFormatError(f'state contact_mode {mode_name!r} is not a contact mode name')
+    stale_reason = (fields.message[len(_STALE_PREFIX):]
+                    if fields.message.startswith(_STALE_PREFIX) else None)
+    state = PredictorState(
+        t=_parse_float(values['t'], 't'),
+        falling=_parse_bool(values['falling'], 'falling'),
+        atomic=_parse_bool(values['atomic'], 'atomic'),
+        guard=_parse_bool(values['guard'], 'guard'),
+        latched=_parse_bool(values['latched'], 'latched'),
+        contact_mode=None if mode_name == _UNKNOWN_MODE else CONTACT_MODE_NAMES.index(mode_name),
+        tau_his_s=_parse_float(values['tau_his_s'], 'tau_his_s'),
+        stale_reason=stale_reason,
+    )
+    if (fields.level, fields.message) != (state.level, state.message):
+        raise WireFormatError(
+            f'state level {fields.level} / message {fields.message!r} disagree with '
+            f'falling={values["falling"]} (expected level {state.level}, {state.message!r})')
+    if time_to_ns(state.t) != fields.stamp_ns:
+        raise WireFormatError(
+            f'state header stamp {fields.stamp_ns} ns disagrees with t={values["t"]} s')
+    return state
+
+
+# --------------------------------------------------------------------------------------------
+# Joint states, pushes, controller mode
+# --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, slots=True)
+class JointStateSample:
+    """One ``sensor_msgs/JointState``: names, positions [rad], velocities [rad/s], efforts [N m].
+
+    Velocities and efforts are either empty (not reported) or one per joint.
+    """
+
+    t: float                                    #: header stamp, simulation time [s]
+    names: tuple[str, ...]
+    position: np.ndarray
+    velocity: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    effort: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def __post_init__(self) -> None:
+        time_to_ns(self.t)
+        n = len(self.names)
+        if len(set(self.names)) != n:
+            raise WireFormatError(f'joint state names are not unique: {list(self.names)}')
+        for what, optional in (('position', False), ('velocity', True), ('effort', True)):
+            arr = _as_vector(getattr(self, what), f'joint state {what}')
+            if arr.size != n and not (optional and arr.size == 0):
+                allowed = f'{n}' + (' or 0' if optional else '')
+                raise WireFormatError(
+                    f'joint state has {n} names but {arr.size} {what} values (need {allowed})')
+            if not np.isfinite(arr).all():
+                raise WireFormatError(f'joint state {what} is not finite: {arr}')
+            object.__setattr__(self, what, arr)
+        object.__setattr__(self, 'names', tuple(self.names))
+
+
+@dataclass(frozen=True, slots=True)
+class PushEvent:
+    """One push as carried by ``/fall_predictor/push``: onset [s] and world force [N].
+
+    The force is constant for :data:`~fall_predictor.monitor.records.PUSH_DURATION_S` (not on the wire).
+    """
+
+    t: float                        #: onset, simulation time [s] (the header stamp)
+    force: np.ndarray               #: (3,) world force [N]
+
+    def __post_init__(self) -> None:
+        time_to_ns(self.t)
+        force = np.array(self.force, dtype=np.float64)
+        if force.shape != (3,) or not np.isfinite(force).all():
+            raise WireFormatError(f'push force must be 3 finite values [N], got {self.force!r}')
+        object.__setattr__(self, 'force', force)
+
+
+def push_from_wire(stamp_ns: int, frame_id: str, force: ArrayLike) -> PushEvent:
+    """Fields of a ``/fall_predictor/push`` WrenchStamped -> PushEvent (frame must be world)."""
+    if frame_id != WORLD_FRAME:
+        raise WireFormatError(f'push frame_id {frame_id!r} is not {WORLD_FRAME!r}')
+    return PushEvent(ns_to_time(stamp_ns), np.asarray(force, dtype=np.float64))
+

@@ -1,0 +1,197 @@
+"""Evaluating a trained model on a dataset (SPEC §5), the hand-coded baselines next to it, and
+their JSON form.
+
+:func:`evaluate_model` runs a model over every trajectory of a dataset (no cross-validation:
+see :mod:`fall_predictor.learning.crossval`); :func:`baseline_curves` evaluates the CoM-height,
+momentum and capture-point baselines over threshold grids. The capture point's distances come
+from the bags, cached per trajectory by :func:`capture_point_distances_cached` in the one
+derived-data cache of the package (:func:`fall_predictor.data.cache.cached_arrays`). The CLI
+subcommand ``evaluate`` is a thin wrapper.
+
+JSON has no NaN or infinity: :func:`json_float` writes them as null.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Optional, Sequence
+
+import numpy as np
+
+from fall_predictor.data.cache import cached_arrays
+from fall_predictor.data.dataset import DatasetError, read_index, robot_total_mass_kg
+from fall_predictor.learning.baselines import (CurvePoint, capture_point_curve,
+                                               capture_point_distances, com_height_curve,
+                                               momentum_curve, pareto_front)
+from fall_predictor.learning.metrics import EvaluationResult, evaluate_lists
+from fall_predictor.learning.training import PathLike, load_dataset
+from fall_predictor.monitor.decision_list import PerModeDecisionLists
+from fall_predictor.monitor.records import TrajectoryFeatures
+
+
+# -- the capture point's distances, cached --------------------------------------------------------
+CAPTURE_POINT_CACHE_FORMAT = 'fall_predictor/capture-point-cache/v1'
+
+
+def _capture_point_entry(data_dir: Path, bag: str, trajectory_id: str, n_samples: int,
+                         total_mass_kg: float) -> tuple[np.ndarray, bool]:
+    """Capture-point distances of one trajectory from its cache entry or its bag."""
+    from fall_predictor.data.bagio import BagError, read_trajectory
+
+    bag_dir = data_dir / bag
+
+    def from_bag() -> dict[str, np.ndarray]:
+        distance = capture_point_distances(read_trajectory(bag_dir).measurements, total_mass_kg)
+        if distance.size != n_samples:
+            raise DatasetError(f'{bag_dir}: {distance.size} measurements but {n_samples} feature '
+                               'samples; rebuild the feature cache')
+        return {'distance': distance}
+
+    try:
+        arrays, built = cached_arrays(data_dir / 'cache' / f'cp_{trajectory_id}.npz', bag_dir,
+                                      CAPTURE_POINT_CACHE_FORMAT, from_bag)
+    except OSError as error:
+        raise DatasetError(f'{bag_dir}: {error}') from error
+    except BagError as error:
+        raise DatasetError(str(error)) from error
+    return arrays['distance'], built
+
+
+def capture_point_distances_cached(data_dir: PathLike, trajectories: Sequence[TrajectoryFeatures],
+                                   jobs: int = 1, progress: bool = False) -> list[np.ndarray]:
+    """Per trajectory, the capture point's signed distance [m] to the support polygon per sample.
+
+    Computed from the bag's measurements
+    (:func:`~fall_predictor.learning.baselines.capture_point_distances`) once and cached as
+    ``DATA/cache/cp_<trajectory id>.npz``, keyed by the bag fingerprint like the feature cache,
+    so that sweeps do not read bags again.
+    """
+    from joblib import Parallel, delayed
+    from tqdm import tqdm
+
+    data_dir = Path(data_dir)
+    bags = {row.trajectory_id: row.bag for row in read_index(data_dir)}
+    missing = [traj.trajectory_id for traj in trajectories if traj.trajectory_id not in bags]
+    if missing:
+        raise DatasetError(f'{data_dir}: trajectories not in the index: {", ".join(missing[:5])}')
+    total_mass_kg = robot_total_mass_kg(data_dir)
+    entries = Parallel(n_jobs=jobs)(
+        delayed(_capture_point_entry)(data_dir, bags[traj.trajectory_id], traj.trajectory_id,
+                                      traj.t.size, total_mass_kg)
+        for traj in tqdm(trajectories, desc='capture point', unit='traj', disable=not progress))
+    return [distance for distance, _ in entries]
+
+
+# -- baselines ------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class BaselineGrids:
+    """Threshold grids of the hand-coded baselines (units: m, kg m/s, m)."""
+
+    com_height_m: tuple[float, ...] = tuple(np.round(np.arange(0.40, 0.6001, 0.005), 4))
+    momentum_sagittal: tuple[float, ...] = tuple(float(a) for a in range(4, 41, 3)) + (math.inf,)
+    momentum_frontal: tuple[float, ...] = tuple(float(b) for b in range(4, 41, 3)) + (math.inf,)
+    capture_point_margin_m: tuple[float, ...] = tuple(np.round(np.arange(-0.30, 0.1001, 0.01), 3))
+
+    @classmethod
+    def coarse(cls) -> BaselineGrids:
+        """Fewer thresholds, for quick runs."""
+        return cls(com_height_m=tuple(np.round(np.arange(0.40, 0.6001, 0.01), 3)),
+                   momentum_sagittal=(6.0, 10.0, 14.0, 18.0, 24.0, 32.0, math.inf),
+                   momentum_frontal=(6.0, 10.0, 14.0, 18.0, 24.0, 32.0, math.inf),
+                   capture_point_margin_m=tuple(np.round(np.arange(-0.30, 0.1001, 0.04), 3)))
+
+
+@dataclass(frozen=True)
+class BaselineCurves:
+    """Each baseline's points (one per threshold) over the same trajectories."""
+
+    com_height: tuple[CurvePoint, ...]
+    momentum: tuple[CurvePoint, ...]
+    capture_point: tuple[CurvePoint, ...]    #: empty when no capture-point distances were given
+
+    def named(self) -> dict[str, tuple[CurvePoint, ...]]:
+        return {'com_height': self.com_height, 'momentum': self.momentum,
+                'capture_point': self.capture_point}
+
+
+def baseline_curves(trajectories: Sequence[TrajectoryFeatures],
+                    capture_point: Optional[Sequence[np.ndarray]] = None,
+                    grids: BaselineGrids = BaselineGrids()) -> BaselineCurves:
+    """Evaluate the three hand-coded baselines over their threshold ``grids`` (CoM guard on,
+    no history window, as in the paper)."""
+    return BaselineCurves(
+        com_height=tuple(com_height_curve(trajectories, grids.com_height_m)),
+        momentum=tuple(momentum_curve(trajectories, grids.momentum_sagittal,
+                                      grids.momentum_frontal)),
+        capture_point=(() if capture_point is None else
+                       tuple(capture_point_curve(trajectories, capture_point,
+                                                 grids.capture_point_margin_m))))
+
+
+# -- JSON -----------------------------------------------------------------------------------------
+def json_float(value: float) -> Optional[float]:
+    """JSON has no NaN or infinity: those become null."""
+    return float(value) if value is not None and math.isfinite(value) else None
+
+
+def evaluation_result_json(result: EvaluationResult) -> dict[str, Any]:
+    """The fields of ``result`` (NaN and infinity -> null)."""
+    return {key: (json_float(value) if isinstance(value, float) else value)
+            for key, value in dataclasses.asdict(result).items()}
+
+
+def curve_point_json(point: CurvePoint) -> dict[str, Any]:
+    """A baseline's point: its threshold(s) and its metrics (NaN and infinity -> null)."""
+    threshold = point.threshold
+    return {'threshold': (list(json_float(v) for v in threshold) if isinstance(threshold, tuple)
+                          else json_float(threshold)),
+            **evaluation_result_json(point.evaluation)}
+
+
+# -- evaluation -----------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ModelEvaluation:
+    """A model evaluated on a dataset at one history window (times [s])."""
+
+    result: EvaluationResult
+    tau_his_s: float
+    dataset_fingerprint: str
+    unreadable: dict[str, str]             #: trajectories left out (unreadable bags)
+    baselines: Optional[BaselineCurves] = None
+
+
+def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: float,
+                   baselines: bool = False, jobs: int = 1, skip_unreadable: bool = False,
+                   progress: bool = False) -> ModelEvaluation:
+    """SPEC §5 metrics of the predictor ``lists`` with history window ``tau_his_s`` [s] over
+    every trajectory of ``data_dir``; with ``baselines``, the hand-coded baselines too.
+
+    No cross-validation: use a dataset the model was not trained on (or
+    :func:`~fall_predictor.learning.sweep.run_sweep`).
+    """
+    if not (math.isfinite(tau_his_s) and tau_his_s >= 0.0):
+        raise ValueError(f'tau_his_s must be a finite number >= 0, got {tau_his_s!r}')
+    report = load_dataset(data_dir, jobs, skip_unreadable, progress)
+    trajectories = report.trajectories
+    result = evaluate_lists(trajectories, lists, (tau_his_s,))[float(tau_his_s)]
+    curves = None
+    if baselines:
+        distances = capture_point_distances_cached(data_dir, trajectories, jobs, progress)
+        curves = baseline_curves(trajectories, distances)
+    return ModelEvaluation(result, float(tau_his_s), report.fingerprint, dict(report.errors),
+                           curves)
+
+
+def evaluation_json(evaluation: ModelEvaluation) -> dict[str, Any]:
+    """``evaluation`` as a JSON-ready dict (NaN -> null); baselines as their Pareto fronts."""
+    payload: dict[str, Any] = {
+        'tau_his_s': evaluation.tau_his_s, **evaluation_result_json(evaluation.result),
+        'n_pre_push_alarms': evaluation.result.n_pre_push_alarms,
+        'dataset_fingerprint': evaluation.dataset_fingerprint,
+        'unreadable': evaluation.unreadable}
+    if evaluation.baselines is not None:
+        payload['baselines'] = {name: [curve_point_json(p) for p in pareto_front(curve)]
+                                for name, curve in evaluation.baselines.named().items()}
+    return payload

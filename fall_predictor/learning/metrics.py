@@ -1,0 +1,161 @@
+"""Evaluation of fall predictors (SPEC §5): FPR, lead time, misses, pre-push alarms.
+
+Definitions (per trajectory, from the predictor's falling output run over the whole
+trajectory from a reset state):
+
+* **FPR**: fraction of the balanced (never fallen) trajectories with at least one falling
+  output anywhere, before the push included. Fallen trajectories never count in FPR.
+* **tau_lead**: mean over fallen trajectories of ``t_fallen - t_predict``, where ``t_predict``
+  is the first falling output at or after ``t_push``; no falling output in
+  ``[t_push, t_fallen)`` counts 0 and is a **miss**.
+* **pre-push false alarms**: trajectories (balanced or fallen) with a falling output before
+  ``t_push``, counted separately for the two outcomes. On a fallen trajectory such an alarm
+  does not change ``t_predict`` (still the first output at or after the push) and does not
+  count in FPR; on a balanced trajectory it is also a false positive.
+* **oracle lead**: mean over fallen trajectories of ``t_fallen - t_push``.
+
+Rates and means over an empty set are NaN (:func:`mean_or_nan`, :func:`std_or_nan`; also used
+to average over cross-validation folds). Cross-validation itself is in
+:mod:`fall_predictor.learning.crossval`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Optional, Sequence
+
+import numpy as np
+
+from fall_predictor.monitor.decision_list import PerModeDecisionLists
+from fall_predictor.monitor.predictor import (check_sample_times, falling_run_durations,
+                                              first_true_time, guard_predictions, windowed_falling)
+from fall_predictor.monitor.records import FALLING, GUARD_COM_HEIGHT_M, TrajectoryFeatures
+
+
+@dataclass(frozen=True, slots=True)
+class TrajectoryAlarms:
+    """When a predictor first said falling on one trajectory (times [s], None if never)."""
+
+    first_alarm_t: Optional[float]              #: first falling output anywhere
+    first_alarm_after_push_t: Optional[float]   #: first falling output at or after t_push
+    pre_push_alarm: bool                        #: a falling output before t_push
+
+
+def trajectory_alarms(t: np.ndarray, falling: np.ndarray, t_push: float) -> TrajectoryAlarms:
+    """Alarm times of one trajectory from its per-sample falling outputs."""
+    first = first_true_time(t, falling)
+    return TrajectoryAlarms(first_alarm_t=first,
+                            first_alarm_after_push_t=first_true_time(t, falling, t_push),
+                            pre_push_alarm=first is not None and first < t_push)
+
+
+@dataclass(frozen=True)
+class EvaluationResult:
+    """SPEC §5 metrics of one predictor over a set of trajectories (times in seconds)."""
+
+    n_trajectories: int
+    n_balanced: int                   #: trajectories that never fall
+    n_fallen: int
+    n_false_positives: int            #: balanced trajectories with any falling output
+    fpr: float                        #: n_false_positives / n_balanced
+    tau_lead_s: float                 #: mean lead over fallen trajectories (misses count 0)
+    n_missed: int                     #: fallen trajectories without a falling output in [t_push, t_fallen)
+    n_pre_push_alarms_balanced: int   #: balanced trajectories with a falling output before t_push
+    n_pre_push_alarms_fallen: int     #: fallen trajectories with a falling output before t_push
+    oracle_lead_s: float              #: mean t_fallen - t_push over fallen trajectories
+    lead_fraction: float              #: tau_lead_s / oracle_lead_s
+    mean_rule_size: Optional[float] = None   #: of the decision lists, if the predictor has any
+
+    @property
+    def n_pre_push_alarms(self) -> int:
+        """Trajectories of either outcome with a falling output before the push."""
+        return self.n_pre_push_alarms_balanced + self.n_pre_push_alarms_fallen
+
+
+def _not_nan(values: Sequence[float]) -> list[float]:
+    return [v for v in values if not math.isnan(v)]
+
+
+def mean_or_nan(values: Sequence[float]) -> float:
+    """Mean of the non-NaN values; NaN if there are none (an empty or all-NaN sequence)."""
+    kept = _not_nan(values)
+    return float(np.mean(kept)) if kept else math.nan
+
+
+def std_or_nan(values: Sequence[float]) -> float:
+    """Population standard deviation of the non-NaN values; NaN if there are none."""
+    kept = _not_nan(values)
+    return float(np.std(kept)) if kept else math.nan
+
+
+def evaluate(trajectories: Sequence[TrajectoryFeatures], alarms: Sequence[TrajectoryAlarms],
+             mean_rule_size: Optional[float] = None) -> EvaluationResult:
+    """SPEC §5 metrics from each trajectory's alarm times (``alarms[i]`` for ``trajectories[i]``)."""
+    if len(trajectories) != len(alarms):
+        raise ValueError(f'{len(trajectories)} trajectories but {len(alarms)} alarm records')
+    false_positives = pre_push_balanced = pre_push_fallen = missed = 0
+    leads: list[float] = []
+    oracle_leads: list[float] = []
+    for traj, alarm in zip(trajectories, alarms):
+        if traj.fallen:
+            if traj.t_fallen is None:
+                raise ValueError(f'trajectory {traj.trajectory_id} fell but has no t_fallen')
+            t_predict = alarm.first_alarm_after_push_t
+            hit = t_predict is not None and t_predict < traj.t_fallen
+            leads.append(traj.t_fallen - t_predict if hit else 0.0)
+            missed += not hit
+            oracle_leads.append(traj.t_fallen - traj.t_push)
+            pre_push_fallen += alarm.pre_push_alarm
+        else:
+            false_positives += alarm.first_alarm_t is not None
+            pre_push_balanced += alarm.pre_push_alarm
+    n_fallen = len(leads)
+    n_balanced = len(trajectories) - n_fallen
+    tau_lead_s = mean_or_nan(leads)
+    oracle_lead_s = mean_or_nan(oracle_leads)
+    return EvaluationResult(
+        n_trajectories=len(trajectories), n_balanced=n_balanced, n_fallen=n_fallen,
+        n_false_positives=false_positives,
+        fpr=false_positives / n_balanced if n_balanced else math.nan,
+        tau_lead_s=tau_lead_s, n_missed=missed,
+        n_pre_push_alarms_balanced=pre_push_balanced, n_pre_push_alarms_fallen=pre_push_fallen,
+        oracle_lead_s=oracle_lead_s,
+        lead_fraction=tau_lead_s / oracle_lead_s if oracle_lead_s > 0 else math.nan,
+        mean_rule_size=mean_rule_size)
+
+
+def evaluate_atomic(trajectories: Sequence[TrajectoryFeatures], atomic: Sequence[np.ndarray],
+                    tau_his_values: Sequence[float] = (0.0,), dt_s: float = 0.001,
+                    guard_com_height_m: float = GUARD_COM_HEIGHT_M,
+                    mean_rule_size: Optional[float] = None) -> dict[float, EvaluationResult]:
+    """Evaluate per-sample atomic predictions (bool (N,) per trajectory) for several windows.
+
+    The CoM guard and the history window are applied as by
+    :class:`~fall_predictor.monitor.predictor.OnlinePredictor`; returns ``{tau_his_s: result}``.
+    """
+    if len(trajectories) != len(atomic):
+        raise ValueError(f'{len(trajectories)} trajectories but {len(atomic)} atomic arrays')
+    alarms: dict[float, list[TrajectoryAlarms]] = {float(tau): [] for tau in tau_his_values}
+    for traj, atomic_falling in zip(trajectories, atomic):
+        t = check_sample_times(traj.t)
+        if np.shape(atomic_falling) != t.shape:
+            raise ValueError(f'trajectory {traj.trajectory_id}: atomic predictions do not match its samples')
+        durations = falling_run_durations(t, atomic_falling)
+        guard = guard_predictions(traj.X, guard_com_height_m)
+        for tau_his_s, records in alarms.items():
+            falling = windowed_falling(durations, guard, tau_his_s, dt_s)
+            records.append(trajectory_alarms(t, falling, traj.t_push))
+    return {tau_his_s: evaluate(trajectories, records, mean_rule_size)
+            for tau_his_s, records in alarms.items()}
+
+
+def evaluate_lists(trajectories: Sequence[TrajectoryFeatures], lists: PerModeDecisionLists,
+                   tau_his_values: Sequence[float], dt_s: float = 0.001,
+                   guard_com_height_m: float = GUARD_COM_HEIGHT_M) -> dict[float, EvaluationResult]:
+    """Evaluate a learned predictor for several ``tau_his`` [s] at once: ``{tau_his_s: result}``.
+
+    The decision lists run once per trajectory; the window is applied per ``tau_his``.
+    """
+    atomic = [lists.predict(traj.X, traj.mode) == FALLING for traj in trajectories]
+    return evaluate_atomic(trajectories, atomic, tau_his_values, dt_s, guard_com_height_m,
+                           lists.mean_rule_size)

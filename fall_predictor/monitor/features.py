@@ -1,0 +1,173 @@
+"""The 15 real features and the contact mode of SPEC §6, sample by sample.
+
+One implementation serves the live node and the training data: :class:`FeatureExtractor`
+consumes measurements one at a time, and :func:`extract_features` only runs it over a
+sequence, so batch and streaming results are identical by construction.
+
+Frame: origin at the CoP on the ground (z = 0), or at the CoM's ground projection in mode
+OUTSIDE (no foot contact); x along the pelvis heading, y to its left, z up. Positions are taken
+relative to the origin; momenta and their rates are free vectors and are only rotated.
+
+Rates are backward differences of the WORLD-frame momenta over ``rate_window_s``, rotated into
+the current heading frame afterwards: differentiating the heading-frame momenta instead would
+add a spurious term from the turning frame, whereas the world-frame rates are, by Newton and
+Euler, the net external force and the net external moment about the CoM.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass
+from typing import Optional, Sequence
+
+import numpy as np
+
+from fall_predictor.monitor.contact_modes import ContactMode, classify_contact_mode_and_cop, float_list
+from fall_predictor.monitor.records import GUARD_COM_HEIGHT_M, N_FEATURES, Measurement
+
+_OUTSIDE = int(ContactMode.OUTSIDE)
+
+
+class FeatureSettingsMismatch(ValueError):
+    """A monitor configured differently from the model it runs (the message says how)."""
+
+
+@dataclass(frozen=True)
+class FeatureSettings:
+    """How features were computed for a model; the monitor must compute them the same way.
+
+    A model learns thresholds on features computed with these settings; running it on
+    features computed otherwise (another rate window, another sample period) silently changes
+    what its rules mean. So the model file stores them and the nodes check them.
+    """
+
+    rate_window_s: float = 0.01          #: backward-difference window of the momentum rates [s]
+    edge_tolerance_m: float = 0.01       #: CoP within this distance of an edge is on it [m]
+    sample_period_s: float = 0.001       #: nominal period of the measurements [s]
+    guard_com_height_m: float = GUARD_COM_HEIGHT_M   #: CoM guard: falling below this height [m]
+
+    def __post_init__(self) -> None:
+        for name, value in asdict(self).items():
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0.0):
+                raise ValueError(f'{name} must be a finite number >= 0, got {value!r}')
+        if not 0.0 < self.sample_period_s <= self.rate_window_s:
+            raise ValueError(f'need 0 < sample_period_s <= rate_window_s, got '
+                             f'{self.sample_period_s} and {self.rate_window_s}')
+
+    def resolve(self, requested: Mapping[str, Optional[float]], what: str = 'the model'
+                ) -> 'FeatureSettings':
+        """These settings, checked against a node's ``requested`` ones.
+
+        A requested value of None (a parameter left unset) adopts this object's value; any
+        other value must equal it, else :class:`FeatureSettingsMismatch` names every
+        difference. Unknown names raise ``KeyError``.
+        """
+        known = asdict(self)
+        differences = []
+        for name, value in requested.items():
+            if name not in known:
+                raise KeyError(f'unknown feature setting {name!r}')
+            if value is not None and not math.isclose(float(value), known[name], rel_tol=1e-9):
+                differences.append(f'{name} = {value} but {what} was trained with {known[name]}')
+        if differences:
+            raise FeatureSettingsMismatch('; '.join(differences) + ' (leave the parameter unset '
+                                          'to adopt the model\'s value, or retrain)')
+        return self
+
+    def extractor(self) -> 'FeatureExtractor':
+        """A fresh :class:`FeatureExtractor` computing features with these settings."""
+        return FeatureExtractor(self.rate_window_s, self.sample_period_s, self.edge_tolerance_m)
+
+
+def _finite_vector3(a: object, name: str) -> list[float]:
+    """``a`` as 3 finite floats; ValueError otherwise."""
+    v = float_list(a, 3, name)
+    if not (math.isfinite(v[0]) and math.isfinite(v[1]) and math.isfinite(v[2])):
+        raise ValueError(f'{name} must be finite, got {v}')
+    return v
+
+
+class FeatureExtractor:
+    """Streaming feature computation for one trajectory (or one live run).
+
+    ``rate_window_s`` [s] is the backward-difference window of the momentum rates,
+    ``dt_s`` [s] the nominal sample period (it sizes the history: ``round(rate_window_s /
+    dt_s)`` samples; the difference itself divides by the measured time span), and
+    ``edge_tolerance_m`` [m] is passed to the contact mode classification. Call
+    :meth:`reset` before feeding a new trajectory.
+    """
+
+    def __init__(self, rate_window_s: float = 0.01, dt_s: float = 0.001,
+                 edge_tolerance_m: float = 0.01) -> None:
+        if not dt_s > 0.0 or not rate_window_s >= dt_s:
+            raise ValueError(f'need 0 < dt_s <= rate_window_s, got dt_s={dt_s}, '
+                             f'rate_window_s={rate_window_s}')
+        self.rate_window_s = rate_window_s
+        self.dt_s = dt_s
+        self.edge_tolerance_m = edge_tolerance_m
+        self.window_samples = max(1, round(rate_window_s / dt_s))
+        # Past samples as (t, world linear momentum xyz, world angular momentum xyz); the
+        # oldest entry is the sample window_samples steps back once the buffer is full.
+        self._history: deque[tuple[float, ...]] = deque(maxlen=self.window_samples)
+
+    def reset(self) -> None:
+        """Forget the momentum history (the next sample gets zero rates)."""
+        self._history.clear()
+
+    def update(self, m: Measurement) -> tuple[np.ndarray, int]:
+        """Features (15,) in :data:`FEATURE_NAMES` order and the contact mode index of ``m``.
+
+        Raises ValueError, leaving the extractor unchanged, if the CoM, momenta, heading or
+        time are not finite or have wrong shapes, if the contacts are malformed, or if the
+        time does not increase (call :meth:`reset` when a new trajectory starts).
+        """
+        t = float(m.t)
+        cx, cy, cz = _finite_vector3(m.com, 'com')
+        px, py, pz = _finite_vector3(m.lin_mom, 'lin_mom')
+        lx, ly, lz = _finite_vector3(m.ang_mom, 'ang_mom')
+        heading = float(m.heading)
+        if not (math.isfinite(t) and math.isfinite(heading)):
+            raise ValueError(f'time and heading must be finite, got t={t}, heading={heading}')
+        history = self._history
+        if history and t <= history[-1][0]:
+            raise ValueError(f'time must increase: got t={t} after t={history[-1][0]}; '
+                             'reset() before a new trajectory')
+        mode, ox, oy = classify_contact_mode_and_cop(m, self.edge_tolerance_m)
+        if mode == _OUTSIDE:
+            ox, oy = cx, cy
+
+        if history:
+            # Oldest sample in the window; at the start, the first sample available.
+            t0, px0, py0, pz0, lx0, ly0, lz0 = history[0]
+            inv = 1.0 / (t - t0)
+            fx, fy, fz = (px - px0) * inv, (py - py0) * inv, (pz - pz0) * inv
+            mx, my, mz = (lx - lx0) * inv, (ly - ly0) * inv, (lz - lz0) * inv
+        else:
+            fx = fy = fz = mx = my = mz = 0.0
+        history.append((t, px, py, pz, lx, ly, lz))
+
+        # World -> heading frame: x' = c x + s y, y' = -s x + c y, z unchanged.
+        c, s = math.cos(heading), math.sin(heading)
+        dx, dy = cx - ox, cy - oy
+        features = np.array((
+            c * dx + s * dy, -s * dx + c * dy, cz,
+            c * px + s * py, -s * px + c * py, pz,
+            c * lx + s * ly, -s * lx + c * ly, lz,
+            c * fx + s * fy, -s * fx + c * fy, fz,
+            c * mx + s * my, -s * mx + c * my, mz,
+        ))
+        return features, mode
+
+
+def extract_features(measurements: Sequence[Measurement], rate_window_s: float = 0.01,
+                     dt_s: float = 0.001, edge_tolerance_m: float = 0.01
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Features ``X`` (N, 15) and contact modes (N,) of one trajectory, by running a fresh
+    :class:`FeatureExtractor` over it (so exactly what the live node computes)."""
+    extractor = FeatureExtractor(rate_window_s, dt_s, edge_tolerance_m)
+    X = np.empty((len(measurements), N_FEATURES))
+    mode = np.empty(len(measurements), dtype=np.int64)
+    for i, m in enumerate(measurements):
+        X[i], mode[i] = extractor.update(m)
+    return X, mode

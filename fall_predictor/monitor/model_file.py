@@ -1,0 +1,279 @@
+"""The model file: a learned predictor's decision lists and provenance as plain JSON.
+
+Layout (schema ``fall_predictor.decision_lists``, version 2)::
+
+    {
+      "schema": "fall_predictor.decision_lists",
+      "schema_version": 2,
+      "feature_names": ["com_x", ..., "d_ang_mom_z"],          # must equal FEATURE_NAMES
+      "contact_mode_names": ["LR-INSIDE", ..., "OUTSIDE"],    # must equal CONTACT_MODE_NAMES
+      "lists": [                                              # one per contact mode, in order
+        {"mode": "LR-INSIDE", "default": "balanced",
+         "rules": [{"label": "falling",
+                    "conditions": [{"feature": 2, "op": "<=", "threshold": 0.35}, ...]}, ...]},
+        ...
+      ],
+      "features": {"rate_window_s": 0.01, "edge_tolerance_m": 0.01,   # FeatureSettings: how
+                   "sample_period_s": 0.001, "guard_com_height_m": 0.48}, # the monitor must compute
+      "training": {"tau_plus_s": -0.25, "balanced_weight": 4.0, "falling_weight": 1.0,
+                   "sample_stride": 10, "learner": {"name": "TreeListLearner", "params": {...}}},
+      "recommended_tau_his_s": 0.06,                          # or null
+      "dataset_fingerprint": "...",
+      "created": {"utc": "2025-01-01T00:00:00Z", "package_version": "0.1.0"}
+    }
+
+``feature`` is a column index into ``feature_names``; ``op`` is ``"<="`` or ``">"``.
+Loading only parses JSON (never executes anything) and validates every field: a malformed or
+truncated file, another schema or version, different feature or mode names, an out-of-range
+feature index, a non-finite threshold, an unknown operator or class, or a missing or unknown
+key raises :class:`ModelFileError` naming the file and the offending field.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import asdict, dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any, Optional, Union
+
+from fall_predictor import __version__
+from fall_predictor.monitor.features import FeatureSettings
+from fall_predictor.monitor.fileio import atomic_output
+from fall_predictor.monitor.decision_list import (COMPARISON_OPS, Condition, DecisionList,
+                                          PerModeDecisionLists, Rule)
+from fall_predictor.monitor.records import (BALANCED, CLASS_NAMES, CONTACT_MODE_NAMES, FALLING,
+                                    FEATURE_NAMES, N_CONTACT_MODES, N_FEATURES)
+
+SCHEMA_NAME = 'fall_predictor.decision_lists'
+SCHEMA_VERSION = 2
+_CLASS_BY_NAME = {CLASS_NAMES[BALANCED]: BALANCED, CLASS_NAMES[FALLING]: FALLING}
+
+PathLike = Union[str, 'os.PathLike[str]']
+
+
+class ModelFileError(ValueError):
+    """A model file that cannot be read or is not a valid model; the message names the file."""
+
+
+def _utc_now() -> str:
+    return datetime.now(timezone.utc).strftime('%Y-%m-%dT%H:%M:%SZ')
+
+
+@dataclass(frozen=True)
+class ModelMetadata:
+    """Provenance of a model: how it was trained and on what.
+
+    ``learner_params`` must be JSON-serialisable (the learner's ``get_params()``).
+    ``recommended_tau_his_s`` [s] is the history window the model was selected with, a default
+    for the run-time parameter (None: no recommendation).
+    """
+
+    tau_plus_s: float
+    balanced_weight: float
+    falling_weight: float
+    learner_name: str
+    learner_params: dict[str, Any]
+    dataset_fingerprint: str
+    recommended_tau_his_s: Optional[float] = None
+    #: Every ``sample_stride``-th 1 kHz sample was trained on, its weight multiplied by the stride.
+    sample_stride: int = 1
+    #: How the training features were computed; the monitor must compute them the same way.
+    feature_settings: FeatureSettings = field(default_factory=FeatureSettings)
+    created_utc: str = field(default_factory=_utc_now)
+    package_version: str = __version__
+
+
+def _model_document(lists: PerModeDecisionLists, metadata: ModelMetadata) -> dict[str, Any]:
+    return {
+        'schema': SCHEMA_NAME,
+        'schema_version': SCHEMA_VERSION,
+        'feature_names': list(FEATURE_NAMES),
+        'contact_mode_names': list(CONTACT_MODE_NAMES),
+        'lists': [
+            {'mode': mode_name, 'default': CLASS_NAMES[decision_list.default],
+             'rules': [{'label': CLASS_NAMES[rule.label],
+                        'conditions': [{'feature': c.feature, 'op': c.op, 'threshold': c.threshold}
+                                       for c in rule.conditions]}
+                       for rule in decision_list.rules]}
+            for mode_name, decision_list in zip(CONTACT_MODE_NAMES, lists.lists)],
+        'features': asdict(metadata.feature_settings),
+        'training': {
+            'tau_plus_s': metadata.tau_plus_s,
+            'balanced_weight': metadata.balanced_weight,
+            'falling_weight': metadata.falling_weight,
+            'sample_stride': metadata.sample_stride,
+            'learner': {'name': metadata.learner_name, 'params': metadata.learner_params},
+        },
+        'recommended_tau_his_s': metadata.recommended_tau_his_s,
+        'dataset_fingerprint': metadata.dataset_fingerprint,
+        'created': {'utc': metadata.created_utc, 'package_version': metadata.package_version},
+    }
+
+
+def save_model(path: PathLike, lists: PerModeDecisionLists, metadata: ModelMetadata) -> None:
+    """Write the model as JSON to ``path`` atomically (a temporary file, then a rename).
+
+    The written file is checked by loading it back from memory before it replaces ``path``;
+    metadata that would not load (a non-finite number, a non-JSON parameter) raises
+    :class:`ModelFileError` and leaves ``path`` untouched.
+    """
+    path = Path(path)
+    try:
+        text = json.dumps(_model_document(lists, metadata), indent=1, allow_nan=False) + '\n'
+    except (TypeError, ValueError) as error:
+        raise ModelFileError(f'{path}: cannot write model: {error}') from error
+    _parse_model(text, path)
+    with atomic_output(path) as temporary:
+        temporary.write_text(text, encoding='utf-8')
+
+
+def load_model(path: PathLike) -> tuple[PerModeDecisionLists, ModelMetadata]:
+    """Read and validate a model file; raises :class:`ModelFileError` on any problem."""
+    path = Path(path)
+    try:
+        text = path.read_bytes().decode('utf-8')
+    except OSError as error:
+        raise ModelFileError(f'{path}: cannot read model file: {error}') from error
+    except UnicodeDecodeError as error:
+        raise ModelFileError(f'{path}: not UTF-8 text: {error}') from error
+    return _parse_model(text, path)
+
+
+class _Reader:
+    """Typed access to a parsed JSON document with errors naming the file and the field."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+
+    def fail(self, where: str, problem: str) -> ModelFileError:
+        return ModelFileError(f'{self.path}: {where}: {problem}')
+
+    def object(self, value: Any, where: str, keys: tuple[str, ...]) -> dict[str, Any]:
+        if not isinstance(value, dict):
+            raise self.fail(where, f'expected an object, got {type(value).__name__}')
+        missing = [key for key in keys if key not in value]
+        unknown = sorted(set(value) - set(keys))
+        if missing:
+            raise self.fail(where, f'missing key(s) {", ".join(missing)}')
+        if unknown:
+            raise self.fail(where, f'unknown key(s) {", ".join(unknown)}')
+        return value
+
+    def array(self, value: Any, where: str) -> list[Any]:
+        if not isinstance(value, list):
+            raise self.fail(where, f'expected an array, got {type(value).__name__}')
+        return value
+
+    def string(self, value: Any, where: str) -> str:
+        if not isinstance(value, str):
+            raise self.fail(where, f'expected a string, got {value!r}')
+        return value
+
+    def number(self, value: Any, where: str) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.fail(where, f'expected a number, got {value!r}')
+        if not math.isfinite(value):
+            raise self.fail(where, f'non-finite number {value!r}')
+        return float(value)
+
+    def class_name(self, value: Any, where: str) -> int:
+        name = self.string(value, where)
+        if name not in _CLASS_BY_NAME:
+            raise self.fail(where, f'unknown class {name!r}; expected one of {sorted(_CLASS_BY_NAME)}')
+        return _CLASS_BY_NAME[name]
+
+
+def _parse_model(text: str, path: Path) -> tuple[PerModeDecisionLists, ModelMetadata]:
+    read = _Reader(path)
+    try:
+        document = json.loads(text)
+    except json.JSONDecodeError as error:
+        raise ModelFileError(f'{path}: malformed or truncated JSON: {error}') from error
+    except RecursionError as error:
+        raise ModelFileError(f'{path}: JSON nested too deeply') from error
+    if not isinstance(document, dict):
+        raise read.fail('top level', f'expected an object, got {type(document).__name__}')
+    schema = document.get('schema')
+    if schema != SCHEMA_NAME:
+        raise read.fail('schema', f'expected {SCHEMA_NAME!r}, got {schema!r}')
+    version = document.get('schema_version')
+    if version != SCHEMA_VERSION or isinstance(version, bool):
+        raise read.fail('schema_version', f'unsupported version {version!r}; this reader supports {SCHEMA_VERSION}')
+    read.object(document, 'top level', ('schema', 'schema_version', 'feature_names',
+                                         'contact_mode_names', 'lists', 'features', 'training',
+                                         'recommended_tau_his_s', 'dataset_fingerprint', 'created'))
+    if document['feature_names'] != list(FEATURE_NAMES):
+        raise read.fail('feature_names', f'expected {list(FEATURE_NAMES)}, got {document["feature_names"]!r}')
+    if document['contact_mode_names'] != list(CONTACT_MODE_NAMES):
+        raise read.fail('contact_mode_names',
+                        f'expected {list(CONTACT_MODE_NAMES)}, got {document["contact_mode_names"]!r}')
+
+    raw_lists = read.array(document['lists'], 'lists')
+    if len(raw_lists) != N_CONTACT_MODES:
+        raise read.fail('lists', f'expected {N_CONTACT_MODES} lists (one per contact mode), got {len(raw_lists)}')
+    lists = []
+    for mode, raw_list in enumerate(raw_lists):
+        where = f'lists[{mode}]'
+        raw_list = read.object(raw_list, where, ('mode', 'default', 'rules'))
+        if raw_list['mode'] != CONTACT_MODE_NAMES[mode]:
+            raise read.fail(f'{where}.mode', f'expected {CONTACT_MODE_NAMES[mode]!r}, got {raw_list["mode"]!r}')
+        default = read.class_name(raw_list['default'], f'{where}.default')
+        rules = []
+        for r, raw_rule in enumerate(read.array(raw_list['rules'], f'{where}.rules')):
+            rule_where = f'{where}.rules[{r}]'
+            raw_rule = read.object(raw_rule, rule_where, ('label', 'conditions'))
+            label = read.class_name(raw_rule['label'], f'{rule_where}.label')
+            conditions = []
+            for c, raw in enumerate(read.array(raw_rule['conditions'], f'{rule_where}.conditions')):
+                condition_where = f'{rule_where}.conditions[{c}]'
+                raw = read.object(raw, condition_where, ('feature', 'op', 'threshold'))
+                feature = raw['feature']
+                if isinstance(feature, bool) or not isinstance(feature, int) or not 0 <= feature < N_FEATURES:
+                    raise read.fail(f'{condition_where}.feature',
+                                    f'feature index must be an integer in [0, {N_FEATURES}), got {feature!r}')
+                if raw['op'] not in COMPARISON_OPS:
+                    raise read.fail(f'{condition_where}.op',
+                                    f'unknown operator {raw["op"]!r}; expected one of {list(COMPARISON_OPS)}')
+                threshold = read.number(raw['threshold'], f'{condition_where}.threshold')
+                conditions.append(Condition(feature, raw['op'], threshold))
+            rules.append(Rule(tuple(conditions), label))
+        lists.append(DecisionList(tuple(rules), default))
+
+    training = read.object(document['training'], 'training',
+                           ('tau_plus_s', 'balanced_weight', 'falling_weight', 'sample_stride', 'learner'))
+    learner = read.object(training['learner'], 'training.learner', ('name', 'params'))
+    params = learner['params']
+    if not isinstance(params, dict):
+        raise read.fail('training.learner.params', f'expected an object, got {type(params).__name__}')
+    weights = {}
+    for key in ('balanced_weight', 'falling_weight'):
+        weights[key] = read.number(training[key], f'training.{key}')
+        if weights[key] <= 0.0:
+            raise read.fail(f'training.{key}', f'weight must be positive, got {weights[key]!r}')
+    stride = training['sample_stride']
+    if isinstance(stride, bool) or not isinstance(stride, int) or stride < 1:
+        raise read.fail('training.sample_stride', f'expected a positive integer, got {stride!r}')
+    tau_his = document['recommended_tau_his_s']
+    if tau_his is not None:
+        tau_his = read.number(tau_his, 'recommended_tau_his_s')
+        if tau_his < 0.0:
+            raise read.fail('recommended_tau_his_s', f'must be >= 0, got {tau_his!r}')
+    raw_features = read.object(document['features'], 'features', tuple(FeatureSettings.__dataclass_fields__))
+    try:
+        feature_settings = FeatureSettings(**{name: read.number(value, f'features.{name}')
+                                              for name, value in raw_features.items()})
+    except ValueError as error:
+        raise read.fail('features', str(error)) from error
+    created = read.object(document['created'], 'created', ('utc', 'package_version'))
+    metadata = ModelMetadata(
+        tau_plus_s=read.number(training['tau_plus_s'], 'training.tau_plus_s'),
+        balanced_weight=weights['balanced_weight'], falling_weight=weights['falling_weight'],
+        learner_name=read.string(learner['name'], 'training.learner.name'),
+        learner_params=params,
+        dataset_fingerprint=read.string(document['dataset_fingerprint'], 'dataset_fingerprint'),
+        recommended_tau_his_s=tau_his, sample_stride=stride, feature_settings=feature_settings,
+        created_utc=read.string(created['utc'], 'created.utc'),
+        package_version=read.string(created['package_version'], 'created.package_version'))
+    return PerModeDecisionLists(tuple(lists)), metadata

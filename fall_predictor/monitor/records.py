@@ -1,0 +1,122 @@
+"""Plain data records shared by the simulator, the feature code, datasets and learners.
+
+No ROS imports here: these records are the contract between the core library and the
+thin rclpy nodes, and between a live system and a recorded bag.
+
+Conventions: SI units, world frame z up, the ground plane at z = 0.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+#: Names of the 15 real-valued features (SPEC §6), in column order. All are expressed in
+#: the CoP frame: origin at the CoP (or the CoM ground projection in mode OUTSIDE),
+#: x along the pelvis heading, y to its left, z up.
+FEATURE_NAMES: tuple[str, ...] = (
+    'com_x', 'com_y', 'com_z',                      # CoM position relative to the origin [m]
+    'lin_mom_x', 'lin_mom_y', 'lin_mom_z',          # linear momentum [kg m/s]
+    'ang_mom_x', 'ang_mom_y', 'ang_mom_z',          # angular momentum about the CoM [kg m^2/s]
+    'd_lin_mom_x', 'd_lin_mom_y', 'd_lin_mom_z',    # rate of linear momentum [N]
+    'd_ang_mom_x', 'd_ang_mom_y', 'd_ang_mom_z',    # rate of angular momentum about the CoM [N m]
+)
+N_FEATURES = len(FEATURE_NAMES)
+
+#: The 16 foot contact modes of SPEC §7, in index order (the index is what data files store).
+CONTACT_MODE_NAMES: tuple[str, ...] = (
+    'LR-INSIDE', 'LR-FRONT', 'LR-BACK',
+    'L-INSIDE', 'L-FRONT', 'L-BACK', 'L-LEFT', 'L-FRONT-LEFT', 'L-BACK-LEFT',
+    'R-INSIDE', 'R-FRONT', 'R-BACK', 'R-RIGHT', 'R-FRONT-RIGHT', 'R-BACK-RIGHT',
+    'OUTSIDE',
+)
+N_CONTACT_MODES = len(CONTACT_MODE_NAMES)
+
+#: State classes of SPEC §4 (label values in data arrays).
+BALANCED, FALLING, FALLEN = 0, 1, 2
+CLASS_NAMES = ('balanced', 'falling', 'fallen')
+
+#: SPEC §4 and §5 thresholds.
+FALLEN_COM_HEIGHT_M = 0.33
+GUARD_COM_HEIGHT_M = 0.48
+PUSH_DURATION_S = 0.1
+
+#: Standard gravity [m/s^2]: the simulator's, the walking pattern's and the capture point's.
+STANDARD_GRAVITY_M_S2 = 9.81
+
+
+@dataclass(slots=True)
+class Measurement:
+    """Everything the robot measures at one simulation step (one 1 kHz sample).
+
+    Contacts are ground contact points of each foot sole: rows of (x, y, normal_force)
+    in world coordinates [m, m, N]; an empty (0, 3) array means the foot is off the ground.
+    """
+
+    t: float                        #: simulation time [s]
+    com: np.ndarray                 #: (3,) whole-body CoM, world [m]
+    lin_mom: np.ndarray             #: (3,) linear momentum, world [kg m/s]
+    ang_mom: np.ndarray             #: (3,) angular momentum about the CoM, world [kg m^2/s]
+    heading: float                  #: pelvis yaw [rad]
+    cop: np.ndarray                 #: (3,) centre of pressure on the ground, NaN if no contact
+    left_contacts: np.ndarray       #: (k, 3) left sole contacts: x, y [m], normal force [N]
+    right_contacts: np.ndarray      #: (k, 3) right sole contacts
+    left_foot: np.ndarray           #: (3,) left sole centre x, y [m] and yaw [rad]
+    right_foot: np.ndarray          #: (3,) right sole centre x, y [m] and yaw [rad]
+    non_foot_contact: bool          #: a link other than a foot touches the ground
+    push_force: np.ndarray = field(default_factory=lambda: np.zeros(3))  #: (3,) external push now, world [N]
+
+    @property
+    def fallen(self) -> bool:
+        """SPEC §4: CoM below 0.33 m, or any link other than the feet on the ground."""
+        return bool(self.com[2] < FALLEN_COM_HEIGHT_M or self.non_foot_contact)
+
+
+@dataclass(frozen=True, slots=True)
+class PushSpec:
+    """One push (SPEC §3): a constant horizontal force on the torso for ``duration_s``.
+
+    ``angle_deg`` is measured from the robot's sagittal (heading) direction, counter-clockwise
+    seen from above: 0 pushes forward, 90 pushes to the robot's left. ``height_m`` is the
+    application height above the CoM at push onset.
+    """
+
+    force_n: float
+    angle_deg: float
+    height_m: float
+    t_push: float                   #: onset, simulation time [s]
+    duration_s: float = PUSH_DURATION_S
+
+    @property
+    def t_force_end(self) -> float:
+        return self.t_push + self.duration_s
+
+    @property
+    def impulse_ns(self) -> float:
+        return self.force_n * self.duration_s
+
+
+@dataclass(slots=True)
+class TrajectoryFeatures:
+    """One trajectory as the learners see it: features per sample plus its hindsight times.
+
+    ``X`` columns follow :data:`FEATURE_NAMES`; ``mode`` holds contact mode indices
+    (:data:`CONTACT_MODE_NAMES`). Times are simulation seconds; ``t_fallen`` and
+    ``t_height_drop`` are None on trajectories that never fall.
+    """
+
+    trajectory_id: str
+    t: np.ndarray                   #: (N,) sample times [s], 1 ms apart
+    X: np.ndarray                   #: (N, 15) features
+    mode: np.ndarray                #: (N,) int contact mode index
+    fallen: bool
+    t_push: float
+    t_force_end: float
+    t_fallen: Optional[float] = None
+    t_height_drop: Optional[float] = None
+
+    @property
+    def com_height(self) -> np.ndarray:
+        """CoM height above the ground [m] (the frame origin lies on the ground)."""
+        return self.X[:, 2]

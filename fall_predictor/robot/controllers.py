@@ -1,0 +1,261 @@
+"""Controllers of SPEC §2: C_bal (walking with a balance reflex) and C_fall (freeze).
+
+C_bal walks with ZMP preview control and closed-form leg IK. Its reflex fires when the
+horizontal linear momentum departs from the walking pattern's by more than a threshold
+along the sagittal or frontal axis: the robot then steps outward towards where its capture
+point will be at touchdown (widening its stance), lowers its CoM, and stands. C_fall
+holds the joint targets C_bal had reached. The switch from C_bal to C_fall is one-way.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+from fall_predictor.robot import kinematics as kin
+from fall_predictor.robot import model as rm
+from fall_predictor.robot.gait import GRAVITY, Footstep, PreviewController, WalkingPlan, plan_walk, swing_position
+from fall_predictor.monitor.records import Measurement
+
+N_JOINTS = len(rm.JOINT_NAMES)
+_LEG_SLICE = {'l': slice(0, 6), 'r': slice(6, 12)}
+
+#: Arms hang slightly away from the body, elbows bent; head straight.
+_UPPER_BODY_POSTURE = {
+    'l_shoulder_roll': 0.15, 'r_shoulder_roll': -0.15, 'l_elbow_pitch': -0.4, 'r_elbow_pitch': -0.4,
+}
+
+
+@dataclass(frozen=True)
+class GaitConfig:
+    single_support_s: float = 0.5
+    double_support_s: float = 0.2
+    step_length_m: float = 0.08       #: a slow walk (0.11 m/s); 0 steps in place
+    lift_height_m: float = 0.04
+    torso_height_m: float = 0.63      #: torso origin above the ground while walking
+    stance_half_width_m: float = rm.HIP_HALF_WIDTH_M
+    initial_stand_s: float = 0.5
+    preview_s: float = 1.6
+
+
+@dataclass(frozen=True)
+class ReflexConfig:
+    enabled: bool = True
+    #: Departure of horizontal momentum from the pattern's that fires the reflex [kg m/s].
+    threshold_sagittal_ns: float = 6.0
+    threshold_frontal_ns: float = 6.0
+    step_duration_s: float = 0.3
+    lift_height_m: float = 0.05
+    lower_com_m: float = 0.06
+    lower_duration_s: float = 0.3
+    #: The step lands this far beyond the predicted capture point, away from the stance foot [m].
+    capture_margin_m: float = 0.05
+    min_stance_width_m: float = 0.26   #: lateral sole-centre distance after the reflex step
+    max_stance_width_m: float = 0.45
+    max_step_forward_m: float = 0.30
+    max_step_backward_m: float = 0.25
+
+
+@dataclass
+class ReflexEvent:
+    t: float
+    side: str
+    target: tuple[float, float]
+    capture_point: tuple[float, float]
+
+
+class BalanceController:
+    """C_bal: walking pattern plus momentum-triggered stepping reflex. Call :meth:`update` every tick."""
+
+    def __init__(self, gait: GaitConfig = GaitConfig(), reflex: ReflexConfig = ReflexConfig(),
+                 dt_s: float = 0.001, walk_duration_s: float = 3600.0):
+        self.gait = gait
+        self.reflex = reflex
+        self.dt_s = dt_s
+        self.walk_duration_s = walk_duration_s
+        self.reflex_event: Optional[ReflexEvent] = None
+        self.target = np.zeros(N_JOINTS)
+        for name, q in _UPPER_BODY_POSTURE.items():
+            self.target[rm.JOINT_NAMES.index(name)] = q
+        w = gait.stance_half_width_m
+        self.feet = {'l': np.array([0.0, w]), 'r': np.array([0.0, -w])}
+        self.com_offset = np.zeros(2)
+        self._reflex_step: Optional[Footstep] = None
+        self._started = False
+
+    # -- set-up ----------------------------------------------------------------------------
+    def initial_posture(self) -> tuple[np.ndarray, np.ndarray]:
+        """Joint angles and torso position for standing on both feet at the walking height."""
+        torso = np.array([0.0, 0.0, self.gait.torso_height_m])
+        self._set_legs(torso, {s: (self.feet[s][0], self.feet[s][1], 0.0) for s in rm.SIDES})
+        return self.target.copy(), torso
+
+    def _start(self, m: Measurement) -> None:
+        # The CoM sits at a fixed horizontal offset from the torso origin (placed at x = y = 0
+        # by initial_posture); the pattern is planned for the CoM and the torso follows at
+        # that offset.
+        self.com_offset = m.com[:2].copy()
+        self.com_height_m = float(m.com[2])
+        self.omega = math.sqrt(GRAVITY / self.com_height_m)
+        self.preview = PreviewController(self.dt_s, self.com_height_m, self.gait.preview_s)
+        self.preview.reset(m.com[:2].copy())
+        g = self.gait
+        plan = plan_walk(tuple(self.feet['l']), tuple(self.feet['r']), m.t, self.walk_duration_s,
+                         g.single_support_s, g.double_support_s, g.step_length_m, g.initial_stand_s)
+        self._set_plan(plan, m.t)
+        self.torso_height = g.torso_height_m
+        self._lower_from: Optional[float] = None
+        self._started = True
+
+    def _set_plan(self, plan: WalkingPlan, t_now: float) -> None:
+        self.plan = plan
+        self._steps = list(plan.steps)
+        self._t0 = t_now
+        horizon = max(plan.zmp_knots_t[-1] - t_now, 0.0) + self.gait.preview_s + 1.0
+        times = t_now + self.dt_s * np.arange(int(horizon / self.dt_s) + 2)
+        self._zmp_ref = plan.zmp_reference(times)
+        self._ref_index = 0
+
+    # -- control -----------------------------------------------------------------------------
+    def update(self, m: Measurement) -> np.ndarray:
+        """Joint position targets for the next physics step given the current measurement."""
+        if not self._started:
+            self._start(m)
+        if self.reflex.enabled and self.reflex_event is None and self._momentum_departed(m):
+            self._fire_reflex(m)
+        i = self._ref_index
+        ref = self._zmp_ref
+        if i + self.preview.n_preview + 1 > len(ref):
+            ref = np.vstack([ref, np.repeat(ref[-1:], self.preview.n_preview + 1, axis=0)])
+            self._zmp_ref = ref
+        com_xy = self.preview.step(ref[i:i + self.preview.n_preview + 1])
+        self._ref_index += 1
+        t = m.t + self.dt_s
+        if self._lower_from is not None:
+            s = min(1.0, (t - self._lower_from) / self.reflex.lower_duration_s)
+            self.torso_height = self.gait.torso_height_m - self.reflex.lower_com_m * (0.5 - 0.5 * math.cos(math.pi * s))
+        torso = np.array([com_xy[0] - self.com_offset[0], com_xy[1] - self.com_offset[1], self.torso_height])
+        soles = {}
+        for side in rm.SIDES:
+            step = self._active_step(side, t)
+            if step is None:
+                soles[side] = (self.feet[side][0], self.feet[side][1], 0.0)
+            else:
+                lift = self.reflex.lift_height_m if step is self._reflex_step else self.gait.lift_height_m
+                soles[side] = swing_position(step, t, lift)
+                if t >= step.t_land:
+                    self.feet[side] = np.array(step.target)
+        self._set_legs(torso, soles)
+        return self.target.copy()
+
+    def _active_step(self, side: str, t: float) -> Optional[Footstep]:
+        # Drop finished steps (their targets become the planted feet).
+        while self._steps and t > self._steps[0].t_land + 1e-9:
+            done = self._steps.pop(0)
+            self.feet[done.side] = np.array(done.target)
+        for step in self._steps[:2]:
+            if step.side == side and step.t_lift <= t <= step.t_land + 1e-9:
+                return step
+        return None
+
+    def _set_legs(self, torso: np.ndarray, soles: dict) -> None:
+        # Torso upright and soles flat, both facing the walking direction (world +x): the
+        # closed-form IK's parallel case.
+        tx, ty, tz = float(torso[0]), float(torso[1]), float(torso[2])
+        for side in rm.SIDES:
+            x, y, z = soles[side]
+            hip = (tx, ty + (rm.HIP_HALF_WIDTH_M if side == 'l' else -rm.HIP_HALF_WIDTH_M), tz - rm.HIP_DROP_M)
+            ankle = (x - rm.SOLE_FORWARD_OFFSET_M, y, z + rm.ANKLE_HEIGHT_M)
+            self.target[_LEG_SLICE[side]] = kin.leg_ik_parallel(hip, ankle)
+
+    def _momentum_departed(self, m: Measurement) -> bool:
+        mass = rm.TOTAL_MASS_KG
+        ref_vel = self.preview.state[1]
+        c, s = math.cos(m.heading), math.sin(m.heading)
+        dx = m.lin_mom[0] - mass * ref_vel[0]
+        dy = m.lin_mom[1] - mass * ref_vel[1]
+        sagittal, frontal = c * dx + s * dy, -s * dx + c * dy
+        return abs(sagittal) > self.reflex.threshold_sagittal_ns or abs(frontal) > self.reflex.threshold_frontal_ns
+
+    def _fire_reflex(self, m: Measurement) -> None:
+        r = self.reflex
+        t = m.t
+        mass = rm.TOTAL_MASS_KG
+        com = m.com[:2]
+        vel = m.lin_mom[:2] / mass
+        capture = com + vel / self.omega
+        swinging = [s for s in rm.SIDES if self._active_step(s, t) is not None]
+        if swinging:
+            side = swinging[0]
+            step = self._active_step(side, t)
+            start = np.array(swing_position(step, t, self.gait.lift_height_m)[:2])
+        else:
+            # Double support: step with the foot farther from the capture point.
+            side = max(rm.SIDES, key=lambda s_: float(np.linalg.norm(self.feet[s_] - capture)))
+            start = self.feet[side].copy()
+        stance_side = 'r' if side == 'l' else 'l'
+        stance = self.feet[stance_side]
+        # Where the capture point will be at touchdown if the CoP stays on the stance foot.
+        growth = math.exp(self.omega * r.step_duration_s)
+        predicted = stance + (capture - stance) * growth
+        away = predicted - stance
+        norm = float(np.linalg.norm(away))
+        target = predicted + (away / norm * r.capture_margin_m if norm > 1e-9 else 0.0)
+        # Reachable region relative to the stance foot, in the heading frame; never cross.
+        ch, sh = math.cos(m.heading), math.sin(m.heading)
+        rel = target - stance
+        fwd, lat = ch * rel[0] + sh * rel[1], -sh * rel[0] + ch * rel[1]
+        fwd = min(r.max_step_forward_m, max(-r.max_step_backward_m, fwd))
+        outward = 1.0 if side == 'l' else -1.0
+        lat = outward * min(r.max_stance_width_m, max(r.min_stance_width_m, outward * lat))
+        target = stance + np.array([ch * fwd - sh * lat, sh * fwd + ch * lat])
+        self._reflex_step = Footstep(side, t, t + r.step_duration_s, tuple(start), tuple(target))
+        new_feet = {side: target, stance_side: stance}
+        mid = (new_feet['l'] + new_feet['r']) / 2
+        knots_t = np.array([t, t + r.step_duration_s, t + r.step_duration_s + 0.2])
+        knots = np.array([stance, stance, mid])
+        self._set_plan(WalkingPlan([self._reflex_step], knots_t, knots), t)
+        self.preview.reset(com.copy(), vel.copy())
+        self._lower_from = t
+        self.reflex_event = ReflexEvent(t, side, (float(target[0]), float(target[1])),
+                                        (float(capture[0]), float(capture[1])))
+
+
+class FallController:
+    """C_fall: hold the target pose the balance controller had reached."""
+
+    def __init__(self, frozen_target: np.ndarray):
+        self.target = np.array(frozen_target, dtype=float)
+
+    def update(self, m: Measurement) -> np.ndarray:
+        return self.target.copy()
+
+
+@dataclass
+class ControllerSwitch:
+    """Runs C_bal until :meth:`trigger_fall`, then C_fall for good (SPEC §2: one-way)."""
+
+    balance: BalanceController
+    fall: Optional[FallController] = None
+    t_switch: Optional[float] = None
+    _last_target: np.ndarray = field(default_factory=lambda: np.zeros(N_JOINTS))
+
+    @property
+    def mode(self) -> str:
+        return 'fall' if self.fall is not None else 'balance'
+
+    def trigger_fall(self, t: float) -> bool:
+        """Switch to C_fall; returns False if already switched."""
+        if self.fall is not None:
+            return False
+        self.fall = FallController(self._last_target)
+        self.t_switch = t
+        return True
+
+    def update(self, m: Measurement) -> np.ndarray:
+        if self.fall is not None:
+            return self.fall.update(m)
+        self._last_target = self.balance.update(m)
+        return self._last_target

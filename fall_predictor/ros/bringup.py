@@ -1,0 +1,292 @@
+"""Bring-up of the onboard fall monitor: start the nodes as processes and push the robot N times.
+
+:func:`run_bringup` starts the simulator, controller, feature and predictor nodes (and
+optionally the recorder) as separate processes (``python -m fall_predictor.ros.<node>
+--ros-args --params-file ...``) on an isolated ROS domain with localhost-only discovery,
+waits until they are all up and connected, then for each push:
+
+1. resets the simulator (``/simulator_node/reset``): a fresh world at t = 0;
+2. requests a push drawn from :class:`~fall_predictor.sim.pushes.PushDistribution` with the
+   generator of trajectory ``i`` of a dataset with the same seed
+   (:func:`~fall_predictor.sim.pushes.trajectory_seed`), so push ``i`` equals the push of
+   trajectory ``i`` of ``fall-predictor generate --seed S``; the onset (2.1 to 3.5 s into the
+   walk) is the request's stamp;
+3. follows ``/fall_predictor/measurement`` (fallen flag), ``/fall_predictor/state`` and
+   ``/fall_predictor/controller_mode`` until the robot is fallen or ``horizon_s`` of
+   simulation time after the push ended, then pauses the simulator (``~/pause``), so that a
+   recorded run ends there;
+4. reports one JSON object (printed as one line when ``json_out`` is given).
+
+After a predicted fall C_fall freezes the robot, which may then stay up: ``fell`` is false and
+``t_fallen`` null, and ``outcome`` says ``predicted_no_fall``. Outcomes: ``fall_predicted``
+(fallen, first falling state at or after the push and no later than fallen), ``fall_missed``
+(fallen without such a prediction), ``predicted_no_fall``, ``no_fall`` (no prediction, not
+fallen). ``stopped_by`` is ``fallen`` or ``horizon``.
+
+Shutdown is ordered (simulator first, the recorder last so that it can drain) by SIGINT, then
+SIGTERM, then SIGKILL after timeouts; the node processes also get SIGTERM if this process dies
+(Linux ``PR_SET_PDEATHSIG``), so no orphans are left behind.
+
+The bring-up's own ROS node is :class:`fall_predictor.ros.observer.Observer`; the command-line
+options are defined in :mod:`fall_predictor.cli`, so ``fall-predictor --help`` needs no ROS.
+"""
+from __future__ import annotations
+
+import argparse
+import ctypes
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Optional, TextIO
+
+from fall_predictor.data.topics import PIPELINE_NODES, RECORDER_NODE
+from fall_predictor.ros.common import BringupError
+from fall_predictor.ros.share import package_share_dir
+
+if TYPE_CHECKING:
+    from fall_predictor.sim.pushes import PushDistribution
+
+#: Shutdown order: the source of all samples first, the recorder last.
+SHUTDOWN_ORDER = ('simulator_node', 'controller_node', 'feature_node', 'predictor_node',
+                  RECORDER_NODE)
+
+
+# --------------------------------------------------------------------------------------------
+# Processes
+# --------------------------------------------------------------------------------------------
+
+def _die_with_parent() -> None:  # pragma: no cover - runs in the child between fork and exec
+    """Ask Linux to send SIGTERM to this child when the bring-up process dies."""
+    pr_set_pdeathsig = 1
+    ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, signal.SIGTERM)
+
+
+def ros_environment(domain_id: int) -> dict[str, str]:
+    """The environment of a node process: isolated domain, localhost-only discovery."""
+    env = dict(os.environ)
+    env['ROS_DOMAIN_ID'] = str(domain_id)
+    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    env.pop('ROS_LOCALHOST_ONLY', None)         # deprecated in Jazzy, superseded by the above
+    env.pop('ROS_STATIC_PEERS', None)
+    env['PYTHONUNBUFFERED'] = '1'
+    return env
+
+
+@contextmanager
+def _scoped_environment(values: dict[str, str]) -> Iterator[None]:
+    saved = {key: os.environ.get(key) for key in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+
+
+@dataclass
+class NodeProcess:
+    """One node running as a child process, its output in ``log_path``."""
+
+    name: str
+    process: subprocess.Popen
+    log_path: Path
+
+    def log_tail(self, lines: int = 15) -> str:
+        try:
+            text = self.log_path.read_text(errors='replace')
+        except OSError:
+            return ''
+        return '\n'.join(text.splitlines()[-lines:])
+
+
+def node_command(name: str, params_file: Path, overrides: dict[str, str]) -> list[str]:
+    """``python -m fall_predictor.ros.<name> --ros-args --params-file F -p k:=v ...``."""
+    command = [sys.executable, '-m', f'fall_predictor.ros.{name}', '--ros-args',
+               '--params-file', str(params_file)]
+    for key, value in overrides.items():
+        command += ['-p', f'{key}:={value}']
+    return command
+
+
+def start_process(name: str, command: list[str], env: dict[str, str],
+                  log_dir: Path) -> NodeProcess:
+    """Start ``command`` in its own session (so that a terminal's Ctrl-C reaches only the
+    bring-up, which then stops the nodes in order), dying with this process, output to
+    ``log_dir/<name>.log``."""
+    log_path = log_dir / f'{name}.log'
+    with open(log_path, 'wb') as log:
+        process = subprocess.Popen(
+            command, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT, env=env,
+            start_new_session=True,
+            preexec_fn=_die_with_parent if sys.platform.startswith('linux') else None)
+    return NodeProcess(name, process, log_path)
+
+
+def start_node(name: str, params_file: Path, overrides: dict[str, str], env: dict[str, str],
+               log_dir: Path) -> NodeProcess:
+    """Start node module ``name`` (see :func:`node_command`, :func:`start_process`)."""
+    return start_process(name, node_command(name, params_file, overrides), env, log_dir)
+
+
+def stop_nodes(nodes: dict[str, NodeProcess], sigint_timeout_s: float = 10.0,
+               term_timeout_s: float = 3.0, recorder_drain_s: float = 1.0) -> dict[str, int]:
+    """Stop the nodes in :data:`SHUTDOWN_ORDER`: SIGINT and wait, then SIGTERM, then SIGKILL.
+
+    The recorder is stopped ``recorder_drain_s`` after the others so that it receives what
+    they published last. Returns the exit code of every process.
+    """
+    for name in SHUTDOWN_ORDER:
+        node = nodes.get(name)
+        if node is None or node.process.poll() is not None:
+            continue
+        if name == RECORDER_NODE:
+            time.sleep(recorder_drain_s)
+        node.process.send_signal(signal.SIGINT)
+        if name == 'simulator_node':
+            _wait(node.process, sigint_timeout_s)
+    for node in nodes.values():
+        if _wait(node.process, sigint_timeout_s) is None:
+            node.process.terminate()
+            if _wait(node.process, term_timeout_s) is None:
+                node.process.kill()
+                node.process.wait()
+    return {name: node.process.returncode for name, node in nodes.items()}
+
+
+def _wait(process: subprocess.Popen, timeout_s: float) -> Optional[int]:
+    try:
+        return process.wait(timeout_s)
+    except subprocess.TimeoutExpired:
+        return None
+
+
+# --------------------------------------------------------------------------------------------
+# The bring-up
+# --------------------------------------------------------------------------------------------
+
+def default_params_file() -> Path:
+    """``config/fall_predictor.yaml`` of the installed package or of the source tree."""
+    return package_share_dir() / 'config' / 'fall_predictor.yaml'
+
+
+def default_domain_id() -> int:
+    """A domain id derived from the process id, away from the default domain 0."""
+    return 100 + os.getpid() % 100
+
+
+def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
+                domain_id: Optional[int] = None, real_time_factor: float = 0.0,
+                model_path: Optional[Path] = None, params_file: Optional[Path] = None,
+                record_dir: Optional[Path] = None, horizon_s: float = 3.0,
+                log_dir: Optional[Path] = None, startup_timeout_s: float = 60.0,
+                push_distribution: Optional[PushDistribution] = None,
+                fall_trigger: bool = True) -> list[dict]:
+    """Start the nodes, push the robot ``pushes`` times, stop everything; see the module docs.
+
+    ``real_time_factor`` 0 runs as fast as the lock-stepped pipeline allows (the outcome does
+    not depend on it); ``record_dir`` also runs the recorder (one bag per push run);
+    ``horizon_s`` is the simulation time [s] watched after a push ends if the robot does not
+    fall; node logs go to ``log_dir`` (default: a new temporary directory);
+    ``push_distribution`` defaults to SPEC §3's. With ``fall_trigger`` false the predictor
+    still runs and is reported, but C_bal stays in charge throughout (SPEC §4: the recording
+    then carries valid hindsight labels for training). Raises :class:`BringupError` if a node fails
+    to start or dies, or the simulation gets stuck.
+    """
+    if pushes < 0:
+        raise ValueError(f'pushes must be >= 0, got {pushes}')
+    import rclpy
+
+    from fall_predictor.ros.observer import Observer
+    from fall_predictor.sim.pushes import PushDistribution, trajectory_seed
+
+    push_distribution = push_distribution or PushDistribution()
+    domain_id = default_domain_id() if domain_id is None else domain_id
+    env = ros_environment(domain_id)
+    log_dir = Path(log_dir) if log_dir else Path(tempfile.mkdtemp(prefix='fall_predictor_bringup_'))
+    log_dir.mkdir(parents=True, exist_ok=True)
+    params_file = Path(params_file) if params_file else default_params_file()
+    overrides: dict[str, dict[str, str]] = {
+        'simulator_node': {'real_time_factor': repr(float(real_time_factor)),
+                           'autostart': 'false', 'lockstep': 'true'},
+        # Both read the model: the feature node for the feature settings it was trained with.
+        'predictor_node': {'model_path': str(Path(model_path).resolve())} if model_path else {},
+        'feature_node': {'model_path': str(Path(model_path).resolve())} if model_path else {},
+        'controller_node': {} if fall_trigger else {'fall_trigger_enabled': 'false'},
+    }
+    names = list(PIPELINE_NODES)
+    if record_dir is not None:
+        names.insert(0, RECORDER_NODE)
+        overrides[RECORDER_NODE] = {'bag_path': str(Path(record_dir).resolve())}
+
+    context = rclpy.Context()
+    with _scoped_environment({'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'}):
+        rclpy.init(context=context, domain_id=domain_id)
+    nodes: dict[str, NodeProcess] = {}
+    observer: Optional[Observer] = None
+    results: list[dict] = []
+    try:
+        observer = Observer(context, 'fall_predictor_bringup')
+        for name in names:
+            nodes[name] = start_node(name, params_file, overrides[name], env, log_dir)
+
+        def check_alive() -> None:
+            for node in nodes.values():
+                code = node.process.poll()
+                if code is not None:
+                    raise BringupError(f'{node.name} exited with code {code} '
+                                       f'(log {node.log_path}):\n{node.log_tail()}')
+
+        if not observer.spin_until(lambda: observer.connected(names), startup_timeout_s,
+                                   check_alive):
+            raise BringupError(f'the nodes did not come up within {startup_timeout_s} s '
+                               f'(logs in {log_dir})')
+        for index in range(pushes):
+            push = push_distribution.sample(trajectory_seed(seed, index))
+            result = observer.run_push(index, push, horizon_s, check_alive)
+            result.update(seed=seed, domain_id=domain_id)
+            results.append(result)
+            if json_out is not None:
+                print(json.dumps(result, sort_keys=True), file=json_out, flush=True)
+    finally:
+        if observer is not None:
+            observer.destroy()
+        rclpy.try_shutdown(context=context)
+        stop_nodes(nodes)
+    return results
+
+
+# --------------------------------------------------------------------------------------------
+# Command line
+# --------------------------------------------------------------------------------------------
+
+def cmd_bringup(args: argparse.Namespace) -> int:
+    """Run :func:`run_bringup` from the parsed options of ``fall-predictor bringup``; exit code."""
+    try:
+        results = run_bringup(args.pushes, args.seed, sys.stdout if args.json else None,
+                              domain_id=args.domain_id, real_time_factor=args.real_time_factor,
+                              model_path=args.model, params_file=args.params_file,
+                              record_dir=args.record, horizon_s=args.horizon,
+                              log_dir=args.log_dir, fall_trigger=args.fall_trigger)
+    except BringupError as error:
+        print(f'error: {error}', file=sys.stderr)
+        return 1
+    if not args.json:
+        for r in results:
+            push = r['push']
+            lead = '' if r['lead_time_s'] is None else f", lead {r['lead_time_s']:.3f} s"
+            print(f"push {r['index']}: {push['force_n']:.0f} N at {push['angle_deg']:.0f} deg, "
+                  f"t = {push['t_push']:.3f} s -> {r['outcome']} (predicted "
+                  f"{r['t_predict']}, fallen {r['t_fallen']}{lead}), "
+                  f"controller {r['controller_mode']}")
+    return 0

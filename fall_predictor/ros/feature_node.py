@@ -1,0 +1,118 @@
+"""feature_node: measurements -> the 15 features and the contact mode (SPEC §6, §7).
+
+The features are computed as the model was trained: the node reads the model file
+(``model_path``) for its feature settings (rate window, edge tolerance, sample period) and
+adopts them; a parameter set to another value stops the node at start with one clear error.
+
+For every ``/fall_predictor/measurement`` it runs
+:class:`~fall_predictor.monitor.features.FeatureExtractor` and publishes ``/fall_predictor/features``
+(layout v1, stamped by the sample time in ``data[0]``). A new run (sample time going
+backwards, or a new t = 0 sample) resets the extractor's momentum history.
+
+Bad input never stops the node: a measurement that breaks the wire contract, or that the
+extractor rejects (non-finite values, time not increasing), is logged (throttled), counted and
+dropped. Health goes to ``/diagnostics``: OK, WARN when inputs were dropped in the last period,
+STALE when no measurement arrived for ``stale_timeout_s`` of wall time. The predictor node,
+not this one, owns ``/fall_predictor/state``.
+"""
+from __future__ import annotations
+
+import time
+from typing import Optional
+
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from std_msgs.msg import Float64MultiArray
+
+from fall_predictor.ros import conversions as ros_qos
+from fall_predictor.ros.common import (MODEL_PATH, Diagnostics, InputErrors, ParamSpec, Report,
+                                       RunTracker, Sample, create_publisher, create_subscription,
+                                       declare_parameters, feature_setting_params, load_model_for,
+                                       run_node)
+from fall_predictor.data.topics import FEATURES, MEASUREMENT
+from fall_predictor.data.wire import LEVEL_OK, LEVEL_STALE, LEVEL_WARN
+
+NODE_NAME = 'feature_node'
+
+#: Feature settings this node uses, checked against the model's.
+SETTINGS = ('rate_window_s', 'edge_tolerance_m', 'sample_period_s')
+PARAMS = (
+    MODEL_PATH,
+    *feature_setting_params(SETTINGS),
+    ParamSpec('stale_timeout_s', 0.5, 'wall time [s] without a measurement after which '
+              '/diagnostics reports STALE', 0.01, 60.0),
+)
+
+
+class FeatureNode(Node):
+    """Wraps :class:`~fall_predictor.monitor.features.FeatureExtractor`; see the module docs."""
+
+    def __init__(self, **kwargs: object) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        p = declare_parameters(self, PARAMS)
+        _, _, settings = load_model_for(self, str(p['model_path']), {k: p[k] for k in SETTINGS})
+        self._extractor = settings.extractor()
+        self._stale_timeout_s = float(p['stale_timeout_s'])
+        self.add_post_set_parameters_callback(self._apply_parameters)
+
+        self._features_pub = create_publisher(self, Float64MultiArray, FEATURES)
+        inputs = [create_subscription(self, Float64MultiArray, MEASUREMENT, self._on_measurement)]
+        self._runs = RunTracker()
+        self._bad_inputs = InputErrors(self)
+        #: Counters by event name (reported in /diagnostics).
+        self.counts = {'measurements': 0, 'features': 0, 'duplicates': 0, 'runs': 0}
+        self._last_input_wall: Optional[float] = None
+        self._diagnostics = Diagnostics(self, self._report, lambda: self._runs.last_t or 0.0,
+                                        inputs)
+        self.get_logger().info('feature extractor ready')
+
+    def _apply_parameters(self, parameters: list[Parameter]) -> None:
+        for parameter in parameters:
+            if parameter.name == 'stale_timeout_s':
+                self._stale_timeout_s = float(parameter.value)
+
+    def _on_measurement(self, msg: Float64MultiArray) -> None:
+        self.counts['measurements'] += 1
+        self._last_input_wall = time.monotonic()
+        try:
+            m = ros_qos.measurement_from_msg(msg)
+        except ValueError as error:
+            self._bad_inputs.reject('measurement', error)
+            return
+        kind = self._runs.classify(m.t)
+        if kind is Sample.REPEAT:
+            self.counts['duplicates'] += 1
+            return
+        if kind is Sample.NEW_RUN:
+            self.counts['runs'] += 1
+            self._extractor.reset()
+        try:
+            x, mode = self._extractor.update(m)
+            features = ros_qos.features_to_msg(m.t, x, mode)
+        except ValueError as error:
+            self._bad_inputs.reject(f'measurement at t = {m.t} s', error)
+            return
+        self._features_pub.publish(features)
+        self.counts['features'] += 1
+
+    def _report(self) -> Report:
+        values = {'t_s': self._runs.last_t, 'invalid_measurements': self._bad_inputs.count,
+                  'last_error': self._bad_inputs.last, **self.counts}
+        dropped = self._bad_inputs.new_since_last_call()
+        if self._last_input_wall is None:
+            return LEVEL_STALE, 'no measurement received yet', values
+        silent_s = time.monotonic() - self._last_input_wall
+        if silent_s > self._stale_timeout_s:
+            return LEVEL_STALE, f'no measurement for {silent_s:.1f} s', values
+        if dropped:
+            return LEVEL_WARN, f'{dropped} invalid measurements dropped', values
+        return LEVEL_OK, 'running', values
+
+
+def main(args: Optional[list[str]] = None) -> int:
+    """Entry point: ``python -m fall_predictor.ros.feature_node --ros-args ...``."""
+    return run_node(FeatureNode, NODE_NAME, args)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

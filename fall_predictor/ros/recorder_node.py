@@ -1,0 +1,252 @@
+"""recorder_node: the live topics into rosbag2 (MCAP) bags, one bag per run, losing nothing.
+
+Subscribes (QoS of :mod:`fall_predictor.data.wire`) to the measurement, features, state,
+joint states, joint commands, push and controller mode topics, and writes them with
+:class:`~fall_predictor.data.bagio.BagWriter`: same topics, types, QoS metadata and log times
+(simulation time) as the generated datasets, so a recorded bag is read by
+:func:`~fall_predictor.data.bagio.read_trajectory` and the dataset/training code like a generated
+one.
+
+One bag per run: ``<bag_path>/run_000``, ``run_001``, ... A run ends when sample time goes
+back to the start (a simulator ``~/reset``); each stamped topic is split on its own time line,
+so messages of the old run still in flight go to the old bag, which is closed once every
+stamped topic has moved on. A message that is merely out of order (a stray publisher) stays in
+the current run. Pushes and controller-mode changes go to the run of the latest
+measurement; a controller mode (no stamp) is logged at that measurement's time.
+
+Nothing is lost between reception and disk: the subscription callbacks only queue the
+serialized bytes (raw subscriptions, no deserialization in the executor); a writer thread
+decodes, validates and writes them; on shutdown the subscriptions are closed first, then the
+queue is drained and every bag closed. A message that breaks the wire contract is rejected
+(logged, counted) so that the bags stay readable. Counts of received, written and rejected
+messages per topic are in ``/diagnostics`` and logged at shutdown. Start the recorder, and
+wait for its ``unmatched_inputs`` to be empty, before starting a run: DDS delivers nothing
+published before a subscription is matched.
+"""
+from __future__ import annotations
+
+import json
+import queue
+import threading
+import traceback
+from collections.abc import Callable
+from contextlib import ExitStack
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Optional
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import WrenchStamped
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray, String
+
+from fall_predictor.data import bagio
+from fall_predictor.ros.common import (Diagnostics, InputErrors, NodeStartupError, ParamSpec,
+                                         Report, RunTracker, Sample, create_subscription,
+                                         declare_parameters, run_node)
+from fall_predictor.data.topics import (CONTROLLER_MODE, FEATURES, JOINT_COMMANDS, JOINT_STATES, MEASUREMENT, PUSH, STATE, TopicSpec, check_controller_mode)
+from fall_predictor.data.wire import LEVEL_OK, LEVEL_WARN, JointStateSample
+from fall_predictor.data.topics import ns_to_time, stamp_to_ns, time_to_ns
+
+NODE_NAME = 'recorder_node'
+#: Recorded topics and their rclpy message classes.
+RECORDED: tuple[tuple[TopicSpec, type], ...] = (
+    (MEASUREMENT, Float64MultiArray), (FEATURES, Float64MultiArray), (STATE, DiagnosticArray),
+    (JOINT_STATES, JointState), (JOINT_COMMANDS, JointState), (PUSH, WrenchStamped),
+    (CONTROLLER_MODE, String),
+)
+#: Stamped streams split into runs on their own time line; the value says whether a new
+#: t = 0 sample starts a run (not for states: degraded states repeat the last sample time).
+_RUN_SPLIT: dict[str, bool] = {MEASUREMENT.name: True, FEATURES.name: True, STATE.name: False,
+                               JOINT_STATES.name: True, JOINT_COMMANDS.name: True}
+#: A jump back in time starts a run only if it lands before this time [s]: runs start at
+#: t = 0, and the first sample of every stamped stream is within milliseconds of it; a
+#: smaller jump back (a stray message from another publisher) stays in the current run.
+_RUN_START_WINDOW_S = 1.0
+#: Queue length above which /diagnostics warns that the writer falls behind.
+_BACKLOG_WARN = 1000
+
+PARAMS = (
+    ParamSpec('bag_path', '', 'directory receiving one bag per run (run_000, run_001, ...); '
+              'empty = ./fall_predictor_<UTC time>', read_only=True),
+)
+
+
+def _sample_time(topic: str, msg: bagio.RosbagsMsg) -> Optional[float]:
+    """Validate a deserialized message against the wire contract and return its sample time
+    [s] (None for the unstamped controller mode); raises WireFormatError."""
+    if topic == JOINT_COMMANDS.name:
+        stamp = msg.header.stamp
+        return JointStateSample(ns_to_time(stamp_to_ns(stamp.sec, stamp.nanosec)),
+                                tuple(msg.name), msg.position, msg.velocity, msg.effort).t
+    if topic == CONTROLLER_MODE.name:
+        check_controller_mode(msg.data)
+        return None
+    record = bagio.decode(bagio.BagMessage(topic, '', 0, msg))
+    return float(record.t)  # type: ignore[attr-defined]
+
+
+class RecorderNode(Node):
+    """Records the live topics; see the module documentation."""
+
+    def __init__(self, **kwargs: object) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        p = declare_parameters(self, PARAMS)
+        stamp = datetime.now(timezone.utc).strftime('%Y%m%d_%H%M%S')
+        self.bag_dir = Path(str(p['bag_path']) or f'fall_predictor_{stamp}').expanduser()
+        try:
+            self.bag_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise NodeStartupError(f'cannot create bag_path {self.bag_dir}: {error}') from error
+        if any(self.bag_dir.glob('run_*')):
+            raise NodeStartupError(f'bag_path {self.bag_dir} already holds recordings (run_*)')
+
+        names = [spec.name for spec, _ in RECORDED]
+        #: Per topic: messages received, written to a bag, rejected as malformed.
+        self.received = dict.fromkeys(names, 0)
+        self.written = dict.fromkeys(names, 0)
+        self.rejected = dict.fromkeys(names, 0)
+        #: Bags written so far (closed or open), by run index.
+        self.bags: dict[int, Path] = {}
+        self._invalid = InputErrors(self)
+        self._queue: queue.SimpleQueue[Optional[tuple[str, bytes]]] = queue.SimpleQueue()
+        self._trackers = {name: RunTracker(restart, _RUN_START_WINDOW_S)
+                          for name, restart in _RUN_SPLIT.items()}
+        self._topic_run = dict.fromkeys(_RUN_SPLIT, 0)
+        self._seen: set[str] = set()
+        self._open: dict[int, tuple[ExitStack, bagio.BagWriter]] = {}
+        self._measurement_t_ns = 0
+        self._write_errors = 0
+        self._types = {spec.name: spec.msg_type for spec, _ in RECORDED}
+
+        self._inputs = [
+            create_subscription(self, msg_class, spec, self._queue_callback(spec.name), raw=True)
+            for spec, msg_class in RECORDED]
+        self._writer = threading.Thread(target=self._write_loop, name='bag_writer', daemon=True)
+        self._writer.start()
+        self._diagnostics = Diagnostics(self, self._report, lambda: self._measurement_t_ns / 1e9,
+                                        self._inputs)
+        self.get_logger().info(f'recording {len(RECORDED)} topics into {self.bag_dir}')
+
+    def _queue_callback(self, topic: str) -> Callable[[bytes], None]:
+        def on_message(raw: bytes) -> None:
+            self.received[topic] += 1
+            self._queue.put((topic, raw))
+        return on_message
+
+    # -- writer thread ---------------------------------------------------------------------
+    def _write_loop(self) -> None:
+        while (item := self._queue.get()) is not None:
+            try:
+                self._write(*item)
+            except Exception:  # noqa: BLE001 - keep recording the other messages
+                self._write_errors += 1
+                self.get_logger().error(f'cannot record a {item[0]} message:\n'
+                                        f'{traceback.format_exc()}', throttle_duration_sec=1.0)
+
+    def _write(self, topic: str, raw: bytes) -> None:
+        """Decode, validate, find the run of one message and write it to that run's bag."""
+        msg_type = self._types[topic]
+        try:
+            msg = bagio.typestore().deserialize_cdr(raw, msg_type)
+            t = _sample_time(topic, msg)
+        except Exception as error:  # noqa: BLE001 - whatever does not decode is rejected
+            self.rejected[topic] += 1
+            self._invalid.reject(topic, error)
+            return
+        if topic in self._trackers:
+            assert t is not None
+            if self._trackers[topic].classify(t) is Sample.NEW_RUN:
+                self._topic_run[topic] += 1
+            self._seen.add(topic)
+            run = self._topic_run[topic]
+            t_ns = time_to_ns(t)
+            if topic == MEASUREMENT.name:
+                self._measurement_t_ns = t_ns
+        else:
+            run = self._topic_run[MEASUREMENT.name]
+            t_ns = self._measurement_t_ns if t is None else time_to_ns(t)
+        try:
+            self._bag(run).write(topic, msg_type, t_ns, msg)
+        except bagio.BagError as error:
+            self._write_errors += 1
+            self.get_logger().error(str(error), throttle_duration_sec=1.0)
+            return
+        self.written[topic] += 1
+        self._close_finished_runs()
+
+    def _bag(self, run: int) -> bagio.BagWriter:
+        if run not in self._open:
+            path = self.bag_dir / f'run_{run:03d}'
+            stack = ExitStack()
+            self._open[run] = (stack, stack.enter_context(bagio.BagWriter(path)))
+            self.bags[run] = path
+            self.get_logger().info(f'new bag {path}')
+        return self._open[run][1]
+
+    def _close_finished_runs(self) -> None:
+        """Close the bags of runs every stamped topic seen so far has left."""
+        if not self._seen:
+            return
+        oldest_active = min(self._topic_run[topic] for topic in self._seen)
+        for run in [r for r in self._open if r < oldest_active]:
+            self._close(run)
+
+    def _close(self, run: int) -> None:
+        stack, _ = self._open.pop(run)
+        try:
+            stack.close()
+        except bagio.BagError as error:
+            self._write_errors += 1
+            self.get_logger().error(str(error))
+
+    # -- health and shutdown ---------------------------------------------------------------
+    def summary(self) -> dict[str, object]:
+        """Counts per topic and the bags; ``unaccounted`` counts messages received but neither
+        written, rejected nor still queued (lost to write errors): 0 when nothing was lost."""
+        queued = self._queue.qsize()
+        unaccounted = (sum(self.received.values()) - sum(self.written.values())
+                       - sum(self.rejected.values()) - queued)
+        return {'bag_dir': str(self.bag_dir), 'bags': [str(p) for p in self.bags.values()],
+                'received': dict(self.received), 'written': dict(self.written),
+                'rejected': dict(self.rejected), 'write_errors': self._write_errors,
+                'queued': queued, 'unaccounted': unaccounted}
+
+    def _report(self) -> Report:
+        summary = self.summary()
+        values = {'bag_dir': summary['bag_dir'], 'open_bags': len(self._open),
+                  'queued': summary['queued'], 'write_errors': self._write_errors,
+                  'unaccounted': summary['unaccounted'], 'last_error': self._invalid.last}
+        for topic in self.received:
+            values[f'{topic} received/written/rejected'] = (
+                f'{self.received[topic]}/{self.written[topic]}/{self.rejected[topic]}')
+        rejected = self._invalid.new_since_last_call()
+        if self._write_errors or rejected or self._queue.qsize() > _BACKLOG_WARN:
+            message = (f'{rejected} rejected, {self._write_errors} write errors, '
+                       f'{self._queue.qsize()} queued')
+            return LEVEL_WARN, message, values
+        return LEVEL_OK, 'recording', values
+
+    def destroy_node(self) -> None:
+        """Stop receiving, write everything queued, close every bag, log the counts."""
+        for subscription in self._inputs:
+            self.destroy_subscription(subscription)
+        self._queue.put(None)
+        self._writer.join()
+        for run in list(self._open):
+            self._close(run)
+        # After Ctrl-C the context is already shut down: log without the node's /rosout.
+        rclpy.logging.get_logger(f'{NODE_NAME}.shutdown').info(
+            f'recording finished: {json.dumps(self.summary())}')
+        super().destroy_node()
+
+
+def main(args: Optional[list[str]] = None) -> int:
+    """Entry point: ``python -m fall_predictor.ros.recorder_node --ros-args ...``."""
+    return run_node(RecorderNode, NODE_NAME, args)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,381 @@
+"""simulator_node: the simulated humanoid (PyBullet, 1 ms steps), lock-stepped with the controller.
+
+Publishes, all stamped with simulation time:
+
+* ``/fall_predictor/measurement`` and ``/clock`` every physics step (1 kHz of simulation time);
+* ``/joint_states`` at ``joint_state_rate_hz`` of simulation time;
+* ``/fall_predictor/push`` once per applied push (onset stamp, world force);
+* ``/diagnostics`` once per wall second.
+
+Subscribes to ``/fall_predictor/joint_commands`` (the controller node's joint targets) and to
+``/fall_predictor/push_request`` (see :data:`~fall_predictor.ros.common.PUSH_REQUEST`).
+
+**Lock-step** (``lockstep``, default true): after publishing sample k the node waits for the
+joint command stamped with sample k's time, applies it and steps, so the robot obeys the
+controller exactly and a run is deterministic. If no matching command arrives within
+``command_timeout_s`` of wall time, it steps with the last command and counts a missed
+command (reported in ``/diagnostics``). Without lock-step, a wall-clock timer steps the world
+at ``real_time_factor`` with the latest command received. A run starts (sample t = 0 is
+published) only once the measurement has a subscriber and, in lock-step, the command topic a
+publisher; other late subscribers miss the first samples. For a complete record from t = 0,
+set ``autostart`` false and call ``~/reset`` once every node's ``/diagnostics`` reports empty
+``unmatched_inputs``, as the bring-up does.
+
+**Pacing**: ``real_time_factor`` 1.0 keeps simulation time from running ahead of wall time;
+0 steps as fast as the controller answers (lock-step only). A pipeline slower than real time
+simply runs slower (the achieved factor is in ``/diagnostics``).
+
+**Pushes** (SPEC §3): a constant horizontal force for 0.1 s on the torso. A push request gives
+the onset (header stamp, simulation time; a past time means the next step), the force in the
+robot's heading frame and its torque about the CoM, ``(0, 0, h) x F``, from which the
+application height ``h`` above the CoM is recovered. With ``random_push_period_s`` > 0 the node
+also pushes by itself every period of simulation time, drawing force, direction and height
+from :class:`~fall_predictor.sim.pushes.PushDistribution` seeded with ``random_push_seed``. A
+request while a push is still acting is rejected (logged and counted).
+
+**Fallen**: with ``stop_when_fallen`` the world stops stepping at the first fallen sample
+(SPEC §4); otherwise it keeps going. ``~/reset`` (std_srvs/Trigger) starts a fresh world at
+t = 0 (the other nodes notice time going backwards and reset themselves); ``~/pause``
+(std_srvs/SetBool) holds the world (true) or lets it go on (false).
+"""
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+from dataclasses import replace
+from typing import Optional
+
+import numpy as np
+from geometry_msgs.msg import WrenchStamped
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import SetBool, Trigger
+
+from fall_predictor.robot import model as rm
+from fall_predictor.ros import conversions as ros_qos
+from fall_predictor.robot.controllers import BalanceController
+from fall_predictor.ros.common import (Diagnostics,
+                                         InputErrors, NodeStartupError, ParamSpec, ParamValue,
+                                         Report, create_publisher, create_subscription,
+                                         declare_parameters, run_node, steady_clock)
+from fall_predictor.sim.pushes import PushDistribution
+from fall_predictor.monitor.records import Measurement, PushSpec
+from fall_predictor.sim.simulator import DT_S, Simulator
+from fall_predictor.data.topics import (CLOCK, JOINT_COMMANDS, JOINT_STATES, MEASUREMENT, PUSH, PUSH_REQUEST,
+                                        SIM_RATE_HZ, WireFormatError, stamp_to_ns, time_to_ns)
+from fall_predictor.data.wire import LEVEL_OK, LEVEL_WARN
+
+NODE_NAME = 'simulator_node'
+#: Period of the wall-clock check for a run start and for lock-step command timeouts [s].
+_WATCHDOG_PERIOD_S = 0.01
+#: Lock-step pacing gives up catching up with wall time when this far behind [s].
+_MAX_PACING_LAG_S = 0.1
+_PAUSED = 'paused (~/pause)'
+
+PARAMS = (
+    ParamSpec('lockstep', True, 'wait for the controller command of each sample before '
+              'stepping (deterministic runs); false: step on a wall-clock timer', read_only=True),
+    ParamSpec('real_time_factor', 1.0, 'simulated seconds per wall second (upper bound); '
+              '0 = as fast as possible (lock-step only)', 0.0, 100.0),
+    ParamSpec('command_timeout_s', 0.5, 'lock-step: wall time [s] to wait for the command of a '
+              'sample before stepping with the last command (a missed command)', 0.001, 60.0),
+    ParamSpec('joint_state_rate_hz', 100.0, 'rate of /joint_states in simulation time [Hz], '
+              'rounded to a whole number of 1 ms steps', 1.0, SIM_RATE_HZ, read_only=True),
+    ParamSpec('stop_when_fallen', False, 'stop stepping at the first fallen sample (until '
+              '~/reset); false: keep simulating the fallen robot'),
+    ParamSpec('autostart', True, 'start a run at launch; false: wait for the first ~/reset',
+              read_only=True),
+    ParamSpec('random_push_period_s', 0.0, 'push the robot every this many simulated seconds '
+              'with a push drawn from the SPEC §3 distribution; 0 = off', 0.0, 3600.0,
+              read_only=True),
+    ParamSpec('random_push_seed', 0, 'seed of the random pushes', 0, 2**31 - 1,
+              read_only=True),
+)
+
+
+def _check_pacing(values: Mapping[str, ParamValue]) -> Optional[str]:
+    if not values['lockstep'] and values['real_time_factor'] == 0.0:
+        return 'real_time_factor must be > 0 without lockstep (a timer steps the world)'
+    return None
+
+
+class SimulatorNode(Node):
+    """Owns one :class:`~fall_predictor.sim.simulator.Simulator`; see the module documentation."""
+
+    def __init__(self, **kwargs: object) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        p = declare_parameters(self, PARAMS, _check_pacing)
+        self._lockstep = bool(p['lockstep'])
+        self._real_time_factor = float(p['real_time_factor'])
+        self._command_timeout_s = float(p['command_timeout_s'])
+        self._joint_state_every = max(1, round(SIM_RATE_HZ / float(p['joint_state_rate_hz'])))
+        self._stop_when_fallen = bool(p['stop_when_fallen'])
+        self._random_push_period_s = float(p['random_push_period_s'])
+        self._push_rng = np.random.default_rng(int(p['random_push_seed']))
+        self._push_distribution = PushDistribution()
+        self.add_post_set_parameters_callback(self._apply_parameters)
+
+        self._q0, self._torso0 = BalanceController().initial_posture()
+        try:
+            self._sim = Simulator()
+        except RuntimeError as error:
+            raise NodeStartupError(str(error)) from error
+
+        self._measurement_pub = create_publisher(self, Float64MultiArray, MEASUREMENT)
+        self._clock_pub = create_publisher(self, Clock, CLOCK)
+        self._joint_state_pub = create_publisher(self, JointState, JOINT_STATES)
+        self._push_pub = create_publisher(self, WrenchStamped, PUSH)
+        self._command_sub = create_subscription(self, JointState, JOINT_COMMANDS,
+                                                self._on_command)
+        create_subscription(self, WrenchStamped, PUSH_REQUEST, self._on_push_request)
+        self.create_service(Trigger, '~/reset', self._on_reset)
+        self.create_service(SetBool, '~/pause', self._on_pause)
+
+        #: Counters by event name (reported in /diagnostics).
+        self.counts = {'worlds': 0, 'steps': 0, 'measurements': 0, 'joint_states': 0,
+                       'pushes': 0, 'missed_commands': 0, 'late_commands': 0}
+        self._bad_commands = InputErrors(self)
+        self._bad_push_requests = InputErrors(self)
+        self._command = self._q0.copy()
+        self._m: Measurement            # the latest sample, set by _begin_run
+        self._published = False             # current sample published?
+        self._awaiting_ns: Optional[int] = None
+        self._command_ready = False
+        self._published_wall = 0.0
+        self._hold: Optional[str] = None     # why the world is not stepping, None if running
+        self._pending_push: Optional[PushSpec] = None
+        self._push_busy_until_s = 0.0
+        self._next_random_push_s = math.inf
+        self._t_fallen: Optional[float] = None
+        self._pace_anchor = (0.0, 0.0)       # (wall [s], simulation [s])
+        self._report_anchor = (time.monotonic(), 0)     # (wall [s], steps)
+        self._missed_at_report = 0
+
+        self.create_timer(_WATCHDOG_PERIOD_S, self._on_watchdog, clock=steady_clock())
+        self._step_timer = None
+        if not self._lockstep:
+            self._step_timer = self.create_timer(DT_S / self._real_time_factor,
+                                                 self._on_step_timer, clock=steady_clock())
+        self._diagnostics = Diagnostics(self, self._report, lambda: self._m.t, [self._command_sub])
+        self._begin_run(None if p['autostart'] else 'waiting for ~/reset')
+        self.get_logger().info(
+            f'simulator ready: lockstep={self._lockstep}, real_time_factor='
+            f'{self._real_time_factor}, random_push_period_s={self._random_push_period_s}')
+
+    # -- parameters ------------------------------------------------------------------------
+    def _apply_parameters(self, parameters: list[Parameter]) -> None:
+        for parameter in parameters:
+            if parameter.name == 'real_time_factor':
+                self._real_time_factor = float(parameter.value)
+                self._pace_anchor = (time.monotonic(), self._m.t)
+                if self._step_timer is not None:
+                    self._step_timer.timer_period_ns = round(DT_S / self._real_time_factor * 1e9)
+            elif parameter.name == 'command_timeout_s':
+                self._command_timeout_s = float(parameter.value)
+            elif parameter.name == 'stop_when_fallen':
+                self._stop_when_fallen = bool(parameter.value)
+
+    # -- runs ------------------------------------------------------------------------------
+    def _begin_run(self, hold: Optional[str] = None) -> None:
+        """A fresh world at t = 0, published as soon as the consumers are there (unless
+        held for ``hold``)."""
+        self._m = self._sim.reset(self._q0, self._torso0)
+        self._command = self._q0.copy()
+        self._published = False
+        self._command_ready = False
+        self._awaiting_ns = None
+        self._hold = hold
+        self._pending_push = None
+        self._push_busy_until_s = 0.0
+        self._next_random_push_s = self._random_push_period_s or math.inf
+        self._t_fallen = None
+        self.counts['worlds'] += 1
+        if hold is None:
+            self._try_start()
+
+    def _try_start(self) -> None:
+        """Publish the first sample of the run once someone listens (and, in lock-step,
+        someone commands)."""
+        if self._measurement_pub.get_subscription_count() == 0:
+            return
+        if self._lockstep and self._command_sub.get_publisher_count() == 0:
+            return
+        self._pace_anchor = (time.monotonic(), self._m.t)
+        self._publish_sample(self._m)
+
+    def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        self._begin_run()
+        response.success = True
+        response.message = f'fresh world at t = 0 s (world {self.counts["worlds"]} since start)'
+        self.get_logger().info(response.message)
+        return response
+
+    def _on_pause(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
+        if request.data:
+            self._hold = self._hold or _PAUSED
+        elif self._hold == _PAUSED:
+            self._hold = None
+            self._pace_anchor = (time.monotonic(), self._m.t)
+            self._published_wall = time.monotonic()
+            if self._command_ready:
+                self._advance()          # the command of the held sample came during the pause
+        response.success = True
+        response.message = f'holding: {self._hold}' if self._hold else 'running'
+        return response
+
+    # -- inputs ----------------------------------------------------------------------------
+    def _on_command(self, msg: JointState) -> None:
+        try:
+            sample = ros_qos.joint_state_from_msg(msg)
+            if sample.names != rm.JOINT_NAMES:
+                raise WireFormatError(f'joint names {list(sample.names)} are not the robot\'s '
+                                      f'{len(rm.JOINT_NAMES)} joints in URDF order')
+        except WireFormatError as error:
+            self._bad_commands.reject('joint command', error)
+            return
+        if not self._lockstep:
+            self._command = sample.position
+            return
+        stamp_ns = stamp_to_ns(msg.header.stamp.sec, msg.header.stamp.nanosec)
+        if stamp_ns != self._awaiting_ns or self._command_ready:
+            self.counts['late_commands'] += 1
+            return
+        self._command = sample.position
+        self._command_ready = True
+        self._advance()
+
+    def _on_push_request(self, msg: WrenchStamped) -> None:
+        try:
+            push = ros_qos.push_request_from_msg(msg, self._m.t, DT_S)
+            if self._push_busy():
+                raise ValueError('another push is scheduled or still acting '
+                                 f'(until {self._push_busy_until_s:.3f} s)')
+        except ValueError as error:
+            self._bad_push_requests.reject('push request', error)
+            return
+        self._schedule_push(push)
+
+    def _push_busy(self) -> bool:
+        """A push is scheduled or still acting (the simulator holds one push at a time)."""
+        return self._pending_push is not None or self._m.t < self._push_busy_until_s - 1e-9
+
+    def _schedule_push(self, push: PushSpec) -> None:
+        self._sim.schedule_push(push)
+        self._pending_push = push
+        self._push_busy_until_s = push.t_force_end
+        self.get_logger().info(
+            f'push scheduled at {push.t_push:.3f} s: {push.force_n:.1f} N, '
+            f'{push.angle_deg:.1f} deg from the heading, {push.height_m:+.3f} m above the CoM')
+
+    # -- stepping --------------------------------------------------------------------------
+    def _on_watchdog(self) -> None:
+        if self._hold is not None:
+            return
+        if not self._published:
+            self._try_start()
+        elif (self._lockstep and not self._command_ready
+              and time.monotonic() - self._published_wall > self._command_timeout_s):
+            self.counts['missed_commands'] += 1
+            self.get_logger().warning(
+                f'no joint command for t = {self._m.t:.3f} s within {self._command_timeout_s} s: '
+                f'stepping with the last command ({self.counts["missed_commands"]} missed)',
+                throttle_duration_sec=1.0)
+            self._advance()
+
+    def _on_step_timer(self) -> None:
+        if self._hold is None and self._published:
+            self._advance()
+
+    def _advance(self) -> None:
+        """Step once with the current command and publish the new sample."""
+        if self._hold is not None:
+            return
+        if self._lockstep:
+            self._pace()
+        self._sim.set_joint_targets(self._command)
+        m = self._sim.step()
+        self._m = m
+        self.counts['steps'] += 1
+        pending = self._pending_push
+        if pending is not None and m.t > pending.t_push + DT_S / 2:
+            self._push_pub.publish(ros_qos.push_to_msg(pending.t_push, m.push_force))
+            self.counts['pushes'] += 1
+            self._pending_push = None
+        if m.t >= self._next_random_push_s - 1e-9:
+            self._next_random_push_s += self._random_push_period_s
+            if not self._push_busy():
+                drawn = self._push_distribution.sample(self._push_rng)
+                self._schedule_push(replace(drawn, t_push=round(m.t, 9)))
+        self._publish_sample(m)
+
+    def _pace(self) -> None:
+        """Lock-step pacing: sleep until wall time allows the next step."""
+        if self._real_time_factor <= 0.0:
+            return
+        wall0, sim0 = self._pace_anchor
+        due = wall0 + (self._m.t + DT_S - sim0) / self._real_time_factor
+        ahead = due - time.monotonic()
+        if ahead > 0.0:
+            time.sleep(ahead)
+        elif ahead < -_MAX_PACING_LAG_S:
+            self._pace_anchor = (time.monotonic(), self._m.t)
+
+    def _publish_sample(self, m: Measurement) -> None:
+        self._measurement_pub.publish(ros_qos.measurement_to_msg(m))
+        self._clock_pub.publish(Clock(clock=ros_qos.stamp(m.t)))
+        self.counts['measurements'] += 1
+        if self._sim.tick % self._joint_state_every == 0:
+            q, dq, effort = self._sim.joint_states()
+            self._joint_state_pub.publish(
+                ros_qos.joint_state_to_msg(m.t, rm.JOINT_NAMES, q, dq, effort))
+            self.counts['joint_states'] += 1
+        self._published = True
+        self._awaiting_ns = time_to_ns(m.t)
+        self._command_ready = False
+        self._published_wall = time.monotonic()
+        if self._t_fallen is None and m.fallen:
+            self._t_fallen = m.t
+            self.get_logger().info(f'robot fallen at t = {m.t:.3f} s')
+            if self._stop_when_fallen:
+                self._hold = 'robot fallen (stop_when_fallen)'
+
+    # -- diagnostics -----------------------------------------------------------------------
+    def _report(self) -> Report:
+        wall0, steps0 = self._report_anchor
+        now = time.monotonic()
+        achieved = (self.counts['steps'] - steps0) * DT_S / (now - wall0)
+        self._report_anchor = (now, self.counts['steps'])
+        missed = self.counts['missed_commands'] - self._missed_at_report
+        self._missed_at_report = self.counts['missed_commands']
+        rejected = (self._bad_commands.new_since_last_call()
+                    + self._bad_push_requests.new_since_last_call())
+        values = {'t_s': f'{self._m.t:.3f}', 'real_time_factor_achieved': f'{achieved:.3f}',
+                  'real_time_factor': self._real_time_factor, 'lockstep': self._lockstep,
+                  't_fallen_s': self._t_fallen, 'invalid_commands': self._bad_commands.count,
+                  'push_requests_rejected': self._bad_push_requests.count,
+                  'last_error': self._bad_commands.last or self._bad_push_requests.last,
+                  **self.counts}
+        if missed:
+            return LEVEL_WARN, f'{missed} commands missed (controller late or absent)', values
+        if rejected:
+            return LEVEL_WARN, f'{rejected} invalid commands or push requests', values
+        if self._hold is not None:
+            return LEVEL_OK, f'holding: {self._hold}', values
+        return LEVEL_OK, 'running', values
+
+    def destroy_node(self) -> None:
+        self._sim.close()
+        super().destroy_node()
+
+
+def main(args: Optional[list[str]] = None) -> int:
+    """Entry point: ``python -m fall_predictor.ros.simulator_node --ros-args ...``."""
+    return run_node(SimulatorNode, NODE_NAME, args)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,256 @@
+"""PyBullet world of the humanoid: stepping at 1 kHz, pushes, and exact measurements.
+
+One :class:`Simulator` owns one PyBullet physics client (DIRECT by default, GUI on request).
+:meth:`Simulator.reset` builds a fresh world (ground plane and robot) for each trajectory, so
+runs are independent and reproducible: the same initial posture, controller and push give a
+bit-identical trajectory.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Optional, Sequence
+
+import numpy as np
+import pybullet as pb
+
+from fall_predictor.robot import model as rm
+from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2, Measurement, PushSpec
+
+GRAVITY = STANDARD_GRAVITY_M_S2
+DT_S = 0.001
+#: Contacts reported with less normal force than this carry no load (solver slop) [N].
+MIN_CONTACT_FORCE_N = 1e-6
+
+
+@dataclass(frozen=True)
+class SimulatorConfig:
+    dt_s: float = DT_S
+    gui: bool = False
+    #: Fewer than ~50 iterations leave a standing robot vibrating (momentum ~0.5 kg m/s) and
+    #: its CoP millimetres off the CoM projection; see the README (speed).
+    solver_iterations: int = 50
+    ground_friction: float = 1.0
+    foot_friction: float = 1.0
+    #: Position-control gains of PyBullet's joint motors (per-step error feedback).
+    position_gain: float = 0.4
+    velocity_gain: float = 1.0
+
+
+def quaternions_to_matrices(q: np.ndarray) -> np.ndarray:
+    """Rotation matrices (n, 3, 3) from PyBullet quaternions (n, 4) in (x, y, z, w) order."""
+    x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    out = np.empty((len(q), 3, 3))
+    out[:, 0, 0] = 1 - 2 * (y * y + z * z)
+    out[:, 0, 1] = 2 * (x * y - z * w)
+    out[:, 0, 2] = 2 * (x * z + y * w)
+    out[:, 1, 0] = 2 * (x * y + z * w)
+    out[:, 1, 1] = 1 - 2 * (x * x + z * z)
+    out[:, 1, 2] = 2 * (y * z - x * w)
+    out[:, 2, 0] = 2 * (x * z - y * w)
+    out[:, 2, 1] = 2 * (y * z + x * w)
+    out[:, 2, 2] = 1 - 2 * (x * x + y * y)
+    return out
+
+
+class Simulator:
+    """The robot in a fresh PyBullet world; :meth:`step` applies joint targets and measures."""
+
+    def __init__(self, config: SimulatorConfig = SimulatorConfig()):
+        self.config = config
+        self.client = pb.connect(pb.GUI if config.gui else pb.DIRECT)
+        if self.client < 0:
+            raise RuntimeError('could not start a PyBullet physics client')
+        self.robot = -1
+        self.plane = -1
+        self.t = 0.0
+        self.tick = 0
+        self._push: Optional[PushSpec] = None
+        self._push_force_world = np.zeros(3)
+        self._push_point_local = np.zeros(3)
+        self._prev_measurement: Optional[Measurement] = None
+
+    # -- world -------------------------------------------------------------------------
+    def reset(self, joint_positions: Sequence[float], torso_position: Sequence[float],
+              torso_yaw_rad: float = 0.0) -> Measurement:
+        """A fresh world with the robot at rest in the given posture; returns the first sample."""
+        c = self.client
+        pb.resetSimulation(physicsClientId=c)
+        pb.setGravity(0, 0, -GRAVITY, physicsClientId=c)
+        pb.setTimeStep(self.config.dt_s, physicsClientId=c)
+        pb.setPhysicsEngineParameter(numSolverIterations=self.config.solver_iterations,
+                                     deterministicOverlappingPairs=1, physicsClientId=c)
+        plane_shape = pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=c)
+        self.plane = pb.createMultiBody(0, plane_shape, physicsClientId=c)
+        pb.changeDynamics(self.plane, -1, lateralFriction=self.config.ground_friction, physicsClientId=c)
+        orn = pb.getQuaternionFromEuler((0, 0, torso_yaw_rad))
+        self.robot = pb.loadURDF(str(rm.URDF_PATH), torso_position, orn,
+                                 flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=c)
+        self.n_joints = pb.getNumJoints(self.robot, physicsClientId=c)
+        names = [pb.getJointInfo(self.robot, i, physicsClientId=c)[1].decode() for i in range(self.n_joints)]
+        if tuple(names) != rm.JOINT_NAMES:
+            raise RuntimeError(f'URDF joint order {names} differs from robot_model.JOINT_NAMES')
+        self.link_names = [pb.getJointInfo(self.robot, i, physicsClientId=c)[12].decode()
+                           for i in range(self.n_joints)]
+        self.foot_links = {side: self.link_names.index(f'{side}_foot') for side in rm.SIDES}
+        self.joint_indices = list(range(self.n_joints))
+        specs = rm.joint_specs()
+        self.max_forces = [specs[n].effort_nm for n in rm.JOINT_NAMES]
+        for link in [-1] + self.joint_indices:
+            # SPEC: zero link damping; inertias come from the file.
+            pb.changeDynamics(self.robot, link, linearDamping=0.0, angularDamping=0.0,
+                              jointDamping=0.0, physicsClientId=c)
+        for link in self.foot_links.values():
+            pb.changeDynamics(self.robot, link, lateralFriction=self.config.foot_friction, physicsClientId=c)
+        for i, q in enumerate(joint_positions):
+            pb.resetJointState(self.robot, i, q, 0.0, physicsClientId=c)
+        self.masses = np.array([pb.getDynamicsInfo(self.robot, i, physicsClientId=c)[0]
+                                for i in [-1] + self.joint_indices])
+        self.inertias = np.array([pb.getDynamicsInfo(self.robot, i, physicsClientId=c)[2]
+                                  for i in [-1] + self.joint_indices])
+        self.total_mass = float(self.masses.sum())
+        self.t = 0.0
+        self.tick = 0
+        self._push = None
+        self._push_force_world = np.zeros(3)
+        self._prev_measurement = None
+        self.set_joint_targets(joint_positions)
+        return self.measure()
+
+    def restore_clock(self, tick: int, measurement: Measurement) -> None:
+        """After ``pybullet.restoreState``: set the clock and last sample to the snapshot's,
+        with no push pending."""
+        self.tick = tick
+        self.t = tick * self.config.dt_s
+        self._push = None
+        self._push_force_world = np.zeros(3)
+        self._prev_measurement = measurement
+
+    def close(self) -> None:
+        if self.client >= 0:
+            pb.disconnect(self.client)
+            self.client = -1
+
+    def __enter__(self) -> 'Simulator':
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # -- actuation ---------------------------------------------------------------------
+    def set_joint_targets(self, positions: Sequence[float]) -> None:
+        """Position targets [rad] for all 26 joints (held until the next call)."""
+        n = self.n_joints
+        pb.setJointMotorControlArray(self.robot, self.joint_indices, pb.POSITION_CONTROL,
+                                     targetPositions=list(positions),
+                                     forces=self.max_forces,
+                                     positionGains=[self.config.position_gain] * n,
+                                     velocityGains=[self.config.velocity_gain] * n,
+                                     physicsClientId=self.client)
+
+    def schedule_push(self, push: PushSpec) -> None:
+        """Apply ``push`` when simulation time reaches ``push.t_push`` (one push at a time)."""
+        if not (math.isfinite(push.force_n) and push.force_n >= 0 and push.duration_s > 0):
+            raise ValueError(f'invalid push {push}')
+        self._push = push
+
+    def _update_push(self) -> None:
+        push = self._push
+        if push is None or self.t < push.t_push - 1e-9:
+            self._push_force_world = np.zeros(3)
+            return
+        if self.t >= push.t_force_end - 1e-9:
+            self._push = None
+            self._push_force_world = np.zeros(3)
+            return
+        base_pos, base_orn = pb.getBasePositionAndOrientation(self.robot, physicsClientId=self.client)
+        rot = np.array(pb.getMatrixFromQuaternion(base_orn)).reshape(3, 3)
+        if not self._push_force_world.any():
+            # Onset: fix the direction in the heading frame and the application point on the
+            # torso, ``height_m`` above the CoM, on the torso's vertical axis.
+            heading = math.atan2(rot[1, 0], rot[0, 0])
+            angle = heading + math.radians(push.angle_deg)
+            self._push_direction = np.array([math.cos(angle), math.sin(angle), 0.0])
+            com = self._prev_measurement.com if self._prev_measurement is not None else np.asarray(base_pos)
+            point = np.array([base_pos[0], base_pos[1], com[2] + push.height_m])
+            self._push_point_local = rot.T @ (point - np.asarray(base_pos))
+        self._push_force_world = push.force_n * self._push_direction
+        point_world = np.asarray(base_pos) + rot @ self._push_point_local
+        pb.applyExternalForce(self.robot, -1, self._push_force_world.tolist(), point_world.tolist(),
+                              pb.WORLD_FRAME, physicsClientId=self.client)
+
+    # -- stepping and measuring ------------------------------------------------------------
+    def step(self) -> Measurement:
+        """Advance one physics step (pushes applied) and measure the new state."""
+        self._update_push()
+        applied = self._push_force_world.copy()
+        pb.stepSimulation(physicsClientId=self.client)
+        self.tick += 1
+        self.t = self.tick * self.config.dt_s
+        m = self.measure()
+        m.push_force = applied
+        return m
+
+    def joint_states(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Joint positions [rad], velocities [rad/s] and applied motor torques [N m]."""
+        states = pb.getJointStates(self.robot, self.joint_indices, physicsClientId=self.client)
+        return (np.array([s[0] for s in states]), np.array([s[1] for s in states]),
+                np.array([s[3] for s in states]))
+
+    def measure(self) -> Measurement:
+        """CoM, momenta about the CoM, heading, contacts and CoP of the current state."""
+        c = self.client
+        base_pos, base_orn = pb.getBasePositionAndOrientation(self.robot, physicsClientId=c)
+        base_lin, base_ang = pb.getBaseVelocity(self.robot, physicsClientId=c)
+        links = pb.getLinkStates(self.robot, self.joint_indices, computeLinkVelocity=1,
+                                 computeForwardKinematics=1, physicsClientId=c)
+        # One array of (position, quaternion, linear velocity, angular velocity) per body.
+        rows = [(*base_pos, *base_orn, *base_lin, *base_ang)]
+        rows += [(*ls[0], *ls[1], *ls[6], *ls[7]) for ls in links]
+        state = np.array(rows)
+        pos, quat, vel, omega = state[:, 0:3], state[:, 3:7], state[:, 7:10], state[:, 10:13]
+        m = self.masses
+        com = m @ pos / self.total_mass
+        lin_mom = m @ vel
+        # Angular momentum about the CoM: orbital part sum m (r - c) x v, plus each link's
+        # spin R I R^T w (R: inertial frame orientation, I: its diagonal inertia).
+        rel = pos - com
+        mv = vel * m[:, None]
+        ang = np.array([(rel[:, 1] * mv[:, 2] - rel[:, 2] * mv[:, 1]).sum(),
+                        (rel[:, 2] * mv[:, 0] - rel[:, 0] * mv[:, 2]).sum(),
+                        (rel[:, 0] * mv[:, 1] - rel[:, 1] * mv[:, 0]).sum()])
+        rots = quaternions_to_matrices(quat)
+        w_body = np.einsum('nji,nj->ni', rots, omega)
+        ang += np.einsum('nij,nj->i', rots, self.inertias * w_body)
+        rot0 = rots[0]
+        heading = math.atan2(rot0[1, 0], rot0[0, 0])
+
+        contacts = pb.getContactPoints(bodyA=self.robot, bodyB=self.plane, physicsClientId=c)
+        per_foot: dict[int, list[tuple[float, float, float]]] = {lk: [] for lk in self.foot_links.values()}
+        non_foot = False
+        for cp in contacts:
+            if cp[9] <= MIN_CONTACT_FORCE_N:
+                continue
+            link = cp[3]
+            if link in per_foot:
+                per_foot[link].append((cp[6][0], cp[6][1], cp[9]))
+            else:
+                non_foot = True
+        left = np.array(per_foot[self.foot_links['l']], dtype=float).reshape(-1, 3)
+        right = np.array(per_foot[self.foot_links['r']], dtype=float).reshape(-1, 3)
+        both = np.vstack([left, right])
+        total_force = both[:, 2].sum()
+        if total_force > 0:
+            cop = np.array([both[:, 2] @ both[:, 0] / total_force, both[:, 2] @ both[:, 1] / total_force, 0.0])
+        else:
+            cop = np.full(3, np.nan)
+        feet = {}
+        for side, lk in self.foot_links.items():
+            # The foot link's CoM lies above the sole centre (exactly so when the foot is flat).
+            fp, fo = pos[lk + 1], rots[lk + 1]
+            feet[side] = np.array([fp[0], fp[1], math.atan2(fo[1, 0], fo[0, 0])])
+        meas = Measurement(t=self.t, com=com, lin_mom=lin_mom, ang_mom=ang, heading=heading, cop=cop,
+                           left_contacts=left, right_contacts=right, left_foot=feet['l'],
+                           right_foot=feet['r'], non_foot_contact=non_foot)
+        self._prev_measurement = meas
+        return meas

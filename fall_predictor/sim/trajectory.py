@@ -1,0 +1,175 @@
+"""Run one push trajectory with C_bal throughout and return its time series and outcome.
+
+Every trajectory walks the same deterministic gait until its push, so the walk before the
+push need not be simulated again for each one: a :class:`WalkPrefix` simulates the unpushed
+walk once, keeps its samples and PyBullet snapshots, and pushed trajectories start from the
+last snapshot before their push. PyBullet's ``restoreState`` continues bit-identically (a
+test checks that a trajectory run from a prefix equals one run from a fresh world).
+"""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+from typing import Callable, Optional
+
+import numpy as np
+import pybullet as pb
+
+from fall_predictor.robot.controllers import BalanceController, ControllerSwitch, GaitConfig, ReflexConfig
+from fall_predictor.monitor.records import Measurement, PushSpec
+from fall_predictor.robot import model as rm
+from fall_predictor.sim.simulator import Simulator, SimulatorConfig
+
+#: The simulated robot, as datasets record it.
+ROBOT_NAME = 'asimo_like'
+ROBOT_TOTAL_MASS_KG = rm.TOTAL_MASS_KG
+ROBOT_JOINT_NAMES = rm.JOINT_NAMES
+
+
+@dataclass
+class TrajectoryResult:
+    """A simulated trajectory: one measurement per 1 ms step, joint states, and its outcome."""
+
+    push: Optional[PushSpec]
+    measurements: list[Measurement]
+    joint_positions: np.ndarray          #: (N, 26) [rad]
+    joint_velocities: np.ndarray         #: (N, 26) [rad/s]
+    fallen: bool
+    t_fallen: Optional[float]
+    t_reflex: Optional[float]
+    t_switch: Optional[float] = None     #: when C_fall took over, if it did
+    extras: dict = field(default_factory=dict)
+
+    @property
+    def t(self) -> np.ndarray:
+        return np.array([m.t for m in self.measurements])
+
+    @property
+    def com(self) -> np.ndarray:
+        return np.array([m.com for m in self.measurements])
+
+    @property
+    def t_push(self) -> Optional[float]:
+        return None if self.push is None else self.push.t_push
+
+
+@dataclass
+class _Run:
+    """The mutable state of a run in progress."""
+
+    switch: ControllerSwitch
+    measurement: Measurement
+    measurements: list[Measurement]
+    joint_positions: list[np.ndarray]
+    joint_velocities: list[np.ndarray]
+    t_fallen: Optional[float] = None
+
+
+def _new_run(sim: Simulator, gait: GaitConfig, reflex: ReflexConfig, walk_duration_s: float) -> _Run:
+    balance = BalanceController(gait, reflex, sim.config.dt_s, walk_duration_s=walk_duration_s)
+    q0, torso0 = balance.initial_posture()
+    m = sim.reset(q0, torso0)
+    q, dq, _ = sim.joint_states()
+    return _Run(ControllerSwitch(balance), m, [m], [q], [dq])
+
+
+def _advance(sim: Simulator, run: _Run, t_end: float, stop_when_fallen: bool,
+             fall_trigger: Optional[Callable[[Measurement], bool]] = None) -> None:
+    """Step until ``t_end``, or until the first fallen state if ``stop_when_fallen``."""
+    m = run.measurement
+    switch = run.switch
+    while sim.t < t_end - 1e-9:
+        if fall_trigger is not None and switch.mode == 'balance' and fall_trigger(m):
+            switch.trigger_fall(m.t)
+        sim.set_joint_targets(switch.update(m))
+        m = sim.step()
+        run.measurements.append(m)
+        q, dq, _ = sim.joint_states()
+        run.joint_positions.append(q)
+        run.joint_velocities.append(dq)
+        if run.t_fallen is None and m.fallen:
+            run.t_fallen = m.t
+            if stop_when_fallen:
+                break
+    run.measurement = m
+
+
+class WalkPrefix:
+    """The unpushed walk of one simulator, simulated once, with snapshots to start from.
+
+    Owns its simulator's world: do not :meth:`Simulator.reset` it while the prefix is in use.
+    """
+
+    def __init__(self, sim: Simulator, until_s: float, walk_duration_s: float,
+                 gait: GaitConfig = GaitConfig(), reflex: ReflexConfig = ReflexConfig(),
+                 snapshot_every_s: float = 0.1):
+        self.sim = sim
+        self.gait, self.reflex = gait, reflex
+        self.walk_duration_s = walk_duration_s
+        run = _new_run(sim, gait, reflex, walk_duration_s)
+        self._snapshots: list[tuple[float, int, int, _Run]] = []
+        every = max(1, int(round(snapshot_every_s / sim.config.dt_s)))
+        while sim.t < until_s - 1e-9:
+            if sim.tick % every == 0:
+                self._snapshot(run)
+            _advance(sim, run, sim.t + sim.config.dt_s, stop_when_fallen=True)
+            if run.t_fallen is not None:
+                raise RuntimeError(f'the unpushed walk fell at {run.t_fallen:.3f} s')
+        self._snapshot(run)
+        self.run = run
+        self.until_s = until_s
+
+    def _snapshot(self, run: _Run) -> None:
+        state = pb.saveState(physicsClientId=self.sim.client)
+        frozen = _Run(copy.deepcopy(run.switch), run.measurement, [], [], [])
+        self._snapshots.append((self.sim.t, self.sim.tick, state, frozen))
+
+    def start_at(self, t: float) -> _Run:
+        """Restore the latest snapshot at or before ``t``; the run holds all samples up to it."""
+        if t > self.until_s + 1e-9:
+            raise ValueError(f'the prefix covers {self.until_s} s, not {t} s')
+        t_snap, tick, state, frozen = max((s for s in self._snapshots if s[0] <= t + 1e-9), key=lambda s: s[0])
+        pb.restoreState(state, physicsClientId=self.sim.client)
+        self.sim.restore_clock(tick, frozen.measurement)
+        n = tick + 1
+        return _Run(copy.deepcopy(frozen.switch), frozen.measurement, self.run.measurements[:n],
+                    self.run.joint_positions[:n], self.run.joint_velocities[:n])
+
+
+def run_trajectory(push: Optional[PushSpec], duration_s: float,
+                   gait: GaitConfig = GaitConfig(), reflex: ReflexConfig = ReflexConfig(),
+                   sim_config: SimulatorConfig = SimulatorConfig(),
+                   stop_when_fallen: bool = True,
+                   fall_trigger: Optional[Callable[[Measurement], bool]] = None,
+                   simulator: Optional[Simulator] = None,
+                   prefix: Optional[WalkPrefix] = None) -> TrajectoryResult:
+    """Simulate from the standing posture for up to ``duration_s`` seconds.
+
+    Stops early when fallen (if ``stop_when_fallen``). ``fall_trigger`` (a predictor) is asked
+    every step; when it says falling, C_bal hands over to C_fall for the
+    rest of the run. With a ``prefix`` the walk before the push is taken from it (same result,
+    less simulation); it must have been made with the same gait, reflex and simulator settings.
+    """
+    if prefix is not None and push is not None and push.t_push <= prefix.until_s:
+        sim = prefix.sim
+        run = prefix.start_at(push.t_push)
+        own = False
+    else:
+        own = simulator is None and prefix is None
+        sim = prefix.sim if prefix is not None else (simulator or Simulator(sim_config))
+        run = _new_run(sim, gait, reflex, walk_duration_s=duration_s + 5.0)
+    try:
+        if push is not None:
+            sim.schedule_push(push)
+        _advance(sim, run, duration_s, stop_when_fallen, fall_trigger)
+        t_fallen = run.t_fallen
+        event = run.switch.balance.reflex_event
+        return TrajectoryResult(push=push, measurements=run.measurements,
+                                joint_positions=np.array(run.joint_positions),
+                                joint_velocities=np.array(run.joint_velocities),
+                                fallen=t_fallen is not None, t_fallen=t_fallen,
+                                t_reflex=None if event is None else event.t,
+                                t_switch=run.switch.t_switch)
+    finally:
+        if own:
+            sim.close()

@@ -1,0 +1,164 @@
+"""The package's layout as its sub-package docstrings state it: who may import whom.
+
+Reads every module's source (imports at module level and inside functions alike) rather than
+importing it, so a forbidden import is found even on a code path no other test runs.
+"""
+from __future__ import annotations
+
+import ast
+import sys
+from pathlib import Path
+
+import pytest
+
+PACKAGE_DIR = Path(__file__).resolve().parents[1] / 'fall_predictor'
+ROOT = 'fall_predictor'
+
+#: Sub-package -> the sub-packages it may import at module level (itself and the package root
+#: are always allowed), and those it may import only inside a function.
+ALLOWED = {
+    'monitor': (set(), set()),
+    'robot': ({'monitor'}, set()),
+    'sim': ({'robot', 'monitor'}, set()),
+    'data': ({'monitor'}, {'sim'}),
+    'learning': ({'monitor', 'data'}, set()),
+    'ros': ({'monitor', 'robot', 'sim', 'data', 'learning', 'cli'}, set()),
+    'cli': ({'monitor', 'data'}, {'robot', 'sim', 'learning', 'ros'}),
+}
+#: Third-party distributions the onboard code may use.
+MONITOR_THIRD_PARTY = {'numpy', 'pinocchio'}
+#: Top-level names of ROS 2 Python packages (rclpy, message packages, ament, launch).
+ROS_MODULES = ('rclpy', 'rosidl', 'rcl_interfaces', 'builtin_interfaces', 'ament_index_python',
+               'launch', 'rosgraph_msgs')
+
+
+def is_ros_module(top: str) -> bool:
+    return top.startswith(ROS_MODULES) or top.endswith(('_msgs', '_srvs', '_interfaces'))
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(PACKAGE_DIR.parent).with_suffix('').parts)
+    if parts[-1] == '__init__':
+        parts.pop()
+    return '.'.join(parts)
+
+
+def sub_package(module: str) -> str:
+    """'fall_predictor.data.bagio' -> 'data'; 'fall_predictor.cli' -> 'cli'; root -> ''."""
+    parts = module.split('.')
+    if len(parts) == 1:
+        return ''
+    return 'cli' if parts[1] in ('__main__', 'cli_args') else parts[1]
+
+
+def imports(path: Path) -> list[tuple[str, bool]]:
+    """(imported module, inside a function) for every import statement of a module. For
+    ``from X import name`` the module ``X.name`` is recorded if it is a module of this package."""
+    tree = ast.parse(path.read_text(), str(path))
+    found: list[tuple[str, bool]] = []
+
+    def visit(node: ast.AST, lazy: bool) -> None:
+        for child in ast.iter_child_nodes(node):
+            inner = lazy or isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef))
+            if isinstance(child, ast.If) and 'TYPE_CHECKING' in ast.unparse(child.test):
+                continue                                # typing only, never executed
+            if isinstance(child, ast.Import):
+                found.extend((alias.name, lazy) for alias in child.names)
+            elif isinstance(child, ast.ImportFrom) and child.level == 0 and child.module:
+                for alias in child.names:
+                    candidate = f'{child.module}.{alias.name}'
+                    is_module = any((PACKAGE_DIR.parent / candidate.replace('.', '/')).with_suffix(s).exists()
+                                    for s in ('.py',)) or (PACKAGE_DIR.parent / candidate.replace('.', '/')).is_dir()
+                    found.append((candidate if is_module else child.module, lazy))
+            elif isinstance(child, ast.ImportFrom) and child.level:
+                found.append((f'<relative import in {path.name}>', lazy))
+            visit(child, inner)
+
+    visit(tree, False)
+    return found
+
+
+MODULES = {module_name(p): p for p in sorted(PACKAGE_DIR.rglob('*.py'))}
+GRAPH = {name: imports(path) for name, path in MODULES.items()}
+
+
+def test_every_sub_package_is_documented_with_what_it_may_import():
+    for package in ALLOWED:
+        if package == 'cli':
+            continue
+        init = PACKAGE_DIR / package / '__init__.py'
+        doc = ast.get_docstring(ast.parse(init.read_text()))
+        assert doc and 'May import' in doc, f'{init}: docstring must say what the package may import'
+
+
+def test_no_relative_imports():
+    relative = [(m, i) for m, found in GRAPH.items() for i, _ in found if i.startswith('<relative')]
+    assert not relative
+
+
+@pytest.mark.parametrize('module', sorted(m for m in MODULES if sub_package(m)))
+def test_imports_follow_the_layout(module):
+    own = sub_package(module)
+    eager, lazy_only = ALLOWED[own]
+    bad = []
+    for target, lazy in GRAPH[module]:
+        if not target.startswith(ROOT + '.'):
+            continue
+        other = sub_package(target)
+        if other in ('', own) or other in eager or (lazy and other in lazy_only):
+            continue
+        bad.append(f'{target} ({"inside a function" if lazy else "module level"})')
+    assert not bad, f'{module} may not import: {bad}'
+
+
+@pytest.mark.parametrize('module', sorted(MODULES))
+def test_only_the_ros_package_imports_ros(module):
+    if sub_package(module) == 'ros':
+        return
+    ros = [t for t, _ in GRAPH[module] if is_ros_module(t.split('.')[0])]
+    assert not ros, f'{module} imports ROS: {ros}'
+
+
+@pytest.mark.parametrize('module', sorted(m for m in MODULES if sub_package(m) == 'monitor'))
+def test_the_monitor_uses_numpy_only(module):
+    stdlib = sys.stdlib_module_names
+    third_party = {t.split('.')[0] for t, _ in GRAPH[module]
+                   if t.split('.')[0] not in stdlib and t.split('.')[0] != ROOT and t != '__future__'}
+    assert third_party <= MONITOR_THIRD_PARTY, f'{module} imports {third_party - MONITOR_THIRD_PARTY}'
+
+
+def test_no_import_cycles():
+    edges = {m: {t for t, _ in found if t in MODULES and t != m} for m, found in GRAPH.items()}
+    # A package's __init__ is imported with each of its modules: an edge to a sub-module is
+    # also an edge to its package, which imports nothing here.
+    state: dict[str, int] = {}
+    cycles: list[list[str]] = []
+
+    def walk(node: str, path: list[str]) -> None:
+        state[node] = 1
+        for nxt in sorted(edges[node]):
+            if state.get(nxt) == 1:
+                cycles.append(path[path.index(nxt):] + [nxt])
+            elif nxt not in state:
+                walk(nxt, path + [nxt])
+        state[node] = 2
+
+    for module in sorted(edges):
+        if module not in state:
+            walk(module, [module])
+    assert not cycles, f'import cycles: {cycles}'
+
+
+def test_the_checker_sees_a_forbidden_import(tmp_path):
+    """The checks above can fail: a monitor module importing the simulator is caught."""
+    bad = tmp_path / 'bad.py'
+    bad.write_text('import numpy\n\ndef f():\n    from fall_predictor.sim.simulator import Simulator\n')
+    found = imports(bad)
+    assert ('fall_predictor.sim.simulator', True) in found
+    assert ('numpy', False) in found
+
+
+@pytest.mark.parametrize('module', sorted(MODULES))
+def test_no_module_over_500_lines(module):
+    lines = MODULES[module].read_text().count('\n')
+    assert lines <= 500, f'{module}: {lines} lines'

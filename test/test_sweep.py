@@ -1,0 +1,85 @@
+"""The cross-validated sweep (fall_predictor.learning.sweep): its settings, and the CLI
+subcommand ``sweep`` on a small generated dataset."""
+import json
+import math
+
+import pytest
+
+from fall_predictor import cli
+from fall_predictor.learning.sweep import SweepConfig
+
+from learning_fixtures import fixture_dataset  # noqa: F401  (a pytest fixture)
+
+
+def run_cli(capsys, *argv: str) -> tuple[int, str, str]:
+    code = cli.main(list(argv))
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def test_sweep_config_validates():
+    with pytest.raises(ValueError, match='folds'):
+        SweepConfig(folds=1)
+    with pytest.raises(ValueError, match='tau_his'):
+        SweepConfig(tau_his_values_s=(0.0, -0.01))
+    with pytest.raises(ValueError, match='tau_plus'):
+        SweepConfig(tau_plus_values_s=(math.nan,))
+    with pytest.raises(ValueError, match='learning-curve'):
+        SweepConfig(learning_curve_sizes=(1,))
+    with pytest.raises(ValueError, match='unknown hyper-parameter'):
+        SweepConfig(learner_params={'depth': 3})
+    with pytest.raises(ValueError, match='sample_stride'):
+        SweepConfig(sample_stride=0)
+    quick = SweepConfig.quick(folds=3)
+    assert quick.folds == 3 and len(quick.tau_plus_values_s) < len(SweepConfig().tau_plus_values_s)
+
+
+def test_sweep_config_as_json_names_the_learner_and_its_parameters():
+    settings = SweepConfig.quick(learner_params={'max_depth': 3}).as_json()
+    json.dumps(settings, allow_nan=False)            # the infinite momentum threshold is null
+    assert settings['learner']['class'] == 'TreeListLearner'
+    assert settings['learner']['params']['max_depth'] == 3
+    assert settings['baseline_grids']['momentum_sagittal'][-1] is None
+    assert settings['balanced_weight'] == 4.0 and settings['falling_weight'] == 1.0
+
+
+def test_tiny_sweep_writes_json_table_and_figures(fixture_dataset, tmp_path, capsys):
+    out_dir = tmp_path / 'sweep'
+    code, out, err = run_cli(capsys, 'sweep', '--data', str(fixture_dataset), '--out', str(out_dir),
+                             '--folds', '2', '--tau-plus=-0.5,0', '--tau-his', '0,0.06',
+                             '--learning-curve', '3', '--quick', '--json')
+    assert code == 0, err
+    summary = json.loads(out)
+    assert len(summary['selected']) == 3
+    document = json.loads((out_dir / 'sweep.json').read_text())
+    assert document['command'].startswith('fall-predictor sweep')
+    assert document['settings']['folds'] == 2 and document['settings']['sample_stride'] == 10
+    assert {(p['tau_plus_s'], p['tau_his_s']) for p in document['points']} == \
+        {(-0.5, 0.0), (-0.5, 0.06), (0.0, 0.0), (0.0, 0.06)}
+    for p in document['points']:
+        assert len(p['per_fold']) == 2
+        for key in ('fpr', 'tau_lead_s', 'n_missed', 'n_pre_push_alarms', 'oracle_lead_s',
+                    'lead_fraction', 'mean_rule_size', 'pareto'):
+            assert key in p
+    # The 8-trajectory dataset split in 2 folds trains on 4: the curve's last point is the full fold.
+    assert [p['n_train'] for p in document['learning_curve']] == [3.0, 4.0]
+    assert len(document["trainings"]) == 2 * 2 + 2 * 2    # sweep + the curve (tau_plus -0.25 is not swept)
+    assert set(document['baselines']) == {'com_height', 'momentum', 'capture_point'}
+    assert all(document['baselines'].values())
+    assert document["timing"]["n_fits"] == 8
+    table = (out_dir / 'table.md').read_text()
+    assert 'Table 2 analogue' in table and 'FP-L2 (paper)' in table
+    for name in ('fig10_tradeoff.png', 'fig11_parameters.png', 'fig11_learning_curve.png'):
+        assert (out_dir / name).read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+    assert sorted(p.name for p in out_dir.iterdir()) == sorted(     # no temporary file left
+        ['sweep.json', 'table.md', 'fig10_tradeoff.png', 'fig11_parameters.png',
+         'fig11_learning_curve.png'])
+
+
+def test_sweep_rejects_bad_settings(fixture_dataset, tmp_path, capsys):
+    code, _, err = run_cli(capsys, 'sweep', '--data', str(fixture_dataset), '--out', str(tmp_path),
+                           '--learning-curve', '1')
+    assert code == 2 and 'learning-curve' in err
+    code, _, err = run_cli(capsys, 'sweep', '--data', str(fixture_dataset), '--out', str(tmp_path),
+                           '--folds', '13')
+    assert code == 2 and 'fewer than 13 folds' in err

@@ -1,0 +1,137 @@
+"""Training (fall_predictor.learning.training) and the CLI subcommands ``train`` and ``rules``.
+Learner-level tests use synthetic trajectories; pipeline tests a small generated dataset."""
+import json
+import math
+
+import numpy as np
+import pytest
+
+from fall_predictor import cli
+from fall_predictor.learning.learners import training_set
+from fall_predictor.learning.metrics import evaluate_lists
+from fall_predictor.learning.training import (fit_strided, load_dataset, make_learner,
+                                              rules_summary, subsample, train_model)
+from fall_predictor.monitor.features import FeatureSettings
+from fall_predictor.monitor.decision_list import Condition, DecisionList, PerModeDecisionLists, Rule
+from fall_predictor.monitor.model_file import load_model
+from fall_predictor.monitor.records import BALANCED, FALLING, N_CONTACT_MODES
+
+from learning_fixtures import fixture_dataset  # noqa: F401  (a pytest fixture)
+from synthetic_trajectories import (FALLING_MODE, LIN_MOM_Y, T_FALLEN_S, T_HEIGHT_DROP_S,
+                                    make_dataset)
+
+
+def run_cli(capsys, *argv: str) -> tuple[int, str, str]:
+    code = cli.main(list(argv))
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+# -- learners, stride --------------------------------------------------------------------------
+def test_make_learner_validates_name_params_and_values():
+    assert make_learner('tree', {'max_depth': 3}).max_depth == 3
+    assert make_learner('covering').get_params()['n_bins'] > 0
+    with pytest.raises(ValueError, match='unknown learner'):
+        make_learner('forest')
+    with pytest.raises(ValueError, match='unknown hyper-parameter.*max_dept'):
+        make_learner('tree', {'max_dept': 3})
+    with pytest.raises(ValueError, match='max_depth'):
+        make_learner('tree', {'max_depth': 0})
+
+
+def test_subsample_keeps_every_kth_sample_and_the_hindsight_times():
+    traj = make_dataset(1, 0, seed=0)[0]
+    strided = subsample(traj, 10)
+    assert np.array_equal(strided.t, traj.t[::10]) and np.array_equal(strided.X, traj.X[::10])
+    assert strided.t_fallen == traj.t_fallen and strided.t_height_drop == traj.t_height_drop
+    assert subsample(traj, 1) is traj
+    with pytest.raises(ValueError, match='sample_stride'):
+        subsample(traj, 0)
+
+
+def test_stride_weights_keep_the_class_weight_per_unit_time():
+    trajectories = make_dataset(3, 3, seed=1)
+    _, y1, w1, _, _ = training_set(trajectories, 0.0)
+    _, y10, w10, _, _ = training_set([subsample(t, 10) for t in trajectories], 0.0, 4.0 * 10, 1.0 * 10)
+    for label in (BALANCED, FALLING):
+        assert w10[y10 == label].sum() == pytest.approx(w1[y1 == label].sum(), rel=0.01)
+
+
+@pytest.mark.parametrize('learner_name', ['tree', 'covering'])
+def test_strided_training_recovers_the_synthetic_rule(learner_name):
+    lists = fit_strided(make_dataset(12, 12, seed=2), 0.0, make_learner(learner_name), sample_stride=10)
+    conditions = [c for rule in lists.lists[FALLING_MODE].rules for c in rule.conditions]
+    assert any(c.feature == LIN_MOM_Y and c.op == '>' and 3.0 < c.threshold < 5.5 for c in conditions)
+    # A 3 ms window suppresses lone noise samples beyond a threshold learned from every 10th
+    # sample (the covering learner puts it at the largest balanced value it saw).
+    result = evaluate_lists(make_dataset(5, 5, seed=3), lists, (0.003,))[0.003]
+    assert result.fpr == 0.0 and result.n_missed == 0
+    assert result.tau_lead_s == pytest.approx(T_FALLEN_S - T_HEIGHT_DROP_S - 0.003, abs=0.02)
+
+
+def test_rules_summary_counts_comparisons_and_rules():
+    rule = Rule((Condition(2, '<=', 0.4), Condition(4, '>', 5.0)), FALLING)
+    lists = PerModeDecisionLists((DecisionList((rule, Rule((Condition(0, '>', 1.0),), FALLING))),)
+                                 + tuple(DecisionList() for _ in range(N_CONTACT_MODES - 1)))
+    summary = rules_summary(lists)
+    assert summary['modes'][0]['rule_size'] == 3 and summary['modes'][0]['depth'] == 2
+    assert summary['mean_rule_size'] == pytest.approx(3 / 16)
+    assert summary['mean_depth'] == 2.0 and summary['max_depth'] == 2
+    assert 'if footContactMode = LR-INSIDE then' in summary['modes'][0]['text']
+
+
+# -- the generated fixture dataset -----------------------------------------------------------
+def test_train_model_on_the_fixture(fixture_dataset):
+    lists, metadata = train_model(fixture_dataset, -0.25, 'tree', {'max_depth': 4}, sample_stride=10,
+                                  recommended_tau_his_s=0.06)
+    assert metadata.tau_plus_s == -0.25 and metadata.recommended_tau_his_s == 0.06
+    assert metadata.learner_name == 'TreeListLearner' and metadata.learner_params['max_depth'] == 4
+    assert metadata.dataset_fingerprint == load_dataset(fixture_dataset).fingerprint
+    # The features were computed with the default settings: the model must say so.
+    assert metadata.feature_settings == FeatureSettings()
+    assert any(lists.depths), 'some contact mode should have learned a falling rule'
+    with pytest.raises(ValueError, match='tau_plus'):
+        train_model(fixture_dataset, math.inf)
+
+
+def test_cli_train_and_rules(fixture_dataset, tmp_path, capsys):
+    model = tmp_path / 'model.json'
+    code, out, err = run_cli(capsys, 'train', '--data', str(fixture_dataset), '--tau-plus', '-0.25',
+                             '--out', str(model), '--tau-his-recommended', '0.06', '--json')
+    assert code == 0, err
+    trained = json.loads(out)
+    lists, metadata = load_model(model)
+    assert trained['mean_rule_size'] == pytest.approx(lists.mean_rule_size)
+    assert trained['sample_stride'] == 10 and metadata.recommended_tau_his_s == 0.06
+    stored = json.loads(model.read_text())['features']
+    assert stored['rate_window_s'] == FeatureSettings().rate_window_s
+    assert stored['guard_com_height_m'] == FeatureSettings().guard_com_height_m
+
+    code, out, err = run_cli(capsys, 'rules', str(model), '--json')
+    assert code == 0, err
+    rules = json.loads(out)
+    assert [m['rule_size'] for m in rules['modes']] == list(lists.rule_sizes)
+    code, out, _ = run_cli(capsys, 'rules', str(model))
+    assert code == 0 and 'if footContactMode = OUTSIDE then' in out and 'mean rule size' in out
+
+
+def test_cli_rejects_unusable_models_and_datasets(fixture_dataset, tmp_path, capsys):
+    malformed = tmp_path / 'malformed.json'
+    malformed.write_text('{"schema": "fall_predictor.decision_lists", "schema_version": 1, "lists": [')
+    wrong = tmp_path / 'wrong.json'
+    wrong.write_text(json.dumps({'schema': 'something else'}))
+    for model in (malformed, wrong, tmp_path / 'missing.json'):
+        for argv in (('rules', str(model)),
+                     ('evaluate', '--data', str(fixture_dataset), '--model', str(model), '--tau-his', '0')):
+            code, out, err = run_cli(capsys, *argv)
+            assert code == 2 and str(model) in err and 'Traceback' not in err, (argv, err)
+    code, _, err = run_cli(capsys, 'train', '--data', str(tmp_path), '--tau-plus', '0',
+                           '--out', str(tmp_path / 'm.json'))
+    assert code == 2 and 'not a dataset directory' in err
+    code, _, err = run_cli(capsys, 'train', '--data', str(fixture_dataset), '--tau-plus', '0',
+                           '--out', str(tmp_path / 'm.json'), '--param', 'max_depth=-1')
+    assert code == 2 and 'max_depth' in err
+    with pytest.raises(SystemExit) as exit_info:              # argparse: invalid value
+        cli.main(['train', '--data', str(fixture_dataset), '--tau-plus', 'nan', '--out', 'm.json'])
+    assert exit_info.value.code == 2
+    assert not (tmp_path / 'm.json').exists()
