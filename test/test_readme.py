@@ -1,9 +1,231 @@
-"""The README's topic table is the one the contract module generates."""
+"""The README and docs/: short README, self-contained links, and facts that match the code
+and the committed result files."""
+import json
+import re
 from pathlib import Path
+from urllib.parse import unquote
 
-from fall_predictor.wire import topics_markdown_table
+import pytest
+
+from fall_predictor.data.topics import TOPICS, topics_markdown_table
+from fall_predictor.monitor.records import (CONTACT_MODE_NAMES, FALLEN_COM_HEIGHT_M, FEATURE_NAMES,
+                                            GUARD_COM_HEIGHT_M, PUSH_DURATION_S)
+
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / 'README.md'
+DOCS = ROOT / 'docs'
+RESULTS = DOCS / 'results.md'
+METHOD = DOCS / 'method.md'
+README_MAX_LINES = 200
+
+
+def markdown_files() -> list[Path]:
+    return [README, *sorted(DOCS.rglob('*.md'))]
+
+
+def _without_code(text: str) -> str:
+    """Markdown text with fenced code blocks and inline code removed (no links there)."""
+    text = re.sub(r'^```.*?^```', '', text, flags=re.S | re.M)
+    return re.sub(r'`[^`\n]*`', '', text)
+
+
+#: ``[text](target)`` and ``![alt](target)``; the target ends at the first space or ``)``.
+_LINK = re.compile(r'!?\[(?:[^\[\]]|\[[^\]]*\])*\]\(\s*<?([^)\s>]*)>?(?:\s+"[^"]*")?\s*\)')
+#: Reference-style definitions: ``[label]: target``.
+_REF_DEF = re.compile(r'^\s{0,3}\[[^\]]+\]:\s*<?(\S+?)>?(?:\s+.*)?$', re.M)
+
+
+def links(path: Path) -> list[str]:
+    text = _without_code(path.read_text(encoding='utf-8'))
+    return _LINK.findall(text) + _REF_DEF.findall(text)
+
+
+def heading_anchors(path: Path) -> set[str]:
+    """GitHub-style anchors of the Markdown headings of ``path`` (duplicates get -1, -2, ...)."""
+    text = re.sub(r'^```.*?^```', '', path.read_text(encoding='utf-8'), flags=re.S | re.M)
+    anchors: set[str] = set()
+    seen: dict[str, int] = {}
+    for match in re.finditer(r'^#{1,6}\s+(.*?)\s*#*\s*$', text, flags=re.M):
+        title = re.sub(r'!?\[([^\]]*)\]\([^)]*\)', r'\1', match.group(1))   # link -> its text
+        slug = re.sub(r'[^\w\- ]', '', title.strip().lower()).replace(' ', '-')
+        n = seen.get(slug, 0)
+        seen[slug] = n + 1
+        anchors.add(slug if n == 0 else f'{slug}-{n}')
+    return anchors
+
+
+def table_rows(text: str, first_header_cell: str) -> dict[str, list[str]]:
+    """The body rows of the first Markdown table whose header's first cell is
+    ``first_header_cell``, keyed by their first cell (cells stripped, ``**`` removed)."""
+    lines = text.splitlines()
+    for i, line in enumerate(lines):
+        cells = [c.strip() for c in line.strip().strip('|').split('|')]
+        if line.lstrip().startswith('|') and cells[0] == first_header_cell:
+            rows = {}
+            for row in lines[i + 2:]:
+                if not row.lstrip().startswith('|'):
+                    break
+                cells = [c.strip().replace('**', '') for c in row.strip().strip('|').split('|')]
+                rows[cells[0]] = cells[1:]
+            return rows
+    raise AssertionError(f'no table with first header cell {first_header_cell!r}')
+
+
+def number(cell: str) -> float:
+    """A table cell as a float (Unicode minus accepted)."""
+    return float(cell.replace('−', '-'))
+
+
+# -- README -----------------------------------------------------------------------------------
+
+def test_readme_is_at_most_200_lines():
+    n = len(README.read_text(encoding='utf-8').splitlines())
+    assert n <= README_MAX_LINES, f'README.md has {n} lines (limit {README_MAX_LINES})'
 
 
 def test_readme_topic_table_matches_the_contract():
-    readme = (Path(__file__).parents[1] / 'README.md').read_text()
+    readme = README.read_text(encoding='utf-8')
     assert topics_markdown_table() in readme
+    for spec in TOPICS:
+        assert f'`{spec.name}`' in readme
+
+
+def test_readme_has_the_fresh_machine_commands_and_the_ros_usage():
+    readme = README.read_text(encoding='utf-8')
+    for needle in ('scripts/demo.sh', 'scripts/test.sh', 'colcon build', 'source install/setup.bash',
+                   'ros2 run fall_predictor', 'launch/fall_predictor.launch.py',
+                   '/fall_predictor/state'):
+        assert needle in readme, needle
+    for script in ('scripts/demo.sh', 'scripts/test.sh', 'launch/fall_predictor.launch.py'):
+        assert (ROOT / script).is_file(), script
+    for node in ('simulator_node', 'controller_node', 'feature_node', 'predictor_node',
+                 'recorder_node'):
+        assert f'`{node}`' in readme, node
+    assert '[`docs/method.md`](docs/method.md)' in readme
+    assert '[`docs/results.md`](docs/results.md)' in readme
+
+
+def test_readme_cli_table_lists_exactly_the_cli_subcommands():
+    import argparse
+
+    from fall_predictor.cli import build_parser
+    actions = [a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)]
+    assert len(actions) == 1
+    subcommands = set(actions[0].choices)
+    rows = table_rows(README.read_text(encoding='utf-8'), 'command')
+    documented = {cell.strip('`').split()[0] for cell in rows}
+    assert documented == subcommands
+
+
+def test_readme_package_layout_names_existing_sub_packages():
+    rows = table_rows(README.read_text(encoding='utf-8'), 'sub-package')
+    assert len(rows) >= 6
+    for cell in rows:
+        assert (ROOT / cell.strip('`')).exists(), cell
+
+
+# -- links --------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize('path', markdown_files(), ids=lambda p: str(p.relative_to(ROOT)))
+def test_no_link_points_outside_the_repository(path):
+    text = path.read_text(encoding='utf-8')
+    for outside in ('../shared', 'SPEC.md', '/work/', 'seed/000_'):
+        assert outside not in text, f'{path.name} mentions {outside!r}'
+    found = links(path)
+    for target in found:
+        if re.match(r'^(https?|mailto):', target):
+            continue
+        assert not re.match(r'^[a-zA-Z][a-zA-Z0-9+.-]*:', target), f'{path.name}: {target}'
+        file_part, _, anchor = target.partition('#')
+        assert not file_part.startswith('/'), f'{path.name}: absolute link {target}'
+        resolved = (path.parent / unquote(file_part)).resolve() if file_part else path
+        assert resolved == ROOT or ROOT in resolved.parents, \
+            f'{path.name}: {target} points outside the repository'
+        assert resolved.exists(), f'{path.name}: {target} does not exist'
+        if anchor and resolved.suffix == '.md':
+            assert anchor in heading_anchors(resolved), f'{path.name}: no heading for {target}'
+
+
+def test_the_link_checker_catches_bad_links(tmp_path):
+    page = tmp_path / 'page.md'
+    page.write_text('# A title\n[x](../shared/SPEC.md) ![y](figures/a.png) [z](#a-title) '
+                    '[w](#nope) `[no](code.md)`\n\n```\n[no](block.md)\n```\n[r]: ref.md\n')
+    assert links(page) == ['../shared/SPEC.md', 'figures/a.png', '#a-title', '#nope', 'ref.md']
+    assert heading_anchors(page) == {'a-title'}
+
+
+# -- docs/results.md: the numbers agree with the committed result files ------------------------
+
+def test_results_table_2_analogue_matches_the_evaluation_and_the_papers_anchors():
+    results = RESULTS.read_text(encoding='utf-8')
+    table = table_rows(results, '')
+    evaluation = json.loads((ROOT / 'models/default_model.evaluation.json').read_text())
+    cv = evaluation['cross_validated']
+    # Columns: FP-L1 paper, ours, FP-L2 paper, ours, FP-L3 paper, ours.
+    assert number(table['τ+ [s]'][3]) == cv['tau_plus_s'] == evaluation['tau_plus_s']
+    assert number(table['τhis [s]'][3]) == cv['tau_his_s']
+    assert number(table['FPR'][3]) == round(cv['fpr'], 3)
+    assert number(table['τlead [s]'][3]) == round(cv['tau_lead_s'], 2)
+    assert number(table['mean rule size'][3]) == round(cv['mean_rule_size'], 1)
+    assert table['misses'][3] == f"{cv['n_missed']} / {cv['n_fallen']}"
+
+    anchors = table_rows(METHOD.read_text(encoding='utf-8'), 'predictor')
+    assert set(anchors) == {'FP-L1', 'FP-L2', 'FP-L3'}
+    for column, name in ((0, 'FP-L1'), (2, 'FP-L2'), (4, 'FP-L3')):
+        tau_plus, tau_his, fpr, tau_lead, rule_size = map(number, anchors[name])
+        assert number(table['τ+ [s]'][column]) == tau_plus
+        assert number(table['τhis [s]'][column]) == tau_his
+        assert number(table['FPR'][column]) == fpr
+        assert number(table['τlead [s]'][column]) == tau_lead
+        assert number(table['mean rule size'][column]) == rule_size
+
+
+def test_results_dataset_and_speed_figures_match_the_committed_json():
+    results = RESULTS.read_text(encoding='utf-8')
+    stats = json.loads((DOCS / 'dataset_stats.json').read_text())
+    assert f"**{stats['fall_fraction']:.3f}** over {stats['trajectories']} trajectories" in results
+    lead = stats['oracle_lead_s']
+    assert (f"median {lead['median']:.2f} s, mean {lead['mean']:.2f} s, max {lead['max']:.2f} s"
+            in results)
+    assert f"on {round(100 * stats['reflex_fired_fraction'])} % of trajectories" in results
+    speed = json.loads((DOCS / 'bench_sim_speed.json').read_text())
+    full = speed['full_loop']
+    assert (f"**{full['steps_per_s_wall']:.0f} steps/s = {full['real_time_factor_wall']:.2f}× "
+            'real time**' in results)
+    fig2 = json.loads((DOCS / 'fig2.json').read_text())
+    assert f"no fall below {fig2['smallest_force_that_fells_n']:.0f} N" in results
+
+
+def test_results_keeps_every_section_of_the_old_readme():
+    anchors = heading_anchors(RESULTS)
+    for section in ('simulator-and-calibration-issue-simulated-humanoid',
+                    'datasets-issue-push-trajectory-datasets',
+                    'learning-and-evaluation-issue-decision-list-predictors', 'speed',
+                    'known-limitations'):
+        assert section in anchors, section
+
+
+# -- docs/method.md: the method with the numbers the code uses -------------------------------
+
+def test_method_lists_the_contact_modes_and_features_of_the_code():
+    method = METHOD.read_text(encoding='utf-8')
+    section_7 = method.split('\n## 7.')[1].split('\n## 8.')[0]
+    bullets = '\n'.join(line for line in section_7.splitlines() if line.startswith('- '))
+    listed_modes = re.findall(r'`((?:LR|L|R)-[A-Z-]+|OUTSIDE)`', bullets)
+    assert sorted(listed_modes) == sorted(CONTACT_MODE_NAMES)
+    for name in FEATURE_NAMES:
+        assert f'`{name}`' in method, name
+
+
+def test_method_states_the_numbers_the_code_uses():
+    method = METHOD.read_text(encoding='utf-8')
+    sections = re.findall(r'^## (\d+)\. ', method, flags=re.M)
+    assert sections == [str(i) for i in range(1, 12)]
+    assert f'{GUARD_COM_HEIGHT_M:g} m' in method
+    assert f'{FALLEN_COM_HEIGHT_M:g} m' in method
+    assert f'{PUSH_DURATION_S:g} s' in method
+    for needle in ('42.1 kg', '0.225 m', '0.157 m', 'U[0, 500] N', 'U[-180, 180] deg',
+                   'U[-0.05, 0.25] m', 'weight 4', 'weight 1', '[t - tau_his, t]',
+                   '[t_height_drop + tau_plus, t_fallen]', '10 folds', 'Wilson 95 %',
+                   'U[0, 0.25] m/s', 'U[0.45, 0.7] s', 'U[0.16, 0.22] m', '10 %'):
+        assert needle in method, needle
