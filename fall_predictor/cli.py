@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import argparse
-import json
+import importlib
 import sys
 import time
 from pathlib import Path
@@ -10,19 +10,11 @@ from pathlib import Path
 import numpy as np
 
 from fall_predictor import cli_args as argtypes
+from fall_predictor.cli_args import emit as _emit, fail as _fail
 
-
-
-
-
-
-def _emit(args, payload: dict, lines: list[str]) -> None:
-    text = json.dumps(payload, sort_keys=True) if getattr(args, 'json', False) else '\n'.join(lines)
-    try:
-        print(text, flush=True)
-    except BrokenPipeError:
-        # The reader (e.g. `| head`) went away: not an error of ours, and no traceback.
-        sys.stdout = None
+# Sub-commands that live in their own front-end module (``fall_predictor/cli_<area>.py``), each
+# exposing ``register(subparsers)``. Keeps this file short and each area's options with its code.
+COMMAND_MODULES: tuple[str, ...] = ()
 
 
 # -- simulate --------------------------------------------------------------------------------
@@ -93,12 +85,12 @@ def cmd_generate(args) -> int:
 
 # -- stats --------------------------------------------------------------------------------
 def cmd_stats(args) -> int:
-    from fall_predictor.data.dataset import load_features, read_index
+    from fall_predictor.data.dataset import load_features, read_index, robot_total_mass_kg
     from fall_predictor.data.stats import dataset_stats, plot_fig6
 
     rows = read_index(args.data)
     report = load_features(args.data, jobs=args.jobs, progress=not args.json)
-    stats = dataset_stats(rows, report.trajectories)
+    stats = dataset_stats(rows, report.trajectories, robot_total_mass_kg(args.data))
     stats['unreadable_bags'] = report.errors
     plots_dir = Path(args.plots) if args.plots else Path(args.data) / 'plots'
     stats['plots'] = [str(p) for p in plot_fig6(report.trajectories, plots_dir)]
@@ -108,6 +100,12 @@ def cmd_stats(args) -> int:
         d = stats[key]
         if d:
             lines.append(f"{key}: median {d['median']:.3f}, p95 {d['p95']:.3f}, max {d['max']:.3f}")
+    for key in ('com_rise_m', 'touchdown_force_peak_bw'):
+        d = stats[key]
+        if d:
+            lines.append(f"{key}: p50 {d['p50']:.3f}, p95 {d['p95']:.3f}, p99 {d['p99']:.3f}, max {d['max']:.3f}")
+    if stats['airborne_upright_fraction'] is not None:
+        lines.append(f"airborne_upright_fraction: {stats['airborne_upright_fraction']:.4f}")
     lines.append('contact-mode occupancy: ' + ', '.join(
         f'{k} {v:.3f}' for k, v in stats['contact_mode_occupancy'].items() if v > 0))
     for tid, error in report.errors.items():
@@ -118,18 +116,6 @@ def cmd_stats(args) -> int:
 
 
 # -- train, rules, evaluate, sweep --------------------------------------------------------
-
-
-
-
-
-
-
-
-def _fail(command: str, error: Exception | str) -> int:
-    """A dataset, model file or setting that cannot be used: one clear line, exit code 2."""
-    print(f'fall-predictor {command}: error: {error}', file=sys.stderr)
-    return 2
 
 
 def _add_learner_arguments(p: argparse.ArgumentParser) -> None:
@@ -304,14 +290,6 @@ def cmd_import_bags(args) -> int:
     return 0 if report.rows else 1
 
 
-
-
-
-
-
-
-
-
 def cmd_bringup(args) -> int:
     try:
         from fall_predictor.ros.bringup import cmd_bringup as run
@@ -459,6 +437,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help='leave out unreadable bags instead of failing')
     p.add_argument('--json', action='store_true', help='print one JSON summary object')
     p.set_defaults(func=cmd_sweep)
+    for name in COMMAND_MODULES:
+        importlib.import_module(f'fall_predictor.{name}').register(sub)
     return parser
 
 

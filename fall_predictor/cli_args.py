@@ -1,11 +1,29 @@
 """Arguments of the ``fall-predictor`` command line: the types (each parses one option's text
-or raises ``argparse.ArgumentTypeError`` naming the bad value) and the bring-up options."""
+or raises ``argparse.ArgumentTypeError`` naming the bad value), the bring-up options, and the
+output helpers (``emit``, ``fail``) every ``cli_*`` module shares."""
 from __future__ import annotations
 
 import argparse
 import json
 import math
+import sys
 from pathlib import Path
+
+
+def emit(args, payload: dict, lines: list[str]) -> None:
+    """Print ``payload`` as one JSON object with ``--json``, else the human-readable ``lines``."""
+    text = json.dumps(payload, sort_keys=True) if getattr(args, 'json', False) else '\n'.join(lines)
+    try:
+        print(text, flush=True)
+    except BrokenPipeError:
+        # The reader (e.g. `| head`) went away: not an error of ours, and no traceback.
+        sys.stdout = None
+
+
+def fail(command: str, error: Exception | str) -> int:
+    """A dataset, model file or setting that cannot be used: one clear line, exit code 2."""
+    print(f'fall-predictor {command}: error: {error}', file=sys.stderr)
+    return 2
 
 
 def finite(kind):

@@ -48,7 +48,7 @@ def sub_package(module: str) -> str:
     parts = module.split('.')
     if len(parts) == 1:
         return ''
-    return 'cli' if parts[1] in ('__main__', 'cli_args') else parts[1]
+    return 'cli' if parts[1] == '__main__' or parts[1].startswith('cli_') else parts[1]
 
 
 def imports(path: Path) -> list[tuple[str, bool]]:
