@@ -30,7 +30,7 @@ from fall_predictor.monitor.fileio import atomic_output
 from fall_predictor.monitor.records import PushSpec, TrajectoryFeatures
 
 FORMAT = 'fall_predictor/dataset/v1'
-CACHE_FORMAT = 'fall_predictor/features-cache/v1'
+CACHE_FORMAT = 'fall_predictor/features-cache/v2'
 
 
 class DatasetError(Exception):
@@ -139,7 +139,10 @@ def _load_or_build(out: Path, row: IndexRow, settings: FeatureSettings
         recorded = read_trajectory(bag)
         X, mode = extract_features(recorded.measurements, settings.rate_window_s,
                                    settings.sample_period_s, settings.edge_tolerance_m)
-        return {'t': np.array([m.t for m in recorded.measurements]), 'X': X, 'mode': mode}
+        ms = recorded.measurements
+        foot_force = np.array([[m.left_contacts[:, 2].sum(), m.right_contacts[:, 2].sum()] for m in ms])
+        return {'t': np.array([m.t for m in ms]), 'X': X, 'mode': mode,
+                'foot_force_n': foot_force.reshape(len(ms), 2)}
 
     try:
         # Features computed with other settings are another kind of derived data.
@@ -150,7 +153,8 @@ def _load_or_build(out: Path, row: IndexRow, settings: FeatureSettings
     except BagError as exc:
         return None, str(exc), False
     return TrajectoryFeatures(row.trajectory_id, arrays['t'], arrays['X'], arrays['mode'], row.fallen,
-                              row.t_push, row.t_force_end, row.t_fallen, row.t_height_drop), None, built
+                              row.t_push, row.t_force_end, row.t_fallen, row.t_height_drop,
+                              arrays['foot_force_n']), None, built
 
 
 def load_features(data_dir: str | os.PathLike, jobs: int = 1, progress: bool = True,

@@ -7,7 +7,13 @@ from typing import Optional
 import numpy as np
 
 from fall_predictor.data.dataset import IndexRow
-from fall_predictor.monitor.records import CONTACT_MODE_NAMES, N_CONTACT_MODES, TrajectoryFeatures
+from fall_predictor.monitor.records import (CONTACT_MODE_NAMES, N_CONTACT_MODES, STANDARD_GRAVITY_M_S2,
+                                            TrajectoryFeatures)
+
+#: Above this CoM height a robot with no foot on the ground is airborne while upright [m].
+AIRBORNE_UPRIGHT_COM_M = 0.45
+#: The ground-force peak of a touchdown is looked for this long after the foot lands [s].
+TOUCHDOWN_WINDOW_S = 0.1
 
 BALANCED_COLOUR = '#2e8b57'
 FALLING_COLOUR = '#e0559a'
@@ -21,7 +27,64 @@ def _distribution(values) -> Optional[dict]:
             'p95': float(np.percentile(v, 95)), 'max': float(v.max())}
 
 
-def dataset_stats(rows: list[IndexRow], trajectories: list[TrajectoryFeatures]) -> dict:
+def _percentiles(values, quantiles=(50, 95, 99)) -> Optional[dict]:
+    v = np.asarray(list(values), dtype=float)
+    if v.size == 0:
+        return None
+    out = {f'p{q}': float(np.percentile(v, q)) for q in quantiles}
+    out.update(n=int(v.size), max=float(v.max()))
+    return out
+
+
+def com_rise_m(traj: TrajectoryFeatures) -> float:
+    """Highest CoM height after the push onset minus the CoM height at the onset [m]."""
+    z = traj.com_height
+    k = min(int(np.searchsorted(traj.t, traj.t_push - 1e-9)), len(z) - 1)
+    return float(z[k:].max() - z[k])
+
+
+def touchdown_force_peaks_n(traj: TrajectoryFeatures) -> list[float]:
+    """Peak total vertical ground force [N] after each swing-foot touchdown before the push.
+
+    A touchdown is a foot whose vertical force goes from zero to positive; the peak is taken
+    over :data:`TOUCHDOWN_WINDOW_S` after it, and only windows that end before the push.
+    """
+    if traj.foot_force_n is None:
+        return []
+    force = traj.foot_force_n
+    total = force.sum(axis=1)
+    peaks = []
+    for side in range(2):
+        loaded = force[:, side] > 0.0
+        for k in np.flatnonzero(loaded[1:] & ~loaded[:-1]) + 1:
+            end = int(np.searchsorted(traj.t, traj.t[k] + TOUCHDOWN_WINDOW_S))
+            if end < len(total) and traj.t[end] < traj.t_push:
+                peaks.append(float(total[k:end].max()))
+    return peaks
+
+
+def robot_credibility(trajectories: list[TrajectoryFeatures], total_mass_kg: float) -> dict:
+    """How physical the simulated robot behaves: CoM rise after the push (launches), samples
+    airborne while upright, and the ground-force peaks of unpushed touchdowns in body weights."""
+    weight_n = total_mass_kg * STANDARD_GRAVITY_M_S2
+    airborne = samples = 0
+    peaks: list[float] = []
+    for traj in trajectories:
+        samples += len(traj.t)
+        if traj.foot_force_n is not None:
+            no_foot = traj.foot_force_n.sum(axis=1) <= 0.0
+            airborne += int((no_foot & (traj.com_height > AIRBORNE_UPRIGHT_COM_M)).sum())
+        peaks += touchdown_force_peaks_n(traj)
+    known = all(traj.foot_force_n is not None for traj in trajectories)
+    return {
+        'com_rise_m': _percentiles(com_rise_m(traj) for traj in trajectories),
+        'airborne_upright_fraction': airborne / samples if samples and known else None,
+        'touchdown_force_peak_bw': _percentiles(p / weight_n for p in peaks),
+    }
+
+
+def dataset_stats(rows: list[IndexRow], trajectories: list[TrajectoryFeatures],
+                  total_mass_kg: Optional[float] = None) -> dict:
     """Counts, fall fraction, duration and oracle-lead distributions, contact-mode occupancy."""
     fallen = [r for r in rows if r.fallen]
     occupancy = np.zeros(N_CONTACT_MODES)
@@ -46,6 +109,7 @@ def dataset_stats(rows: list[IndexRow], trajectories: list[TrajectoryFeatures]) 
         'contact_mode_occupancy': {name: float(occupancy[i] / total) for i, name in enumerate(CONTACT_MODE_NAMES)},
         'contact_mode_occupancy_falling': {name: float(occupancy_falling[i] / total_falling)
                                            for i, name in enumerate(CONTACT_MODE_NAMES)},
+        **(robot_credibility(trajectories, total_mass_kg) if total_mass_kg else {}),
     }
 
 

@@ -115,6 +115,8 @@ class TrajectoryFeatures:
     t_force_end: float
     t_fallen: Optional[float] = None
     t_height_drop: Optional[float] = None
+    #: (N, 2) vertical ground force under the left and right sole [N], when known.
+    foot_force_n: Optional[np.ndarray] = None
 
     @property
     def com_height(self) -> np.ndarray:

@@ -56,6 +56,8 @@ class ReflexConfig:
     max_stance_width_m: float = 0.45
     max_step_forward_m: float = 0.30
     max_step_backward_m: float = 0.25
+    #: After touchdown the ZMP moves from the stance foot to between the feet in this time [s].
+    transfer_s: float = 0.2
 
 
 @dataclass
@@ -104,6 +106,9 @@ class BalanceController:
         g = self.gait
         plan = plan_walk(tuple(self.feet['l']), tuple(self.feet['r']), m.t, self.walk_duration_s,
                          g.single_support_s, g.double_support_s, g.step_length_m, g.initial_stand_s)
+        # The ZMP starts under the standing CoM and moves to between the feet while standing:
+        # a reference that jumps asks the CoM for an impulsive start.
+        plan.zmp_knots_xy[0] = m.com[:2]
         self._set_plan(plan, m.t)
         self.torso_height = g.torso_height_m
         self._lower_from: Optional[float] = None
@@ -190,11 +195,12 @@ class BalanceController:
         if swinging:
             side = swinging[0]
             step = self._active_step(side, t)
-            start = np.array(swing_position(step, t, self.gait.lift_height_m)[:2])
+            now = swing_position(step, t, self.gait.lift_height_m)
+            start, start_height = np.array(now[:2]), now[2]
         else:
             # Double support: step with the foot farther from the capture point.
             side = max(rm.SIDES, key=lambda s_: float(np.linalg.norm(self.feet[s_] - capture)))
-            start = self.feet[side].copy()
+            start, start_height = self.feet[side].copy(), 0.0
         stance_side = 'r' if side == 'l' else 'l'
         stance = self.feet[stance_side]
         # Where the capture point will be at touchdown if the CoP stays on the stance foot.
@@ -211,10 +217,11 @@ class BalanceController:
         outward = 1.0 if side == 'l' else -1.0
         lat = outward * min(r.max_stance_width_m, max(r.min_stance_width_m, outward * lat))
         target = stance + np.array([ch * fwd - sh * lat, sh * fwd + ch * lat])
-        self._reflex_step = Footstep(side, t, t + r.step_duration_s, tuple(start), tuple(target))
+        self._reflex_step = Footstep(side, t, t + r.step_duration_s, tuple(start), tuple(target),
+                                     start_height_m=float(start_height))
         new_feet = {side: target, stance_side: stance}
         mid = (new_feet['l'] + new_feet['r']) / 2
-        knots_t = np.array([t, t + r.step_duration_s, t + r.step_duration_s + 0.2])
+        knots_t = np.array([t, t + r.step_duration_s, t + r.step_duration_s + r.transfer_s])
         knots = np.array([stance, stance, mid])
         self._set_plan(WalkingPlan([self._reflex_step], knots_t, knots), t)
         self.preview.reset(com.copy(), vel.copy())

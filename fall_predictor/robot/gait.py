@@ -97,6 +97,8 @@ class Footstep:
     t_land: float
     start: tuple[float, float]
     target: tuple[float, float]
+    #: Sole height at lift-off: 0 from the ground, > 0 for a step redirected in mid-swing [m].
+    start_height_m: float = 0.0
 
 
 @dataclass
@@ -157,4 +159,7 @@ def swing_position(step: Footstep, t: float, lift_height_m: float) -> tuple[floa
     x = step.start[0] + (step.target[0] - step.start[0]) * blend
     y = step.start[1] + (step.target[1] - step.start[1]) * blend
     z = lift_height_m * (0.5 - 0.5 * math.cos(2.0 * math.pi * s))
+    if step.start_height_m > 0.0:
+        # A redirected swing: rise from where the sole is instead of dropping it to the ground.
+        z = max(z, step.start_height_m * (1.0 - blend)) if s < 0.5 else z
     return x, y, z

@@ -15,6 +15,7 @@ import numpy as np
 import pybullet as pb
 
 from fall_predictor.robot import model as rm
+from fall_predictor.robot.actuation import ServoArrays, servo_arrays, servo_torques
 from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2, Measurement, PushSpec
 
 GRAVITY = STANDARD_GRAVITY_M_S2
@@ -32,9 +33,19 @@ class SimulatorConfig:
     solver_iterations: int = 50
     ground_friction: float = 1.0
     foot_friction: float = 1.0
-    #: Position-control gains of PyBullet's joint motors (per-step error feedback).
+    #: 'position': PyBullet's position motors (gain 0.4, effort-limited; what the published
+    #: results used). 'pd_torque': the robot's joint servos of robot/actuation.py (PD torque
+    #: loops, torque-speed envelope, friction, armature); it becomes the default once the
+    #: dataset is regenerated with it.
+    actuation: str = 'position'
+    #: Scale of every servo's Kp and Kd with 'pd_torque'; 1 = the robot's real gains.
+    servo_gain_scale: float = 1.0
     position_gain: float = 0.4
     velocity_gain: float = 1.0
+
+    def __post_init__(self) -> None:
+        if self.actuation not in ('position', 'pd_torque'):
+            raise ValueError(f"actuation must be 'position' or 'pd_torque', got {self.actuation!r}")
 
 
 def quaternions_to_matrices(q: np.ndarray) -> np.ndarray:
@@ -69,6 +80,8 @@ class Simulator:
         self._push_force_world = np.zeros(3)
         self._push_point_local = np.zeros(3)
         self._prev_measurement: Optional[Measurement] = None
+        self._targets = np.zeros(0)
+        self._torques = np.zeros(0)
 
     # -- world -------------------------------------------------------------------------
     def reset(self, joint_positions: Sequence[float], torso_position: Sequence[float],
@@ -94,16 +107,26 @@ class Simulator:
                            for i in range(self.n_joints)]
         self.foot_links = {side: self.link_names.index(f'{side}_foot') for side in rm.SIDES}
         self.joint_indices = list(range(self.n_joints))
-        specs = rm.joint_specs()
-        self.max_forces = [specs[n].effort_nm for n in rm.JOINT_NAMES]
-        for link in [-1] + self.joint_indices:
-            # SPEC: zero link damping; inertias come from the file.
-            pb.changeDynamics(self.robot, link, linearDamping=0.0, angularDamping=0.0,
-                              jointDamping=0.0, physicsClientId=c)
+        self.servo: ServoArrays = servo_arrays(self.config.servo_gain_scale)
+        pb.changeDynamics(self.robot, -1, linearDamping=0.0, angularDamping=0.0, physicsClientId=c)
+        for i in self.joint_indices:
+            # SPEC: no link (air) damping. The drive's viscous friction acts in step(); its
+            # rotor's reflected inertia (armature) is added to the driven link's inertia about the
+            # joint axis (exact for that joint; proximal joints see it too, a few % of theirs).
+            info = pb.getJointInfo(self.robot, i, physicsClientId=c)
+            inertia = np.array(pb.getDynamicsInfo(self.robot, i, physicsClientId=c)[2])
+            if self.config.actuation == 'pd_torque':
+                inertia += self.servo.armature[i] * np.abs(np.asarray(info[13]))
+            pb.changeDynamics(self.robot, i, linearDamping=0.0, angularDamping=0.0, jointDamping=0.0,
+                              localInertiaDiagonal=inertia.tolist(), physicsClientId=c)
         for link in self.foot_links.values():
             pb.changeDynamics(self.robot, link, lateralFriction=self.config.foot_friction, physicsClientId=c)
         for i, q in enumerate(joint_positions):
             pb.resetJointState(self.robot, i, q, 0.0, physicsClientId=c)
+        if self.config.actuation == 'pd_torque':
+            # Torque control: switch PyBullet's default velocity motors off.
+            pb.setJointMotorControlArray(self.robot, self.joint_indices, pb.VELOCITY_CONTROL,
+                                         forces=[0.0] * self.n_joints, physicsClientId=c)
         self.masses = np.array([pb.getDynamicsInfo(self.robot, i, physicsClientId=c)[0]
                                 for i in [-1] + self.joint_indices])
         self.inertias = np.array([pb.getDynamicsInfo(self.robot, i, physicsClientId=c)[2]
@@ -115,6 +138,8 @@ class Simulator:
         self._push_force_world = np.zeros(3)
         self._prev_measurement = None
         self.set_joint_targets(joint_positions)
+        self._torques = np.zeros(self.n_joints)
+        self._read_joints()
         return self.measure()
 
     def restore_clock(self, tick: int, measurement: Measurement) -> None:
@@ -125,6 +150,8 @@ class Simulator:
         self._push = None
         self._push_force_world = np.zeros(3)
         self._prev_measurement = measurement
+        self._read_joints()
+        self._torques = np.zeros(self.n_joints)
 
     def close(self) -> None:
         if self.client >= 0:
@@ -139,14 +166,19 @@ class Simulator:
 
     # -- actuation ---------------------------------------------------------------------
     def set_joint_targets(self, positions: Sequence[float]) -> None:
-        """Position targets [rad] for all 26 joints (held until the next call)."""
-        n = self.n_joints
-        pb.setJointMotorControlArray(self.robot, self.joint_indices, pb.POSITION_CONTROL,
-                                     targetPositions=list(positions),
-                                     forces=self.max_forces,
-                                     positionGains=[self.config.position_gain] * n,
-                                     velocityGains=[self.config.velocity_gain] * n,
-                                     physicsClientId=self.client)
+        """Position targets [rad] of the 26 joint servos (held until the next call)."""
+        targets = np.asarray(positions, dtype=float)
+        if targets.shape != (self.n_joints,) or not np.all(np.isfinite(targets)):
+            raise ValueError(f'expected {self.n_joints} finite joint targets')
+        self._targets = targets.copy()
+        if self.config.actuation == 'position':
+            n = self.n_joints
+            pb.setJointMotorControlArray(self.robot, self.joint_indices, pb.POSITION_CONTROL,
+                                         targetPositions=targets.tolist(),
+                                         forces=self.servo.effort.tolist(),
+                                         positionGains=[self.config.position_gain] * n,
+                                         velocityGains=[self.config.velocity_gain] * n,
+                                         physicsClientId=self.client)
 
     def schedule_push(self, push: PushSpec) -> None:
         """Apply ``push`` when simulation time reaches ``push.t_push`` (one push at a time)."""
@@ -184,18 +216,31 @@ class Simulator:
         """Advance one physics step (pushes applied) and measure the new state."""
         self._update_push()
         applied = self._push_force_world.copy()
+        if self.config.actuation == 'pd_torque':
+            # The servos close their loops on the joint state at the start of the step.
+            self._torques = servo_torques(self.servo, self._targets, self._q, self._dq)
+            # The joint sees the motor torque and the drive's viscous friction.
+            joint_torques = self._torques - self.servo.damping * self._dq
+            pb.setJointMotorControlArray(self.robot, self.joint_indices, pb.TORQUE_CONTROL,
+                                         forces=joint_torques.tolist(), physicsClientId=self.client)
         pb.stepSimulation(physicsClientId=self.client)
+        self._read_joints()
         self.tick += 1
         self.t = self.tick * self.config.dt_s
         m = self.measure()
         m.push_force = applied
         return m
 
-    def joint_states(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Joint positions [rad], velocities [rad/s] and applied motor torques [N m]."""
+    def _read_joints(self) -> None:
         states = pb.getJointStates(self.robot, self.joint_indices, physicsClientId=self.client)
-        return (np.array([s[0] for s in states]), np.array([s[1] for s in states]),
-                np.array([s[3] for s in states]))
+        self._q = np.array([s[0] for s in states])
+        self._dq = np.array([s[1] for s in states])
+        if self.config.actuation == 'position' and self._torques.size:
+            self._torques = np.array([s[3] for s in states])
+
+    def joint_states(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Joint positions [rad], velocities [rad/s] and the motor torques [N m] of the last step."""
+        return self._q.copy(), self._dq.copy(), self._torques.copy()
 
     def measure(self) -> Measurement:
         """CoM, momenta about the CoM, heading, contacts and CoP of the current state."""

@@ -1,0 +1,99 @@
+"""The joint servos of the humanoid: PD torque control with the limits of real drives.
+
+Every joint is driven by an electric motor through a reduction gear, closed by a joint-level
+PD loop at 1 kHz, as on a position-controlled humanoid:
+
+    tau = Kp (q_target - q) - Kd dq           [N m]
+
+limited by the drive's torque-speed envelope: at most ``effort_nm`` at standstill, falling
+linearly to zero at the joint's rated speed ``velocity_rad_s`` (the URDF limits) in the
+direction of motion, so no joint can be driven faster than its rated speed. Braking torque
+(against the motion) is limited by the effort only. Two passive effects are simulated as
+physics, not as control: viscous joint friction ``damping_nms`` and the rotor's reflected
+inertia ``armature_kgm2`` (N^2 J_rotor).
+
+Gains are per joint group. They were chosen so that (1) the stance leg deflects by less than
+~1.5 deg under the robot's weight (Kp of the hip, knee and ankle pitch joints several times the
+inverted-pendulum gravity stiffness m g h ~ 250 N m/rad of this 42 kg robot), (2) each loop is
+near critically damped on the inertia it drives when its limb is in the air, with the
+reflected armature included (damping ratio 0.5 to 1), and (3) the explicit 1 ms loop is stable
+on that inertia (Kd dt / I < 1 and sqrt(Kp / I) dt < 0.5). The table is in the README.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from fall_predictor.robot import model as rm
+
+
+@dataclass(frozen=True)
+class ServoGains:
+    """One joint's PD loop and drive: gains, passive damping and reflected rotor inertia."""
+
+    kp_nm_per_rad: float
+    kd_nms_per_rad: float
+    damping_nms: float
+    armature_kgm2: float
+
+
+#: Joint group (the joint's name without its side prefix) -> servo gains.
+SERVO_GAINS: dict[str, ServoGains] = {
+    'hip_yaw': ServoGains(1800.0, 30.0, 0.5, 0.03),
+    'hip_roll': ServoGains(7500.0, 90.0, 0.5, 0.06),
+    'hip_pitch': ServoGains(7500.0, 90.0, 0.5, 0.06),
+    'knee_pitch': ServoGains(7500.0, 75.0, 0.5, 0.06),
+    'ankle_pitch': ServoGains(4500.0, 24.0, 0.3, 0.03),
+    'ankle_roll': ServoGains(3000.0, 18.0, 0.3, 0.03),
+    'shoulder_pitch': ServoGains(200.0, 4.0, 0.2, 0.02),
+    'shoulder_roll': ServoGains(200.0, 4.0, 0.2, 0.02),
+    'shoulder_yaw': ServoGains(100.0, 2.0, 0.1, 0.01),
+    'elbow_pitch': ServoGains(100.0, 2.0, 0.1, 0.01),
+    'wrist_yaw': ServoGains(10.0, 0.1, 0.02, 0.002),
+    'hand': ServoGains(10.0, 0.15, 0.02, 0.002),
+    'head_pan': ServoGains(40.0, 0.8, 0.05, 0.005),
+    'head_tilt': ServoGains(60.0, 1.5, 0.05, 0.005),
+}
+
+
+def joint_group(joint_name: str) -> str:
+    """'l_knee_pitch' -> 'knee_pitch'; 'head_pan' -> 'head_pan'."""
+    return joint_name[2:] if joint_name[:2] in ('l_', 'r_') else joint_name
+
+
+@dataclass(frozen=True)
+class ServoArrays:
+    """The servo table as arrays in ``model.JOINT_NAMES`` order."""
+
+    kp: np.ndarray
+    kd: np.ndarray
+    damping: np.ndarray
+    armature: np.ndarray
+    effort: np.ndarray
+    velocity: np.ndarray
+
+
+def servo_arrays(gain_scale: float = 1.0) -> ServoArrays:
+    """Per-joint arrays of the servo table; ``gain_scale`` scales Kp and Kd (tests, studies)."""
+    if not gain_scale > 0:
+        raise ValueError(f'gain_scale must be > 0, got {gain_scale!r}')
+    specs = rm.joint_specs()
+    gains = [SERVO_GAINS[joint_group(name)] for name in rm.JOINT_NAMES]
+    return ServoArrays(
+        kp=gain_scale * np.array([g.kp_nm_per_rad for g in gains]),
+        kd=gain_scale * np.array([g.kd_nms_per_rad for g in gains]),
+        damping=np.array([g.damping_nms for g in gains]),
+        armature=np.array([g.armature_kgm2 for g in gains]),
+        effort=np.array([specs[n].effort_nm for n in rm.JOINT_NAMES]),
+        velocity=np.array([specs[n].velocity_rad_s for n in rm.JOINT_NAMES]))
+
+
+def servo_torques(servo: ServoArrays, q_target: np.ndarray, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+    """Motor torques [N m] of the PD loops within the drives' torque-speed envelope."""
+    tau = servo.kp * (q_target - q) - servo.kd * dq
+    # Torque that drives the motion: the envelope shrinks linearly to 0 at the rated speed.
+    driving = np.clip(servo.effort * (1.0 - np.abs(dq) / servo.velocity), 0.0, None)
+    upper = np.where(dq > 0.0, driving, servo.effort)
+    lower = np.where(dq < 0.0, -driving, -servo.effort)
+    return np.clip(tau, lower, upper)
