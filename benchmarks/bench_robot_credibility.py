@@ -1,6 +1,8 @@
-"""Robot credibility of the two actuation models on the SPEC §3 push protocol (issue 9).
+"""Robot credibility of the previous and the current robot on the SPEC §3 push protocol (issue 9).
 
-For N pushes of dataset seed 0 (the same pushes for both models) simulates each trajectory
+'previous': PyBullet position motors, open-loop C_bal (the robot of the published results);
+'current': PD torque servos and the closed-loop stabilizer (the defaults).
+For N pushes of dataset seed 0 (the same pushes for both robots) simulates each trajectory
 with C_bal and reports, through the statistics `fall-predictor stats` uses: the CoM rise after
 the push (p50/p95/p99), the fraction of samples airborne while upright, the touchdown force
 peaks of the unpushed walk, the fall fraction and the CPU time.
@@ -21,18 +23,23 @@ from fall_predictor.data.stats import robot_credibility
 from fall_predictor.monitor.records import N_FEATURES, TrajectoryFeatures
 from fall_predictor.sim.pushes import PushDistribution, trajectory_seed
 from fall_predictor.sim.simulator import Simulator, SimulatorConfig
+from fall_predictor.robot.stabilizer import StabilizerConfig
 from fall_predictor.sim.trajectory import ROBOT_TOTAL_MASS_KG, WalkPrefix, run_trajectory
 
+ROBOTS = {'previous': ('position', StabilizerConfig().open_loop()), 'current': ('pd_torque', StabilizerConfig())}
 
-def measure(actuation: str, n: int, horizon_s: float) -> dict:
+
+def measure(robot: str, n: int, horizon_s: float) -> dict:
+    actuation, stabilizer = ROBOTS[robot]
     dist = PushDistribution()
     sim = Simulator(SimulatorConfig(actuation=actuation))
-    prefix = WalkPrefix(sim, until_s=dist.settle_s + dist.walk_cycle_s() + 0.01, walk_duration_s=60.0)
+    prefix = WalkPrefix(sim, until_s=dist.settle_s + dist.walk_cycle_s() + 0.01, walk_duration_s=60.0,
+                        stabilizer=stabilizer)
     trajectories, fallen = [], 0
     start = time.process_time()
     for i in range(n):
         push = dist.sample(trajectory_seed(0, i))
-        result = run_trajectory(push, push.t_force_end + horizon_s, prefix=prefix)
+        result = run_trajectory(push, push.t_force_end + horizon_s, prefix=prefix, stabilizer=stabilizer)
         ms = result.measurements[int(round((push.t_push - 1.0) / sim.config.dt_s)):]
         X = np.zeros((len(ms), N_FEATURES))
         X[:, 2] = [m.com[2] for m in ms]
@@ -43,7 +50,7 @@ def measure(actuation: str, n: int, horizon_s: float) -> dict:
         fallen += result.fallen
     cpu = time.process_time() - start
     sim.close()
-    return {'actuation': actuation, 'trajectories': n, 'fall_fraction': fallen / n, 'cpu_s': cpu,
+    return {'robot': robot, 'actuation': actuation, 'stabilizer': stabilizer.dcm_gain > 0, 'trajectories': n, 'fall_fraction': fallen / n, 'cpu_s': cpu,
             **robot_credibility(trajectories, ROBOT_TOTAL_MASS_KG)}
 
 
@@ -53,7 +60,7 @@ def main() -> None:
     parser.add_argument('--horizon', type=float, default=2.5, help='s simulated after the push ends')
     parser.add_argument('--out', type=Path, default=Path('benchmarks/results/robot_credibility.json'))
     args = parser.parse_args()
-    results = [measure(a, args.trajectories, args.horizon) for a in ('position', 'pd_torque')]
+    results = [measure(robot, args.trajectories, args.horizon) for robot in ROBOTS]
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(results, indent=2) + '\n')
     print(json.dumps(results, indent=2))

@@ -17,7 +17,11 @@ def test_walks_60_s_without_falling_or_reflex():
     # It really walks: single support alternates between the feet.
     left_only = [len(m.left_contacts) > 0 and len(m.right_contacts) == 0 for m in result.measurements]
     right_only = [len(m.right_contacts) > 0 and len(m.left_contacts) == 0 for m in result.measurements]
-    assert sum(left_only) > 20000 and sum(right_only) > 20000
+    # Each foot alone for about single_support_s of every cycle (touchdown timing shifts a few ms).
+    gait = GaitConfig()
+    nominal_ticks = (60.0 - gait.initial_stand_s) / (2 * (gait.single_support_s + gait.double_support_s)) \
+        * gait.single_support_s * 1000
+    assert sum(left_only) > 0.85 * nominal_ticks and sum(right_only) > 0.85 * nominal_ticks
 
 
 def test_moderate_push_fires_the_reflex_widens_the_stance_and_lowers_the_com():

@@ -9,13 +9,14 @@ holds the joint targets C_bal had reached. The switch from C_bal to C_fall is on
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Optional
 
 import numpy as np
 
 from fall_predictor.robot import kinematics as kin
 from fall_predictor.robot import model as rm
+from fall_predictor.robot.stabilizer import Stabilizer, StabilizerConfig
 from fall_predictor.robot.gait import GRAVITY, Footstep, PreviewController, WalkingPlan, plan_walk, swing_position
 from fall_predictor.monitor.records import Measurement
 
@@ -38,6 +39,11 @@ class GaitConfig:
     stance_half_width_m: float = rm.HIP_HALF_WIDTH_M
     initial_stand_s: float = 0.5
     preview_s: float = 1.6
+    #: The plan follows a measured foothold at most this far from the planned one [m].
+    max_reanchor_m: float = 0.05
+    #: Legs shorten by this times the CoM's rise above walking height beyond the tolerance.
+    height_compliance: float = 1.0
+    height_tolerance_m: float = 0.005
 
 
 @dataclass(frozen=True)
@@ -58,6 +64,14 @@ class ReflexConfig:
     max_step_backward_m: float = 0.25
     #: After touchdown the ZMP moves from the stance foot to between the feet in this time [s].
     transfer_s: float = 0.2
+    #: A swing foot that cannot take the reflex step is set down in this time [s], and the
+    #: weight moves onto it in ``weight_shift_s`` before the other foot steps.
+    set_down_s: float = 0.08
+    weight_shift_s: float = 0.08
+    #: The stepping foot lifts only once it carries less than this fraction of the weight ...
+    lift_load_fraction: float = 0.3
+    #: ... checked until the swing would have progressed this long [s].
+    max_lift_delay_s: float = 0.1
 
 
 @dataclass
@@ -72,9 +86,17 @@ class BalanceController:
     """C_bal: walking pattern plus momentum-triggered stepping reflex. Call :meth:`update` every tick."""
 
     def __init__(self, gait: GaitConfig = GaitConfig(), reflex: ReflexConfig = ReflexConfig(),
-                 dt_s: float = 0.001, walk_duration_s: float = 3600.0):
+                 dt_s: float = 0.001, walk_duration_s: float = 3600.0,
+                 stabilizer: StabilizerConfig = StabilizerConfig(), model_mass_kg: float = rm.TOTAL_MASS_KG,
+                 com_bias_m: tuple[float, float, float] = (0.0, 0.0, 0.0)):
         self.gait = gait
         self.reflex = reflex
+        self.stabilizer_config = stabilizer
+        #: The mass the controller believes the robot has (a wrong model is a test case).
+        self.model_mass_kg = model_mass_kg
+        #: Error of the controller's CoM model: it sees the CoM displaced by this much [m].
+        self.com_bias_m = np.asarray(com_bias_m, dtype=float)
+        self.stabilizer: Optional[Stabilizer] = None
         self.dt_s = dt_s
         self.walk_duration_s = walk_duration_s
         self.reflex_event: Optional[ReflexEvent] = None
@@ -103,6 +125,7 @@ class BalanceController:
         self.omega = math.sqrt(GRAVITY / self.com_height_m)
         self.preview = PreviewController(self.dt_s, self.com_height_m, self.gait.preview_s)
         self.preview.reset(m.com[:2].copy())
+        self.stabilizer = Stabilizer(self.stabilizer_config, self.omega, self.dt_s, self.model_mass_kg)
         g = self.gait
         plan = plan_walk(tuple(self.feet['l']), tuple(self.feet['r']), m.t, self.walk_duration_s,
                          g.single_support_s, g.double_support_s, g.step_length_m, g.initial_stand_s)
@@ -126,6 +149,8 @@ class BalanceController:
     # -- control -----------------------------------------------------------------------------
     def update(self, m: Measurement) -> np.ndarray:
         """Joint position targets for the next physics step given the current measurement."""
+        if self.com_bias_m.any():
+            m = replace(m, com=m.com + self.com_bias_m)
         if not self._started:
             self._start(m)
         if self.reflex.enabled and self.reflex_event is None and self._momentum_departed(m):
@@ -141,19 +166,69 @@ class BalanceController:
         if self._lower_from is not None:
             s = min(1.0, (t - self._lower_from) / self.reflex.lower_duration_s)
             self.torso_height = self.gait.torso_height_m - self.reflex.lower_com_m * (0.5 - 0.5 * math.cos(math.pi * s))
-        torso = np.array([com_xy[0] - self.com_offset[0], com_xy[1] - self.com_offset[1], self.torso_height])
-        soles = {}
+        # Vertical compliance: when the measured CoM rises above its walking height (a leg
+        # vaulting the body over itself, a hard landing rebounding), the legs shorten by as
+        # much, so a stiff leg never throws the robot into the air.
+        rise = float(m.com[2]) - self.com_height_m - self.gait.height_tolerance_m
+        shorten = self.gait.height_compliance * max(0.0, rise)
+        torso = np.array([com_xy[0] - self.com_offset[0], com_xy[1] - self.com_offset[1],
+                          self.torso_height - shorten])
+        self._land_finished_steps(m, t)
+        soles, swinging = {}, set()
         for side in rm.SIDES:
             step = self._active_step(side, t)
             if step is None:
                 soles[side] = (self.feet[side][0], self.feet[side][1], 0.0)
+            elif step is self._reflex_step and self._still_loaded(m, side, step, t):
+                # The stepping foot still carries the robot: lifting it now would straighten a
+                # loaded leg and throw the body up. Hold it down and start the swing later.
+                held = replace(step, t_lift=step.t_lift + self.dt_s, t_land=step.t_land + self.dt_s,
+                               start_height_m=0.0)
+                self._steps[self._steps.index(step)] = held
+                self._reflex_step = held
+                soles[side] = (held.start[0], held.start[1], 0.0)
             else:
                 lift = self.reflex.lift_height_m if step is self._reflex_step else self.gait.lift_height_m
                 soles[side] = swing_position(step, t, lift)
+                swinging.add(side)
                 if t >= step.t_land:
                     self.feet[side] = np.array(step.target)
+        state = self.preview.state
+        pattern_zmp = state[0] - state[2] / self.omega ** 2
+        corrections = self.stabilizer.update(m, state[0], state[1], pattern_zmp, self.feet, frozenset(swinging))
+        for side in rm.SIDES:
+            x, y, z = soles[side]
+            soles[side] = (x, y, z + corrections[side].height_m)
         self._set_legs(torso, soles)
+        for side in rm.SIDES:
+            legs = _LEG_SLICE[side]
+            self.target[legs.start + 4] += corrections[side].pitch_rad
+            self.target[legs.start + 5] += corrections[side].roll_rad
         return self.target.copy()
+
+    def _still_loaded(self, m: Measurement, side: str, step: Footstep, t: float) -> bool:
+        if t - step.t_lift > self.reflex.max_lift_delay_s:
+            return False
+        contacts = m.left_contacts if side == 'l' else m.right_contacts
+        force = float(contacts[:, 2].sum()) if contacts.size else 0.0
+        return force > self.reflex.lift_load_fraction * self.model_mass_kg * GRAVITY
+
+    def _land_finished_steps(self, m: Measurement, t: float) -> None:
+        """Plant the feet of finished steps where they are measured to be, and move the rest of
+        the walking plan with them: the plan is anchored to the real footholds, so the small
+        slips of every step do not add up to a drift the stabilizer would fight."""
+        while self._steps and t > self._steps[0].t_land + 1e-9:
+            done = self._steps.pop(0)
+            landed = np.array(done.target)
+            if done is not self._reflex_step:
+                measured = (m.left_foot if done.side == 'l' else m.right_foot)[:2]
+                limit = self.gait.max_reanchor_m
+                delta = np.clip(measured - landed, -limit, limit)
+                self._steps = [replace(step, start=tuple(np.add(step.start, delta)),
+                                       target=tuple(np.add(step.target, delta))) for step in self._steps]
+                self._zmp_ref[self._ref_index:] += delta
+                landed = landed + delta
+            self.feet[done.side] = landed
 
     def _active_step(self, side: str, t: float) -> Optional[Footstep]:
         # Drop finished steps (their targets become the planted feet).
@@ -176,7 +251,7 @@ class BalanceController:
             self.target[_LEG_SLICE[side]] = kin.leg_ik_parallel(hip, ankle)
 
     def _momentum_departed(self, m: Measurement) -> bool:
-        mass = rm.TOTAL_MASS_KG
+        mass = self.model_mass_kg
         ref_vel = self.preview.state[1]
         c, s = math.cos(m.heading), math.sin(m.heading)
         dx = m.lin_mom[0] - mass * ref_vel[0]
@@ -187,47 +262,77 @@ class BalanceController:
     def _fire_reflex(self, m: Measurement) -> None:
         r = self.reflex
         t = m.t
-        mass = rm.TOTAL_MASS_KG
+        mass = self.model_mass_kg
         com = m.com[:2]
         vel = m.lin_mom[:2] / mass
         capture = com + vel / self.omega
+        ch, sh = math.cos(m.heading), math.sin(m.heading)
+        left_dir = np.array([-sh, ch])
         swinging = [s for s in rm.SIDES if self._active_step(s, t) is not None]
-        if swinging:
-            side = swinging[0]
+        side = self._reflex_side(capture, left_dir, swinging)
+        stance_side = 'r' if side == 'l' else 'l'
+        steps: list[Footstep] = []
+        t_lift = t
+        if swinging and swinging[0] == stance_side:
+            # The foot in the air cannot reach the capture point without crossing: put it down
+            # where it is, then step with the other one.
+            step = self._active_step(stance_side, t)
+            now = swing_position(step, t, self.gait.lift_height_m)
+            steps.append(Footstep(stance_side, t, t + r.set_down_s, tuple(now[:2]), tuple(now[:2]),
+                                  start_height_m=float(now[2])))
+            self.feet[stance_side] = np.array(now[:2])
+            t_lift = t + r.set_down_s + r.weight_shift_s
+            start, start_height = self.feet[side].copy(), 0.0
+        elif swinging:
             step = self._active_step(side, t)
             now = swing_position(step, t, self.gait.lift_height_m)
             start, start_height = np.array(now[:2]), now[2]
         else:
-            # Double support: step with the foot farther from the capture point.
-            side = max(rm.SIDES, key=lambda s_: float(np.linalg.norm(self.feet[s_] - capture)))
             start, start_height = self.feet[side].copy(), 0.0
-        stance_side = 'r' if side == 'l' else 'l'
         stance = self.feet[stance_side]
+        t_land = t_lift + r.step_duration_s
         # Where the capture point will be at touchdown if the CoP stays on the stance foot.
-        growth = math.exp(self.omega * r.step_duration_s)
+        growth = math.exp(self.omega * (t_land - t))
         predicted = stance + (capture - stance) * growth
         away = predicted - stance
         norm = float(np.linalg.norm(away))
         target = predicted + (away / norm * r.capture_margin_m if norm > 1e-9 else 0.0)
         # Reachable region relative to the stance foot, in the heading frame; never cross.
-        ch, sh = math.cos(m.heading), math.sin(m.heading)
         rel = target - stance
         fwd, lat = ch * rel[0] + sh * rel[1], -sh * rel[0] + ch * rel[1]
         fwd = min(r.max_step_forward_m, max(-r.max_step_backward_m, fwd))
         outward = 1.0 if side == 'l' else -1.0
         lat = outward * min(r.max_stance_width_m, max(r.min_stance_width_m, outward * lat))
         target = stance + np.array([ch * fwd - sh * lat, sh * fwd + ch * lat])
-        self._reflex_step = Footstep(side, t, t + r.step_duration_s, tuple(start), tuple(target),
+        self._reflex_step = Footstep(side, t_lift, t_land, tuple(start), tuple(target),
                                      start_height_m=float(start_height))
-        new_feet = {side: target, stance_side: stance}
-        mid = (new_feet['l'] + new_feet['r']) / 2
-        knots_t = np.array([t, t + r.step_duration_s, t + r.step_duration_s + r.transfer_s])
-        knots = np.array([stance, stance, mid])
-        self._set_plan(WalkingPlan([self._reflex_step], knots_t, knots), t)
+        steps.append(self._reflex_step)
+        mid = (target + stance) / 2
+        if t_lift > t:
+            # ZMP on the standing foot while the other sets down, then onto the set-down foot.
+            knots_t = np.array([t, t + r.set_down_s, t_lift, t_land, t_land + r.transfer_s])
+            knots = np.array([self.feet[side], self.feet[side], stance, stance, mid])
+        else:
+            knots_t = np.array([t, t_land, t_land + r.transfer_s])
+            knots = np.array([stance, stance, mid])
+        self._set_plan(WalkingPlan(steps, knots_t, knots), t)
         self.preview.reset(com.copy(), vel.copy())
+        self.stabilizer.reset_integral()
         self._lower_from = t
         self.reflex_event = ReflexEvent(t, side, (float(target[0]), float(target[1])),
                                         (float(capture[0]), float(capture[1])))
+
+    def _reflex_side(self, capture: np.ndarray, left_dir: np.ndarray, swinging: list[str]) -> str:
+        """The foot that steps: the one on the capture point's side when the capture point lies
+        beyond a foot laterally (a step with the other foot would have to cross), else the
+        foot in the air, else the foot farther from the capture point."""
+        if float((capture - self.feet['l']) @ left_dir) > 0.0:
+            return 'l'
+        if float((capture - self.feet['r']) @ left_dir) < 0.0:
+            return 'r'
+        if swinging:
+            return swinging[0]
+        return max(rm.SIDES, key=lambda s_: float(np.linalg.norm(self.feet[s_] - capture)))
 
 
 class FallController:

@@ -33,11 +33,11 @@ class SimulatorConfig:
     solver_iterations: int = 50
     ground_friction: float = 1.0
     foot_friction: float = 1.0
-    #: 'position': PyBullet's position motors (gain 0.4, effort-limited; what the published
-    #: results used). 'pd_torque': the robot's joint servos of robot/actuation.py (PD torque
-    #: loops, torque-speed envelope, friction, armature); it becomes the default once the
-    #: dataset is regenerated with it.
-    actuation: str = 'position'
+    #: 'pd_torque' (default): the robot's joint servos of robot/actuation.py (PD torque loops,
+    #: torque-speed envelope, viscous friction, rotor armature). 'position': PyBullet's position
+    #: motors (gain 0.4, effort-limited only), the robot of the results published before the
+    #: stabilizer (docs/results.md says which figures used which).
+    actuation: str = 'pd_torque'
     #: Scale of every servo's Kp and Kd with 'pd_torque'; 1 = the robot's real gains.
     servo_gain_scale: float = 1.0
     position_gain: float = 0.4

@@ -16,6 +16,7 @@ import numpy as np
 import pybullet as pb
 
 from fall_predictor.robot.controllers import BalanceController, ControllerSwitch, GaitConfig, ReflexConfig
+from fall_predictor.robot.stabilizer import StabilizerConfig
 from fall_predictor.monitor.records import Measurement, PushSpec
 from fall_predictor.robot import model as rm
 from fall_predictor.sim.simulator import Simulator, SimulatorConfig
@@ -65,8 +66,10 @@ class _Run:
     t_fallen: Optional[float] = None
 
 
-def _new_run(sim: Simulator, gait: GaitConfig, reflex: ReflexConfig, walk_duration_s: float) -> _Run:
-    balance = BalanceController(gait, reflex, sim.config.dt_s, walk_duration_s=walk_duration_s)
+def _new_run(sim: Simulator, gait: GaitConfig, reflex: ReflexConfig, walk_duration_s: float,
+             stabilizer: StabilizerConfig = StabilizerConfig()) -> _Run:
+    balance = BalanceController(gait, reflex, sim.config.dt_s, walk_duration_s=walk_duration_s,
+                                stabilizer=stabilizer)
     q0, torso0 = balance.initial_posture()
     m = sim.reset(q0, torso0)
     q, dq, _ = sim.joint_states()
@@ -102,11 +105,11 @@ class WalkPrefix:
 
     def __init__(self, sim: Simulator, until_s: float, walk_duration_s: float,
                  gait: GaitConfig = GaitConfig(), reflex: ReflexConfig = ReflexConfig(),
-                 snapshot_every_s: float = 0.1):
+                 snapshot_every_s: float = 0.1, stabilizer: StabilizerConfig = StabilizerConfig()):
         self.sim = sim
-        self.gait, self.reflex = gait, reflex
+        self.gait, self.reflex, self.stabilizer = gait, reflex, stabilizer
         self.walk_duration_s = walk_duration_s
-        run = _new_run(sim, gait, reflex, walk_duration_s)
+        run = _new_run(sim, gait, reflex, walk_duration_s, stabilizer)
         self._snapshots: list[tuple[float, int, int, _Run]] = []
         every = max(1, int(round(snapshot_every_s / sim.config.dt_s)))
         while sim.t < until_s - 1e-9:
@@ -142,7 +145,8 @@ def run_trajectory(push: Optional[PushSpec], duration_s: float,
                    stop_when_fallen: bool = True,
                    fall_trigger: Optional[Callable[[Measurement], bool]] = None,
                    simulator: Optional[Simulator] = None,
-                   prefix: Optional[WalkPrefix] = None) -> TrajectoryResult:
+                   prefix: Optional[WalkPrefix] = None,
+                   stabilizer: StabilizerConfig = StabilizerConfig()) -> TrajectoryResult:
     """Simulate from the standing posture for up to ``duration_s`` seconds.
 
     Stops early when fallen (if ``stop_when_fallen``). ``fall_trigger`` (a predictor) is asked
@@ -157,7 +161,7 @@ def run_trajectory(push: Optional[PushSpec], duration_s: float,
     else:
         own = simulator is None and prefix is None
         sim = prefix.sim if prefix is not None else (simulator or Simulator(sim_config))
-        run = _new_run(sim, gait, reflex, walk_duration_s=duration_s + 5.0)
+        run = _new_run(sim, gait, reflex, walk_duration_s=duration_s + 5.0, stabilizer=stabilizer)
     try:
         if push is not None:
             sim.schedule_push(push)
