@@ -1,7 +1,7 @@
 """Robot credibility of the previous and the current robot on the SPEC §3 push protocol (issue 9).
 
-'previous': PyBullet position motors, open-loop C_bal (the robot of the published results);
-'current': PD torque servos and the closed-loop stabilizer (the defaults).
+'previous': PyBullet position motors, stabilizer off; 'current': PD torque servos and the
+closed-loop stabilizer (the defaults). Both use today's walking plan and reflex.
 For N pushes of dataset seed 0 (the same pushes for both robots) simulates each trajectory
 with C_bal and reports, through the statistics `fall-predictor stats` uses: the CoM rise after
 the push (p50/p95/p99), the fraction of samples airborne while upright, the touchdown force

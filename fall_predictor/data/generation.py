@@ -37,8 +37,8 @@ def _default_push_distribution() -> PushDistribution:
 def simulated_robot() -> dict[str, Any]:
     """What a dataset records about the simulated robot (the capture-point baseline needs its
     mass)."""
-    from fall_predictor.sim.trajectory import ROBOT_NAME, ROBOT_TOTAL_MASS_KG
-    return {'name': ROBOT_NAME, 'total_mass_kg': ROBOT_TOTAL_MASS_KG}
+    from fall_predictor.sim.trajectory import ROBOT_CONTROL, ROBOT_NAME, ROBOT_TOTAL_MASS_KG
+    return {'name': ROBOT_NAME, 'total_mass_kg': ROBOT_TOTAL_MASS_KG, **ROBOT_CONTROL}
 
 
 @dataclass(frozen=True)
@@ -51,10 +51,14 @@ class GenerationConfig:
     pre_push_s: float = 1.0
     joint_state_rate_hz: float = 100.0
     push_distribution: PushDistribution = field(default_factory=_default_push_distribution)
+    #: Each trajectory draws its gait (SPEC §3 amendment); False walks the one default gait,
+    #: simulated once per worker and shared through snapshots.
+    gait_variety: bool = True
 
     def manifest(self) -> dict:
         return {'format': FORMAT, 'seed': self.seed, 'horizon_after_push_s': self.horizon_after_push_s,
                 'pre_push_s': self.pre_push_s, 'joint_state_rate_hz': self.joint_state_rate_hz,
+                'gait_variety': self.gait_variety,
                 'push_distribution': asdict(self.push_distribution), 'robot': simulated_robot()}
 
 
@@ -95,14 +99,37 @@ def _walk_prefix(config: GenerationConfig):
     return _WORKER_PREFIX[key]
 
 
+def _worker_simulator():
+    """One simulator per worker process, reset for every trajectory."""
+    from fall_predictor.sim.simulator import Simulator
+
+    if 'simulator' not in _WORKER_PREFIX:
+        _WORKER_PREFIX['simulator'] = Simulator()
+    return _WORKER_PREFIX['simulator']
+
+
+def _gait_fields(gait) -> dict:
+    if gait is None:
+        return {}
+    speed = gait.step_length_m / (gait.single_support_s + gait.double_support_s)
+    return {'gait_speed_m_s': round(speed, 6), 'gait_single_support_s': round(gait.single_support_s, 6),
+            'gait_step_width_m': round(2 * gait.stance_half_width_m, 6), 'gait_standing': gait.standing}
+
+
 def generate_one(out: Path, config: GenerationConfig, index: int) -> IndexRow:
     """Simulate trajectory ``index`` and write its bag and index row (atomically)."""
     from fall_predictor.sim.pushes import trajectory_seed
     from fall_predictor.sim.trajectory import ROBOT_JOINT_NAMES, run_trajectory
 
     tid = trajectory_id(index)
-    push = config.push_distribution.sample(trajectory_seed(config.seed, index))
-    result = run_trajectory(push, push.t_force_end + config.horizon_after_push_s, prefix=_walk_prefix(config))
+    rng = trajectory_seed(config.seed, index)
+    if config.gait_variety:
+        gait, push = config.push_distribution.sample_with_gait(rng)
+        result = run_trajectory(push, push.t_force_end + config.horizon_after_push_s, gait=gait,
+                                simulator=_worker_simulator())
+    else:
+        gait, push = None, config.push_distribution.sample(rng)
+        result = run_trajectory(push, push.t_force_end + config.horizon_after_push_s, prefix=_walk_prefix(config))
     t_start = round(push.t_push - config.pre_push_s, 6)
     keep = [i for i, m in enumerate(result.measurements) if m.t >= t_start - 1e-9]
     measurements = [result.measurements[i] for i in keep]
@@ -131,7 +158,7 @@ def generate_one(out: Path, config: GenerationConfig, index: int) -> IndexRow:
                    height_m=push.height_m, t_push=push.t_push, t_force_end=push.t_force_end,
                    fallen=result.fallen, t_fallen=result.t_fallen, t_height_drop=t_height_drop,
                    t_reflex=result.t_reflex, t_start=measurements[0].t, t_end=measurements[-1].t,
-                   samples=len(measurements))
+                   samples=len(measurements), **_gait_fields(gait))
     atomic_write_text(out / 'index' / f'{tid}.json', json.dumps(asdict(row), sort_keys=True))
     return row
 

@@ -66,6 +66,9 @@ class Measurement:
     right_foot: np.ndarray          #: (3,) right sole centre x, y [m] and yaw [rad]
     non_foot_contact: bool          #: a link other than a foot touches the ground
     push_force: np.ndarray = field(default_factory=lambda: np.zeros(3))  #: (3,) external push now, world [N]
+    #: (3, 3) torso orientation in the world (what the torso IMU measures); None where not
+    #: measured. The monitor does not use it (its wire layout does not carry it); C_bal does.
+    torso_rotation: Optional[np.ndarray] = None
 
     @property
     def fallen(self) -> bool:

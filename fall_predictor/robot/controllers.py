@@ -38,7 +38,12 @@ class GaitConfig:
     torso_height_m: float = 0.63      #: torso origin above the ground while walking
     stance_half_width_m: float = rm.HIP_HALF_WIDTH_M
     initial_stand_s: float = 0.5
+    #: Stand still on both feet instead of walking (the stabilizer and the reflex still act).
+    standing: bool = False
     preview_s: float = 1.6
+    #: After touchdown a swing leg solved for the measured torso tilt blends back to the
+    #: upright solution in this time [s].
+    touchdown_blend_s: float = 0.15
     #: The plan follows a measured foothold at most this far from the planned one [m].
     max_reanchor_m: float = 0.05
     #: Legs shorten by this times the CoM's rise above walking height beyond the tolerance.
@@ -121,13 +126,15 @@ class BalanceController:
         # by initial_posture); the pattern is planned for the CoM and the torso follows at
         # that offset.
         self.com_offset = m.com[:2].copy()
+        self._tilt_ik_weight = {side: 0.0 for side in rm.SIDES}
         self.com_height_m = float(m.com[2])
         self.omega = math.sqrt(GRAVITY / self.com_height_m)
         self.preview = PreviewController(self.dt_s, self.com_height_m, self.gait.preview_s)
         self.preview.reset(m.com[:2].copy())
         self.stabilizer = Stabilizer(self.stabilizer_config, self.omega, self.dt_s, self.model_mass_kg)
         g = self.gait
-        plan = plan_walk(tuple(self.feet['l']), tuple(self.feet['r']), m.t, self.walk_duration_s,
+        plan = plan_walk(tuple(self.feet['l']), tuple(self.feet['r']), m.t,
+                         0.0 if g.standing else self.walk_duration_s,
                          g.single_support_s, g.double_support_s, g.step_length_m, g.initial_stand_s)
         # The ZMP starts under the standing CoM and moves to between the feet while standing:
         # a reference that jumps asks the CoM for an impulsive start.
@@ -200,6 +207,7 @@ class BalanceController:
             x, y, z = soles[side]
             soles[side] = (x, y, z + corrections[side].height_m)
         self._set_legs(torso, soles)
+        self._swing_legs_for_measured_tilt(m, torso, soles, swinging)
         for side in rm.SIDES:
             legs = _LEG_SLICE[side]
             self.target[legs.start + 4] += corrections[side].pitch_rad
@@ -249,6 +257,37 @@ class BalanceController:
             hip = (tx, ty + (rm.HIP_HALF_WIDTH_M if side == 'l' else -rm.HIP_HALF_WIDTH_M), tz - rm.HIP_DROP_M)
             ankle = (x - rm.SOLE_FORWARD_OFFSET_M, y, z + rm.ANKLE_HEIGHT_M)
             self.target[_LEG_SLICE[side]] = kin.leg_ik_parallel(hip, ankle)
+
+    def _swing_legs_for_measured_tilt(self, m: Measurement, torso: np.ndarray, soles: dict,
+                                      swinging: set) -> None:
+        """Solve the reflex step's swing leg for the measured torso tilt (roll and pitch), so its
+        sole goes where planned in the world, flat, although the push has tilted the robot:
+        solved for an upright torso, the swing foot of a robot tilted towards it is driven into
+        the ground. Stance legs keep the upright solution, so their stiff servos push the torso
+        back upright; so do the swing legs of the unpushed walk, whose tilt stays within a few
+        degrees. After touchdown the leg blends back to the upright solution."""
+        if m.torso_rotation is None:
+            return
+        weights = self._tilt_ik_weight
+        decay = self.dt_s / self.gait.touchdown_blend_s
+        reflex_side = self._reflex_step.side if self._reflex_step is not None else None
+        for side in rm.SIDES:
+            stepping = side in swinging and side == reflex_side
+            weights[side] = 1.0 if stepping else max(0.0, weights[side] - decay)
+        active = [side for side in rm.SIDES if weights[side] > 0.0]
+        if not active:
+            return
+        rot = m.torso_rotation
+        pitch = math.asin(max(-1.0, min(1.0, -rot[2, 0])))
+        roll = math.atan2(rot[2, 1], rot[2, 2])
+        for side in active:
+            w = weights[side]
+            body = kin.rot_y(pitch * w) @ kin.rot_x(roll * w)
+            lateral = rm.HIP_HALF_WIDTH_M if side == 'l' else -rm.HIP_HALF_WIDTH_M
+            hip = torso + body @ np.array([0.0, lateral, -rm.HIP_DROP_M])
+            x, y, z = soles[side]
+            ankle = np.array([x - rm.SOLE_FORWARD_OFFSET_M, y, z + rm.ANKLE_HEIGHT_M])
+            self.target[_LEG_SLICE[side]] = kin.leg_ik(hip, body, ankle, np.eye(3))
 
     def _momentum_departed(self, m: Measurement) -> bool:
         mass = self.model_mass_kg

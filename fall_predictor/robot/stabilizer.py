@@ -18,7 +18,9 @@ stabilizer instead lets the ankles yield and steers the measured state back onto
    theta / T``. A swing foot's rotation relaxes to flat, so it touches down flat.
 4. **Foot force difference control.** The difference of the feet's commanded heights follows the
    difference between the measured and the desired vertical forces (``alpha`` of the total on
-   the left), so the leg with too much load shortens and a touchdown is absorbed.
+   the left), so the leg with too much load shortens.
+5. **Landing absorption.** A leg whose vertical force exceeds a landing threshold shortens in
+   proportion to the excess (an admittance), so a hard touchdown is absorbed, not bounced off.
 
 Gains follow the structure of Kajita et al. (IROS 2010) and the DCM stabilizer of Caron et al.
 (ICRA 2019); the values were tuned on this robot (see docs/method.md).
@@ -32,7 +34,7 @@ from typing import Mapping
 import numpy as np
 
 from fall_predictor.monitor.geometry import closest_point_on_boundary, convex_hull, point_in_convex_polygon
-from fall_predictor.monitor.records import Measurement
+from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2, Measurement
 from fall_predictor.robot import model as rm
 
 SIDES = rm.SIDES
@@ -59,6 +61,13 @@ class StabilizerConfig:
     force_difference_admittance: float = 4e-5
     force_difference_leak_s: float = 0.25
     max_height_difference_m: float = 0.03
+    #: Landing absorption: a foot's vertical force beyond ``landing_force_bw`` body weights
+    #: shortens its leg at this rate per newton [m/s per N], back with the leak [s], at most
+    #: ``max_landing_m``.
+    landing_force_bw: float = 1.3
+    landing_admittance: float = 2e-3
+    landing_leak_s: float = 0.2
+    max_landing_m: float = 0.05
     #: A foot carries load above this vertical force [N].
     loaded_force_n: float = 25.0
     #: p_d is kept this far inside the support polygon's boundary [m].
@@ -66,12 +75,13 @@ class StabilizerConfig:
 
     def __post_init__(self) -> None:
         for name in ('dcm_gain', 'dcm_integral_gain', 'cop_admittance_pitch', 'cop_admittance_roll',
-                     'force_difference_admittance', 'support_margin_m', 'loaded_force_n'):
+                     'force_difference_admittance', 'support_margin_m', 'loaded_force_n',
+                     'landing_force_bw', 'landing_admittance'):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ValueError(f'StabilizerConfig.{name} must be finite and >= 0, got {value!r}')
         for name in ('dcm_integral_leak_s', 'ankle_leak_s', 'force_difference_leak_s',
-                     'max_ankle_offset_rad', 'max_height_difference_m'):
+                     'max_ankle_offset_rad', 'max_height_difference_m', 'landing_leak_s', 'max_landing_m'):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f'StabilizerConfig.{name} must be finite and > 0, got {value!r}')
@@ -80,7 +90,7 @@ class StabilizerConfig:
         """The same configuration with every feedback gain at zero."""
         from dataclasses import replace
         return replace(self, dcm_gain=0.0, dcm_integral_gain=0.0, cop_admittance_pitch=0.0,
-                       cop_admittance_roll=0.0, force_difference_admittance=0.0)
+                       cop_admittance_roll=0.0, force_difference_admittance=0.0, landing_admittance=0.0)
 
 
 def foot_wrench(contacts: np.ndarray) -> tuple[float, np.ndarray]:
@@ -91,13 +101,6 @@ def foot_wrench(contacts: np.ndarray) -> tuple[float, np.ndarray]:
     if force <= 1e-9:
         return 0.0, np.full(2, np.nan)
     return force, contacts[:, :2].T @ contacts[:, 2] / force
-
-
-def sole_corners(centre_xy: np.ndarray, yaw: float = 0.0) -> list[tuple[float, float]]:
-    hl, hw = rm.SOLE_LENGTH_M / 2, rm.SOLE_WIDTH_M / 2
-    c, s = math.cos(yaw), math.sin(yaw)
-    return [(float(centre_xy[0] + c * dx - s * dy), float(centre_xy[1] + s * dx + c * dy))
-            for dx, dy in ((hl, hw), (hl, -hw), (-hl, -hw), (-hl, hw))]
 
 
 @dataclass
@@ -120,6 +123,8 @@ class Stabilizer:
         self.corrections = {side: FootCorrection() for side in SIDES}
         self.dcm_integral = np.zeros(2)
         self.height_difference_m = 0.0
+        self.landing_m = {side: 0.0 for side in SIDES}
+        self._polygons: dict = {}
         self.desired_zmp = np.zeros(2)
         self.dcm_error = np.zeros(2)
 
@@ -152,15 +157,14 @@ class Stabilizer:
         self.dcm_integral += dt * (error - self.dcm_integral / cfg.dcm_integral_leak_s)
         p_d = zmp_ref + cfg.dcm_gain * error + cfg.dcm_integral_gain * self.dcm_integral
         support = [s for s in SIDES if s not in swinging] or list(SIDES)
-        polygon = convex_hull([c for s in support for c in sole_corners(planted[s])])
-        p_d = self._inside(p_d, polygon)
+        p_d = self._inside(p_d, self._support_polygon(tuple((s, *map(float, planted[s])) for s in support)))
         self.desired_zmp = p_d
         # 2. Force distribution.
         if len(support) == 2:
             left, right = planted['l'], planted['r']
             axis = left - right
             length2 = float(axis @ axis)
-            alpha = float(np.clip((p_d - right) @ axis / length2, 0.0, 1.0)) if length2 > 1e-9 else 0.5
+            alpha = _clamp(float((p_d - right) @ axis) / length2, 0.0, 1.0) if length2 > 1e-9 else 0.5
             on_line = right + alpha * axis
             desired_cop = {'l': left + (p_d - on_line), 'r': right + (p_d - on_line)}
         else:
@@ -172,14 +176,14 @@ class Stabilizer:
             d_pitch = -corr.pitch_rad / cfg.ankle_leak_s
             d_roll = -corr.roll_rad / cfg.ankle_leak_s
             if side in loaded and side in desired_cop:
-                target = self._inside(desired_cop[side], sole_corners(planted[side]))
+                target = self._inside_sole(desired_cop[side], planted[side])
                 err = target - cops[side]
                 # Toe down (+pitch) moves the CoP forward; +roll lifts the left edge (CoP to -y).
                 d_pitch += cfg.cop_admittance_pitch * err[0]
                 d_roll -= cfg.cop_admittance_roll * err[1]
             limit = cfg.max_ankle_offset_rad
-            corr.pitch_rad = float(np.clip(corr.pitch_rad + dt * d_pitch, -limit, limit))
-            corr.roll_rad = float(np.clip(corr.roll_rad + dt * d_roll, -limit, limit))
+            corr.pitch_rad = _clamp(corr.pitch_rad + dt * d_pitch, -limit, limit)
+            corr.roll_rad = _clamp(corr.roll_rad + dt * d_roll, -limit, limit)
         # 4. Foot force difference control (double support only).
         rate = -self.height_difference_m / cfg.force_difference_leak_s
         if len(loaded) == 2:
@@ -187,23 +191,48 @@ class Stabilizer:
             desired_difference = (2.0 * alpha - 1.0) * total
             rate += cfg.force_difference_admittance * ((forces['l'] - forces['r']) - desired_difference)
         limit = cfg.max_height_difference_m
-        self.height_difference_m = float(np.clip(self.height_difference_m + dt * rate, -limit, limit))
+        self.height_difference_m = _clamp(self.height_difference_m + dt * rate, -limit, limit)
+        # 5. Landing absorption: a leg loaded beyond the landing force shortens in proportion to
+        # the excess, and extends back once it is below.
+        weight = self.mass_kg * STANDARD_GRAVITY_M_S2
+        for side in SIDES:
+            excess = max(0.0, forces[side] - cfg.landing_force_bw * weight)
+            rate = cfg.landing_admittance * excess - self.landing_m[side] / cfg.landing_leak_s
+            self.landing_m[side] = _clamp(self.landing_m[side] + dt * rate, 0.0, cfg.max_landing_m)
         # Positive difference lifts the left sole (shortens the overloaded left leg).
-        self.corrections['l'].height_m = 0.5 * self.height_difference_m
-        self.corrections['r'].height_m = -0.5 * self.height_difference_m
+        self.corrections['l'].height_m = 0.5 * self.height_difference_m + self.landing_m['l']
+        self.corrections['r'].height_m = -0.5 * self.height_difference_m + self.landing_m['r']
         return self.corrections
 
-    def _inside(self, point: np.ndarray, polygon: list) -> np.ndarray:
-        """``point`` if it lies inside ``polygon`` shrunk by the margin, else the nearest such point."""
+    def _support_polygon(self, key: tuple) -> list:
+        """The support polygon of the planted soles ``key`` ((side, x, y), ...), shrunk by the
+        margin; cached, since the soles move only from one step to the next."""
+        polygon = self._polygons.get(key)
+        if polygon is None:
+            margin = self.config.support_margin_m
+            hl, hw = rm.SOLE_LENGTH_M / 2 - margin, rm.SOLE_WIDTH_M / 2 - margin
+            corners = [(x + dx, y + dy) for _, x, y in key for dx in (-hl, hl) for dy in (-hw, hw)]
+            polygon = convex_hull(corners)
+            if len(self._polygons) > 16:
+                self._polygons.clear()
+            self._polygons[key] = polygon
+        return polygon
+
+    def _inside_sole(self, point: np.ndarray, centre: np.ndarray) -> np.ndarray:
+        """``point`` clamped into the sole around ``centre`` shrunk by the margin."""
         margin = self.config.support_margin_m
+        hl, hw = rm.SOLE_LENGTH_M / 2 - margin, rm.SOLE_WIDTH_M / 2 - margin
+        return np.array([_clamp(float(point[0]), centre[0] - hl, centre[0] + hl),
+                         _clamp(float(point[1]), centre[1] - hw, centre[1] + hw)])
+
+    @staticmethod
+    def _inside(point: np.ndarray, polygon: list) -> np.ndarray:
+        """``point`` if it lies inside ``polygon``, else the nearest point of its boundary."""
         px, py = float(point[0]), float(point[1])
-        if len(polygon) < 3:
-            return np.asarray(point, dtype=float)
-        centroid = np.mean(np.asarray(polygon), axis=0)
-        shrunk = [(x - margin * np.sign(x - centroid[0]) if abs(x - centroid[0]) > margin else centroid[0],
-                   y - margin * np.sign(y - centroid[1]) if abs(y - centroid[1]) > margin else centroid[1])
-                  for x, y in polygon]
-        shrunk = convex_hull(shrunk)
-        if len(shrunk) < 3 or point_in_convex_polygon(px, py, shrunk):
+        if len(polygon) < 3 or point_in_convex_polygon(px, py, polygon):
             return np.array([px, py])
-        return np.array(closest_point_on_boundary(px, py, shrunk))
+        return np.array(closest_point_on_boundary(px, py, polygon))
+
+
+def _clamp(value: float, low: float, high: float) -> float:
+    return low if value < low else high if value > high else value

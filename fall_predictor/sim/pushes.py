@@ -1,7 +1,8 @@
-"""The push protocol of SPEC §3: random pushes at random instants of the walk cycle."""
+"""The push protocol of SPEC §3: a random gait, then a random push at a random instant of its
+walk cycle."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -19,6 +20,14 @@ class PushDistribution:
     height_m: tuple[float, float] = (-0.05, 0.25)
     settle_s: float = 2.1
     duration_s: float = PUSH_DURATION_S
+    #: Gait variety (SPEC §3 amendment), drawn by :meth:`sample_with_gait` before the push:
+    #: forward speed, single-support duration (double support fixed), step width between the
+    #: sole centres, and the fraction of trajectories that stand still instead of walking.
+    gait_speed_m_s: tuple[float, float] = (0.0, 0.25)
+    gait_single_support_s: tuple[float, float] = (0.45, 0.7)
+    gait_double_support_s: float = 0.2
+    gait_step_width_m: tuple[float, float] = (0.16, 0.22)
+    standing_fraction: float = 0.1
 
     def walk_cycle_s(self, gait: GaitConfig = GaitConfig()) -> float:
         return 2.0 * (gait.single_support_s + gait.double_support_s)
@@ -32,6 +41,23 @@ class PushDistribution:
         # Onsets on the 1 ms simulation grid, so a push starts exactly at a step.
         return PushSpec(force_n=float(force), angle_deg=float(angle), height_m=float(height),
                         t_push=round(onset, 3), duration_s=self.duration_s)
+
+    def sample_gait(self, rng: np.random.Generator) -> GaitConfig:
+        """One gait of the SPEC §3 amendment (speed 0 steps in place); fixed order of draws."""
+        speed = rng.uniform(*self.gait_speed_m_s)
+        single = rng.uniform(*self.gait_single_support_s)
+        width = rng.uniform(*self.gait_step_width_m)
+        standing = bool(rng.uniform() < self.standing_fraction)
+        cycle_half_s = single + self.gait_double_support_s
+        return replace(GaitConfig(), single_support_s=float(single),
+                       double_support_s=self.gait_double_support_s,
+                       step_length_m=float(speed * cycle_half_s), stance_half_width_m=float(width / 2),
+                       standing=standing)
+
+    def sample_with_gait(self, rng: np.random.Generator) -> tuple[GaitConfig, PushSpec]:
+        """The gait of a trajectory, then its push, the onset uniform over one cycle of that gait."""
+        gait = self.sample_gait(rng)
+        return gait, self.sample(rng, gait)
 
     def onset(self, rng: np.random.Generator, gait: GaitConfig = GaitConfig()) -> float:
         return round(self.settle_s + rng.uniform(0.0, self.walk_cycle_s(gait)), 3)

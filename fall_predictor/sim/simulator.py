@@ -296,6 +296,6 @@ class Simulator:
             feet[side] = np.array([fp[0], fp[1], math.atan2(fo[1, 0], fo[0, 0])])
         meas = Measurement(t=self.t, com=com, lin_mom=lin_mom, ang_mom=ang, heading=heading, cop=cop,
                            left_contacts=left, right_contacts=right, left_foot=feet['l'],
-                           right_foot=feet['r'], non_foot_contact=non_foot)
+                           right_foot=feet['r'], non_foot_contact=non_foot, torso_rotation=rot0)
         self._prev_measurement = meas
         return meas

@@ -25,6 +25,8 @@ from fall_predictor.sim.simulator import Simulator, SimulatorConfig
 ROBOT_NAME = 'asimo_like'
 ROBOT_TOTAL_MASS_KG = rm.TOTAL_MASS_KG
 ROBOT_JOINT_NAMES = rm.JOINT_NAMES
+#: How the simulated robot is driven (recorded in every dataset's manifest).
+ROBOT_CONTROL = {'actuation': SimulatorConfig().actuation, 'stabilizer': StabilizerConfig().enabled}
 
 
 @dataclass
