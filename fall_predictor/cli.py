@@ -201,9 +201,14 @@ def cmd_evaluate(args) -> int:
                'trained_on_this_dataset': metadata.dataset_fingerprint == evaluation.dataset_fingerprint}
     r = evaluation.result
     lines = [f'{r.n_trajectories} trajectories ({r.n_fallen} fallen), tau_his {tau_his:.3f} s',
-             f'FPR {r.fpr:.3f} ({r.n_false_positives}/{r.n_balanced} balanced trajectories)',
-             f'tau_lead {r.tau_lead_s:.3f} s, oracle lead {r.oracle_lead_s:.3f} s, lead fraction '
+             f'FPR {r.fpr:.3f} ({r.n_false_positives}/{r.n_balanced} balanced trajectories), '
+             f'Wilson 95 % [{r.fpr_ci95[0]:.3f}, {r.fpr_ci95[1]:.3f}]',
+             f'tau_lead {r.tau_lead_s:.3f} s (bootstrap 95 % [{r.tau_lead_ci95[0]:.3f}, '
+             f'{r.tau_lead_ci95[1]:.3f}]), oracle lead {r.oracle_lead_s:.3f} s, lead fraction '
              f'{r.lead_fraction:.2f}, misses {r.n_missed}/{r.n_fallen}',
+             f'decision lists alone (CoM guard off): tau_lead {r.tau_lead_lists_only_s:.3f} s, '
+             f'misses {r.n_missed_lists_only}/{r.n_fallen}; CoM guard alone: tau_lead '
+             f'{r.tau_lead_guard_only_s:.3f} s',
              f'pre-push false alarms: {r.n_pre_push_alarms_balanced} balanced, '
              f'{r.n_pre_push_alarms_fallen} fallen trajectories',
              f'mean rule size {r.mean_rule_size:.2f}']
