@@ -147,7 +147,8 @@ def _json_value(value: Any) -> Any:
 def evaluation_result_json(result: EvaluationResult) -> dict[str, Any]:
     """The fields of ``result`` (NaN and infinity -> null; intervals as ``[low, high]``), plus the
     short names of the SPEC §11 figures: ``misses_lists_only`` and ``tau_lead_lists_only``."""
-    payload = {key: _json_value(value) for key, value in dataclasses.asdict(result).items()}
+    payload = {key: _json_value(value) for key, value in dataclasses.asdict(result).items()
+               if key != 'leads_s'}
     payload['misses_lists_only'] = result.n_missed_lists_only
     payload['tau_lead_lists_only'] = json_float(result.tau_lead_lists_only_s)
     return payload

@@ -79,6 +79,8 @@ class EvaluationResult:
     tau_lead_lists_only_s: float = math.nan         #: lead with the CoM guard off
     tau_lead_lists_only_ci95: tuple[float, float] = (math.nan, math.nan)
     tau_lead_guard_only_s: float = math.nan         #: lead of the CoM guard by itself
+    #: per fallen trajectory, its lead [s] (0 for a miss): for pooled intervals; not in JSON
+    leads_s: tuple[float, ...] = ()
 
     @property
     def n_pre_push_alarms(self) -> int:
@@ -164,7 +166,7 @@ def evaluate(trajectories: Sequence[TrajectoryFeatures], alarms: Sequence[Trajec
         lead_fraction=tau_lead_s / oracle_lead_s if oracle_lead_s > 0 else math.nan,
         mean_rule_size=mean_rule_size,
         fpr_ci95=wilson_interval(false_positives, n_balanced),
-        tau_lead_ci95=bootstrap_mean_interval(leads), **extra)
+        tau_lead_ci95=bootstrap_mean_interval(leads), leads_s=tuple(leads), **extra)
 
 
 def evaluate_atomic(trajectories: Sequence[TrajectoryFeatures], atomic: Sequence[np.ndarray],
