@@ -67,8 +67,18 @@ def test_tiny_sweep_writes_json_table_and_figures(fixture_dataset, tmp_path, cap
     assert set(document['baselines']) == {'com_height', 'momentum', 'capture_point'}
     assert all(document['baselines'].values())
     assert document["timing"]["n_fits"] == 8
+    # SPEC §11: nested operating points (chosen on the other fold) with intervals
+    nested = document['nested_selection']
+    for entry in nested['nested']:
+        outer = entry['outer']
+        assert len(entry['chosen_per_fold']) == 2
+        assert outer['n_balanced'] == document['dataset']['n_balanced']
+        if outer['fpr'] is not None:
+            assert outer['fpr_ci95'][0] <= outer['fpr'] <= outer['fpr_ci95'][1]
+    assert nested['paper_settings_fixed']['FP-L1'] == {'setting': [-0.3, 0.016], 'in_grid': False}
     table = (out_dir / 'table.md').read_text()
     assert 'Table 2 analogue' in table and 'FP-L2 (paper)' in table
+    assert 'best lead at FPR ≤ 0.06 (nested)' in table and 'FP-L2 settings (fixed)' in table
     for name in ('fig10_tradeoff.png', 'fig11_parameters.png', 'fig11_learning_curve.png'):
         assert (out_dir / name).read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
     assert sorted(p.name for p in out_dir.iterdir()) == sorted(     # no temporary file left

@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 from collections import defaultdict
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Optional, Sequence
 
 from fall_predictor.learning.crossval import FoldFit
 from fall_predictor.learning.intervals import bootstrap_mean_interval, wilson_interval
@@ -118,3 +118,79 @@ def fixed_setting(fits: Sequence[FoldFit], setting: Setting) -> PooledFigures:
     if key not in grid[min(grid)]:
         raise ValueError(f'setting {setting} is not in the cross-validated grid')
     return pool_results([grid[k][key] for k in sorted(grid)])
+
+
+#: FPR budgets of the nested "best lead at FPR <= x" points of the sweep report
+NESTED_FPR_BUDGETS = (0.005, 0.01, 0.06, 0.46)
+
+
+def _json_float(value: float):
+    return float(value) if math.isfinite(value) else None
+
+
+def pooled_json(pooled: PooledFigures) -> dict:
+    """``pooled`` as JSON (NaN -> null; intervals as ``[low, high]``)."""
+    return {'n_balanced': pooled.n_balanced, 'n_false_positives': pooled.n_false_positives,
+            'fpr': _json_float(pooled.fpr), 'fpr_ci95': [_json_float(v) for v in pooled.fpr_ci95],
+            'n_fallen': pooled.n_fallen, 'tau_lead_s': _json_float(pooled.tau_lead_s),
+            'tau_lead_ci95': [_json_float(v) for v in pooled.tau_lead_ci95],
+            'n_missed': pooled.n_missed}
+
+
+def nested_report_json(fits: Sequence[FoldFit], paper_settings: dict[str, Setting],
+                       budgets: Sequence[float] = NESTED_FPR_BUDGETS) -> Optional[dict]:
+    """The sweep's SPEC §11 section: nested points per FPR budget, and the paper's own settings
+    (those in the grid) at fixed settings; None when there are no fold results."""
+    if not fits:
+        return None
+    grid_settings = set(next(iter(_per_fold_grid(fits).values())))
+    nested = []
+    for budget in budgets:
+        point = nested_operating_point(fits, budget)
+        nested.append({'max_fpr': budget, 'outer': pooled_json(point.outer),
+                       'chosen_per_fold': [list(s) for s in point.chosen],
+                       'selected_in_hindsight': list(point.selected_in_hindsight),
+                       'hindsight': pooled_json(point.hindsight)})
+    fixed = {name: ({'setting': list(setting), **pooled_json(fixed_setting(fits, setting))}
+                    if (float(setting[0]), float(setting[1])) in grid_settings else
+                    {'setting': list(setting), 'in_grid': False})
+             for name, setting in paper_settings.items()}
+    return {'rule': 'per outer fold, the longest pooled lead among settings whose pooled FPR '
+                    'over the other folds is <= max_fpr (else the lowest FPR); reported pooled '
+                    'over the outer folds (Wilson / bootstrap 95 % intervals)',
+            'nested': nested, 'paper_settings_fixed': fixed}
+
+
+def nested_table_lines(document: Optional[dict]) -> list[str]:
+    """Markdown lines for ``table.md`` from :func:`nested_report_json`'s document."""
+    if document is None:
+        return []
+
+    def fig(pooled: dict) -> str:
+        if pooled.get('fpr') is None or pooled.get('tau_lead_s') is None:
+            return '— | —'
+        return (f"{pooled['fpr']:.3f} [{pooled['fpr_ci95'][0]:.3f}, {pooled['fpr_ci95'][1]:.3f}] | "
+                f"{pooled['tau_lead_s']:.2f} [{pooled['tau_lead_ci95'][0]:.2f}, "
+                f"{pooled['tau_lead_ci95'][1]:.2f}]")
+
+    lines = ['', '## Nested selection and fixed settings (SPEC §11)', '',
+             f"Rule: {document['rule']}. Hindsight = chosen and reported on all folds (optimistic).",
+             '', '| operating point | FPR [95 % CI] | tau_lead [s] [95 % CI] | misses | settings chosen |',
+             '|---|---|---|---|---|']
+    for entry in document['nested']:
+        outer, hind = entry['outer'], entry['hindsight']
+        chosen = sorted({tuple(s) for s in entry['chosen_per_fold']})
+        lines.append(f"| best lead at FPR ≤ {entry['max_fpr']} (nested) | {fig(outer)} | "
+                     f"{outer['n_missed']}/{outer['n_fallen']} | "
+                     + ', '.join(f'({a:+.2f}, {b:.3f})' for a, b in chosen) + ' |')
+        lines.append(f"| same, hindsight | {fig(hind)} | {hind['n_missed']}/{hind['n_fallen']} | "
+                     f"({entry['selected_in_hindsight'][0]:+.2f}, "
+                     f"{entry['selected_in_hindsight'][1]:.3f}) |")
+    for name, entry in document['paper_settings_fixed'].items():
+        setting = f"({entry['setting'][0]:+.2f}, {entry['setting'][1]:.3f})"
+        if entry.get('in_grid') is False:
+            lines.append(f'| {name} settings (fixed) | not in the grid | | | {setting} |')
+        else:
+            lines.append(f"| {name} settings (fixed) | {fig(entry)} | "
+                         f"{entry['n_missed']}/{entry['n_fallen']} | {setting} |")
+    return lines
