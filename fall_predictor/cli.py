@@ -252,6 +252,17 @@ def cmd_sweep(args) -> int:
         result = run_sweep(args.data, args.out, config, jobs=args.jobs,
                            skip_unreadable=args.skip_unreadable, progress=not args.json,
                            command=command)
+        test_set = None
+        if args.test_data is not None:
+            import json
+
+            from fall_predictor.monitor.fileio import atomic_write_text
+            from fall_predictor.learning.heldout import evaluate_on_test_set
+            from fall_predictor.learning.report import sweep_json
+            test_set = evaluate_on_test_set(result, sweep_json(result)['nested_selection'],
+                                            args.test_data, args.jobs, args.skip_unreadable,
+                                            progress=not args.json)
+            atomic_write_text(args.out / 'test_set.json', json.dumps(test_set, indent=1) + '\n')
     except DatasetError as error:
         return _fail('sweep', error)
     t = result.timing
@@ -264,6 +275,8 @@ def cmd_sweep(args) -> int:
                             for paper, p in result.selected],
                'timing': {'total_s': t.total_s, 'n_fits': t.n_fits, 'fit_s_mean_full': t.fit_s_mean_full,
                           'jobs': t.jobs}}
+    if test_set is not None:
+        payload['test_set'] = test_set
     lines = [f'{len(result.points)} predictors ({result.config.folds}-fold CV over '
              f'{result.n_trajectories} trajectories, {result.n_fallen} fallen) in {t.total_s:.0f} s '
              f'with {t.jobs} job(s): {t.n_fits} trainings, mean full-size fit {t.fit_s_mean_full:.2f} s']
@@ -432,6 +445,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--learning-curve', type=argtypes.list_of(argtypes.positive_int), default=None, metavar='LIST',
                    help='training-set sizes of the learning curve (default 50,100,250,500,900)')
     p.add_argument('--no-learning-curve', action='store_true', help='skip the learning curve')
+    p.add_argument('--test-data', type=Path, default=None, metavar='DIR',
+                   help='held-out test dataset (another seed): the chosen predictors are trained on '
+                        'all of --data and evaluated on DIR, written to test_set.json')
     p.add_argument('--no-capture-point', action='store_true',
                    help='skip the capture-point baseline (it reads every bag once to fill its cache)')
     p.add_argument('--quick', action='store_true',

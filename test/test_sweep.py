@@ -2,10 +2,13 @@
 subcommand ``sweep`` on a small generated dataset."""
 import json
 import math
+import shutil
 
 import pytest
 
 from fall_predictor import cli
+from fall_predictor.learning.metrics import evaluate_lists
+from fall_predictor.learning.training import load_dataset, train_model
 from fall_predictor.learning.sweep import SweepConfig
 
 from learning_fixtures import fixture_dataset  # noqa: F401  (a pytest fixture)
@@ -93,3 +96,33 @@ def test_sweep_rejects_bad_settings(fixture_dataset, tmp_path, capsys):
     code, _, err = run_cli(capsys, 'sweep', '--data', str(fixture_dataset), '--out', str(tmp_path),
                            '--folds', '13')
     assert code == 2 and 'fewer than 13 folds' in err
+
+
+def test_sweep_evaluates_the_chosen_predictors_on_a_held_out_dataset(fixture_dataset, tmp_path,
+                                                                     capsys):
+    # The "test dataset": a copy holding only the first 5 of the 8 trajectories (another
+    # fingerprint). Refused when it is the sweep dataset itself.
+    held_out = tmp_path / 'held_out'
+    shutil.copytree(fixture_dataset, held_out)
+    for row in sorted((held_out / 'index').glob('traj_*.json'))[5:]:
+        row.unlink()
+    out_dir = tmp_path / 'sweep'
+    common = ('sweep', '--data', str(fixture_dataset), '--out', str(out_dir), '--folds', '2',
+              '--tau-plus=-0.25,0', '--tau-his', '0,0.06', '--no-learning-curve',
+              '--no-capture-point', '--quick', '--json')
+    code, _, err = run_cli(capsys, *common, '--test-data', str(fixture_dataset))
+    assert code == 2 and 'sweep dataset itself' in err
+    code, out, err = run_cli(capsys, *common, '--test-data', str(held_out))
+    assert code == 0, err
+    document = json.loads((out_dir / 'test_set.json').read_text())
+    assert json.loads(out)['test_set'] == document
+    assert document['n_test_trajectories'] == 5
+    by_name = {p['name']: p for p in document['predictors']}
+    assert set(by_name) >= {'FP-L2 settings (fixed)', 'best lead at FPR <= 0.06'}
+    # FP-L2: trained on all 8 trajectories at tau_plus -0.25 s, evaluated at tau_his 0.06 s
+    lists, _ = train_model(fixture_dataset, -0.25, 'tree')
+    expected = evaluate_lists(load_dataset(held_out).trajectories, lists, (0.06,))[0.06]
+    fp_l2 = by_name['FP-L2 settings (fixed)']
+    assert fp_l2['n_false_positives'] == expected.n_false_positives
+    assert fp_l2['tau_lead_s'] == pytest.approx(expected.tau_lead_s)
+    assert fp_l2['fpr_ci95'][0] <= fp_l2['fpr'] <= fp_l2['fpr_ci95'][1]
