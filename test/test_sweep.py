@@ -79,6 +79,9 @@ def test_tiny_sweep_writes_json_table_and_figures(fixture_dataset, tmp_path, cap
         if outer['fpr'] is not None:
             assert outer['fpr_ci95'][0] <= outer['fpr'] <= outer['fpr_ci95'][1]
     assert nested['paper_settings_fixed']['FP-L1'] == {'setting': [-0.3, 0.016], 'in_grid': False}
+    assert set(document['baselines_nested']) == {'com_height', 'momentum', 'capture_point'}
+    for entries in document['baselines_nested'].values():
+        assert {c['tau_his_s'] for e in entries for c in e['chosen_per_fold']} <= {0.0, 0.06}
     table = (out_dir / 'table.md').read_text()
     assert 'Table 2 analogue' in table and 'FP-L2 (paper)' in table
     assert 'best lead at FPR ≤ 0.06 (nested)' in table and 'FP-L2 settings (fixed)' in table

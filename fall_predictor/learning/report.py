@@ -61,6 +61,7 @@ def sweep_json(result: SweepResult) -> dict[str, Any]:
             **{f'baseline_{name}': json_float(pareto_mean_lead(curve))
                for name, curve in result.baselines.named().items()}},
         'nested_selection': _nested(result),
+        'baselines_nested': result.baselines_nested,
         'learning_curve': [_point_json(p) for p in result.learning_curve],
         'trainings': [{'fold': fit.fold, 'tau_plus_s': fit.tau_plus_s, 'n_train': fit.n_train,
                        'fit_s': fit.fit_s, 'mean_rule_size': fit.mean_rule_size,
