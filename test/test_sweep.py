@@ -85,11 +85,12 @@ def test_tiny_sweep_writes_json_table_and_figures(fixture_dataset, tmp_path, cap
     table = (out_dir / 'table.md').read_text()
     assert 'Table 2 analogue' in table and 'FP-L2 (paper)' in table
     assert 'best lead at FPR ≤ 0.06 (nested)' in table and 'FP-L2 settings (fixed)' in table
-    for name in ('fig10_tradeoff.png', 'fig11_parameters.png', 'fig11_learning_curve.png'):
+    for name in ('fig10_tradeoff.png', 'fig11_parameters.png', 'fig11_learning_curve.png',
+                 'pareto_intervals.png'):
         assert (out_dir / name).read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
     assert sorted(p.name for p in out_dir.iterdir()) == sorted(     # no temporary file left
         ['sweep.json', 'table.md', 'fig10_tradeoff.png', 'fig11_parameters.png',
-         'fig11_learning_curve.png'])
+         'fig11_learning_curve.png', 'pareto_intervals.png'])
 
 
 def test_sweep_rejects_bad_settings(fixture_dataset, tmp_path, capsys):

@@ -34,6 +34,8 @@ from fall_predictor.learning.learners import RuleListLearner
 from fall_predictor.learning.plots import plot_sweep
 from fall_predictor.learning.report import sweep_json, sweep_table
 from fall_predictor.learning.fair_baselines import cross_validated_baselines
+from fall_predictor.learning.nested import nested_report_json
+from fall_predictor.learning.plots_intervals import plot_pareto_intervals
 from fall_predictor.learning.selection import PaperPredictor, select_paper_analogues
 from fall_predictor.learning.training import (BALANCED_WEIGHT, DEFAULT_SAMPLE_STRIDE,
                                               FALLING_WEIGHT, PathLike, check_sample_stride,
@@ -211,6 +213,11 @@ def run_sweep(data_dir: PathLike, out_dir: PathLike, config: SweepConfig = Sweep
     out_dir.mkdir(parents=True, exist_ok=True)
     figures = plot_sweep(out_dir, points, pareto, selected, tuple(learning_curve), baselines,
                          config)
+    grid_fits = [fit for fit in fits if fit.train_size is None]
+    if grid_fits:
+        figures = list(figures) + [plot_pareto_intervals(
+            out_dir / 'pareto_intervals.png', grid_fits, points,
+            nested_report_json(grid_fits, {}), baselines_nested)]
     plots_s = time.perf_counter() - start
     sweep_fit_ids = {id(fit) for fit in fits}
     all_fits = tuple(fits) + tuple(fit for fit in curve_fits if id(fit) not in sweep_fit_ids)
