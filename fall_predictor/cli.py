@@ -201,9 +201,14 @@ def cmd_evaluate(args) -> int:
                'trained_on_this_dataset': metadata.dataset_fingerprint == evaluation.dataset_fingerprint}
     r = evaluation.result
     lines = [f'{r.n_trajectories} trajectories ({r.n_fallen} fallen), tau_his {tau_his:.3f} s',
-             f'FPR {r.fpr:.3f} ({r.n_false_positives}/{r.n_balanced} balanced trajectories)',
-             f'tau_lead {r.tau_lead_s:.3f} s, oracle lead {r.oracle_lead_s:.3f} s, lead fraction '
+             f'FPR {r.fpr:.3f} ({r.n_false_positives}/{r.n_balanced} balanced trajectories), '
+             f'Wilson 95 % [{r.fpr_ci95[0]:.3f}, {r.fpr_ci95[1]:.3f}]',
+             f'tau_lead {r.tau_lead_s:.3f} s (bootstrap 95 % [{r.tau_lead_ci95[0]:.3f}, '
+             f'{r.tau_lead_ci95[1]:.3f}]), oracle lead {r.oracle_lead_s:.3f} s, lead fraction '
              f'{r.lead_fraction:.2f}, misses {r.n_missed}/{r.n_fallen}',
+             f'decision lists alone (CoM guard off): tau_lead {r.tau_lead_lists_only_s:.3f} s, '
+             f'misses {r.n_missed_lists_only}/{r.n_fallen}; CoM guard alone: tau_lead '
+             f'{r.tau_lead_guard_only_s:.3f} s',
              f'pre-push false alarms: {r.n_pre_push_alarms_balanced} balanced, '
              f'{r.n_pre_push_alarms_fallen} fallen trajectories',
              f'mean rule size {r.mean_rule_size:.2f}']
@@ -247,6 +252,17 @@ def cmd_sweep(args) -> int:
         result = run_sweep(args.data, args.out, config, jobs=args.jobs,
                            skip_unreadable=args.skip_unreadable, progress=not args.json,
                            command=command)
+        test_set = None
+        if args.test_data is not None:
+            import json
+
+            from fall_predictor.monitor.fileio import atomic_write_text
+            from fall_predictor.learning.heldout import evaluate_on_test_set
+            from fall_predictor.learning.report import sweep_json
+            test_set = evaluate_on_test_set(result, sweep_json(result)['nested_selection'],
+                                            args.test_data, args.jobs, args.skip_unreadable,
+                                            progress=not args.json)
+            atomic_write_text(args.out / 'test_set.json', json.dumps(test_set, indent=1) + '\n')
     except DatasetError as error:
         return _fail('sweep', error)
     t = result.timing
@@ -259,6 +275,8 @@ def cmd_sweep(args) -> int:
                             for paper, p in result.selected],
                'timing': {'total_s': t.total_s, 'n_fits': t.n_fits, 'fit_s_mean_full': t.fit_s_mean_full,
                           'jobs': t.jobs}}
+    if test_set is not None:
+        payload['test_set'] = test_set
     lines = [f'{len(result.points)} predictors ({result.config.folds}-fold CV over '
              f'{result.n_trajectories} trajectories, {result.n_fallen} fallen) in {t.total_s:.0f} s '
              f'with {t.jobs} job(s): {t.n_fits} trainings, mean full-size fit {t.fit_s_mean_full:.2f} s']
@@ -430,6 +448,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--learning-curve', type=argtypes.list_of(argtypes.positive_int), default=None, metavar='LIST',
                    help='training-set sizes of the learning curve (default 50,100,250,500,900)')
     p.add_argument('--no-learning-curve', action='store_true', help='skip the learning curve')
+    p.add_argument('--test-data', type=Path, default=None, metavar='DIR',
+                   help='held-out test dataset (another seed): the chosen predictors are trained on '
+                        'all of --data and evaluated on DIR, written to test_set.json')
     p.add_argument('--no-capture-point', action='store_true',
                    help='skip the capture-point baseline (it reads every bag once to fill its cache)')
     p.add_argument('--quick', action='store_true',

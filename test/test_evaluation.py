@@ -9,6 +9,7 @@ import pytest
 from fall_predictor import cli
 from fall_predictor.learning.evaluation import (capture_point_distances_cached, evaluate_model,
                                                 evaluation_json, json_float)
+from fall_predictor.learning.intervals import wilson_interval
 from fall_predictor.learning.metrics import evaluate_lists
 from fall_predictor.learning.training import load_dataset, train_model
 from fall_predictor.monitor.model_file import save_model
@@ -64,3 +65,12 @@ def test_cli_evaluate(fixture_dataset, tmp_path, capsys):
     assert evaluation['trained_on_this_dataset'] is True
     for key in ('n_missed', 'n_pre_push_alarms', 'oracle_lead_s', 'lead_fraction', 'mean_rule_size'):
         assert key in evaluation
+    # SPEC §11 figures: Wilson interval of the FPR counts, lists alone never better than with guard
+    low, high = evaluation['fpr_ci95']
+    assert low <= evaluation['fpr'] <= high
+    assert [low, high] == pytest.approx(list(wilson_interval(expected.n_false_positives,
+                                                             expected.n_balanced)))
+    assert evaluation['misses_lists_only'] >= evaluation['n_missed']
+    assert evaluation['tau_lead_lists_only'] <= evaluation['tau_lead_s'] + 1e-12
+    lead_low, lead_high = evaluation['tau_lead_ci95']
+    assert lead_low <= evaluation['tau_lead_s'] <= lead_high

@@ -106,3 +106,34 @@ def test_mean_and_std_leave_nan_out_and_are_nan_without_values():
     assert std_or_nan([1.0, math.nan, 3.0]) == 1.0           # population standard deviation
     assert mean_or_nan((0.5,)) == 0.5 and std_or_nan((0.5,)) == 0.0
     assert mean_or_nan([1.0, math.inf]) == math.inf           # only NaN is left out
+
+
+def test_lists_alone_and_guard_alone_are_reported_apart():
+    # The list says falling 0.5 s before fallen on one trajectory and never on the other; the
+    # guard fires 0.2 s before fallen on both.
+    caught = trajectory('caught', True, t_fallen=2.5, com_drop_at=2.3)
+    missed = trajectory('missed', True, t_fallen=2.5, com_drop_at=2.3)
+    result = evaluate_atomic([caught, missed], [alarm_at(caught, 2.0, length_s=0.5),
+                                                np.zeros(3000, bool)])[0.0]
+    assert result.n_missed == 0                         # the guard hides the miss
+    assert result.tau_lead_s == pytest.approx((0.5 + 0.2) / 2)
+    assert result.n_missed_lists_only == 1
+    assert result.tau_lead_lists_only_s == pytest.approx(0.5 / 2)
+    assert result.tau_lead_guard_only_s == pytest.approx(0.2)
+
+
+def test_fpr_interval_is_wilson_and_lead_interval_brackets_the_mean():
+    balanced = [trajectory(f'b{i}', False) for i in range(10)]
+    fallen = [trajectory(f'f{i}', True, t_fallen=2.5) for i in range(4)]
+    atomic = ([alarm_at(balanced[0], 1.5), alarm_at(balanced[1], 1.5)]
+              + [np.zeros(3000, bool)] * 8
+              + [alarm_at(f, start, length_s=2.5 - start) for f, start in
+                 zip(fallen, (1.1, 1.5, 2.0, 2.4))])
+    result = evaluate_atomic(balanced + fallen, atomic)[0.0]
+    assert result.fpr == pytest.approx(0.2)
+    low, high = result.fpr_ci95
+    # Wilson 95 % for 2/10 (Agresti & Coull 1998 tables): [0.0567, 0.5098]
+    assert low == pytest.approx(0.0567, abs=5e-4) and high == pytest.approx(0.5098, abs=5e-4)
+    lead_low, lead_high = result.tau_lead_ci95
+    assert lead_low <= result.tau_lead_s <= lead_high
+    assert 0.1 - 1e-9 <= lead_low < lead_high <= 1.4 + 1e-9   # within the smallest/largest lead

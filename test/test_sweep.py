@@ -2,10 +2,13 @@
 subcommand ``sweep`` on a small generated dataset."""
 import json
 import math
+import shutil
 
 import pytest
 
 from fall_predictor import cli
+from fall_predictor.learning.metrics import evaluate_lists
+from fall_predictor.learning.training import load_dataset, train_model
 from fall_predictor.learning.sweep import SweepConfig
 
 from learning_fixtures import fixture_dataset  # noqa: F401  (a pytest fixture)
@@ -67,13 +70,27 @@ def test_tiny_sweep_writes_json_table_and_figures(fixture_dataset, tmp_path, cap
     assert set(document['baselines']) == {'com_height', 'momentum', 'capture_point'}
     assert all(document['baselines'].values())
     assert document["timing"]["n_fits"] == 8
+    # SPEC §11: nested operating points (chosen on the other fold) with intervals
+    nested = document['nested_selection']
+    for entry in nested['nested']:
+        outer = entry['outer']
+        assert len(entry['chosen_per_fold']) == 2
+        assert outer['n_balanced'] == document['dataset']['n_balanced']
+        if outer['fpr'] is not None:
+            assert outer['fpr_ci95'][0] <= outer['fpr'] <= outer['fpr_ci95'][1]
+    assert nested['paper_settings_fixed']['FP-L1'] == {'setting': [-0.3, 0.016], 'in_grid': False}
+    assert set(document['baselines_nested']) == {'com_height', 'momentum', 'capture_point'}
+    for entries in document['baselines_nested'].values():
+        assert {c['tau_his_s'] for e in entries for c in e['chosen_per_fold']} <= {0.0, 0.06}
     table = (out_dir / 'table.md').read_text()
     assert 'Table 2 analogue' in table and 'FP-L2 (paper)' in table
-    for name in ('fig10_tradeoff.png', 'fig11_parameters.png', 'fig11_learning_curve.png'):
+    assert 'best lead at FPR ≤ 0.06 (nested)' in table and 'FP-L2 settings (fixed)' in table
+    for name in ('fig10_tradeoff.png', 'fig11_parameters.png', 'fig11_learning_curve.png',
+                 'pareto_intervals.png'):
         assert (out_dir / name).read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
     assert sorted(p.name for p in out_dir.iterdir()) == sorted(     # no temporary file left
         ['sweep.json', 'table.md', 'fig10_tradeoff.png', 'fig11_parameters.png',
-         'fig11_learning_curve.png'])
+         'fig11_learning_curve.png', 'pareto_intervals.png'])
 
 
 def test_sweep_rejects_bad_settings(fixture_dataset, tmp_path, capsys):
@@ -83,3 +100,33 @@ def test_sweep_rejects_bad_settings(fixture_dataset, tmp_path, capsys):
     code, _, err = run_cli(capsys, 'sweep', '--data', str(fixture_dataset), '--out', str(tmp_path),
                            '--folds', '13')
     assert code == 2 and 'fewer than 13 folds' in err
+
+
+def test_sweep_evaluates_the_chosen_predictors_on_a_held_out_dataset(fixture_dataset, tmp_path,
+                                                                     capsys):
+    # The "test dataset": a copy holding only the first 5 of the 8 trajectories (another
+    # fingerprint). Refused when it is the sweep dataset itself.
+    held_out = tmp_path / 'held_out'
+    shutil.copytree(fixture_dataset, held_out)
+    for row in sorted((held_out / 'index').glob('traj_*.json'))[5:]:
+        row.unlink()
+    out_dir = tmp_path / 'sweep'
+    common = ('sweep', '--data', str(fixture_dataset), '--out', str(out_dir), '--folds', '2',
+              '--tau-plus=-0.25,0', '--tau-his', '0,0.06', '--no-learning-curve',
+              '--no-capture-point', '--quick', '--json')
+    code, _, err = run_cli(capsys, *common, '--test-data', str(fixture_dataset))
+    assert code == 2 and 'sweep dataset itself' in err
+    code, out, err = run_cli(capsys, *common, '--test-data', str(held_out))
+    assert code == 0, err
+    document = json.loads((out_dir / 'test_set.json').read_text())
+    assert json.loads(out)['test_set'] == document
+    assert document['n_test_trajectories'] == 5
+    by_name = {p['name']: p for p in document['predictors']}
+    assert set(by_name) >= {'FP-L2 settings (fixed)', 'best lead at FPR <= 0.06'}
+    # FP-L2: trained on all 8 trajectories at tau_plus -0.25 s, evaluated at tau_his 0.06 s
+    lists, _ = train_model(fixture_dataset, -0.25, 'tree')
+    expected = evaluate_lists(load_dataset(held_out).trajectories, lists, (0.06,))[0.06]
+    fp_l2 = by_name['FP-L2 settings (fixed)']
+    assert fp_l2['n_false_positives'] == expected.n_false_positives
+    assert fp_l2['tau_lead_s'] == pytest.approx(expected.tau_lead_s)
+    assert fp_l2['fpr_ci95'][0] <= fp_l2['fpr'] <= fp_l2['fpr_ci95'][1]

@@ -136,10 +136,22 @@ def json_float(value: float) -> Optional[float]:
     return float(value) if value is not None and math.isfinite(value) else None
 
 
+def _json_value(value: Any) -> Any:
+    if isinstance(value, float):
+        return json_float(value)
+    if isinstance(value, tuple):
+        return [_json_value(v) for v in value]
+    return value
+
+
 def evaluation_result_json(result: EvaluationResult) -> dict[str, Any]:
-    """The fields of ``result`` (NaN and infinity -> null)."""
-    return {key: (json_float(value) if isinstance(value, float) else value)
-            for key, value in dataclasses.asdict(result).items()}
+    """The fields of ``result`` (NaN and infinity -> null; intervals as ``[low, high]``), plus the
+    short names of the SPEC §11 figures: ``misses_lists_only`` and ``tau_lead_lists_only``."""
+    payload = {key: _json_value(value) for key, value in dataclasses.asdict(result).items()
+               if key != 'leads_s'}
+    payload['misses_lists_only'] = result.n_missed_lists_only
+    payload['tau_lead_lists_only'] = json_float(result.tau_lead_lists_only_s)
+    return payload
 
 
 def curve_point_json(point: CurvePoint) -> dict[str, Any]:

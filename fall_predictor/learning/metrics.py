@@ -13,6 +13,13 @@ trajectory from a reset state):
   does not change ``t_predict`` (still the first output at or after the push) and does not
   count in FPR; on a balanced trajectory it is also a false positive.
 * **oracle lead**: mean over fallen trajectories of ``t_fallen - t_push``.
+* **lists alone / guard alone** (SPEC §11): the same lead and misses computed from the decision
+  lists' windowed output with the CoM guard off (``tau_lead_lists_only_s``,
+  ``n_missed_lists_only``) and from the CoM guard alone (``tau_lead_guard_only_s``), so that
+  "no misses" is not credited to the guard.
+* **intervals** (SPEC §11): ``fpr_ci95`` is the Wilson 95 % interval of the FPR;
+  ``tau_lead_ci95`` and ``tau_lead_lists_only_ci95`` are bootstrap 95 % intervals over the
+  fallen trajectories (:mod:`fall_predictor.learning.intervals`).
 
 Rates and means over an empty set are NaN (:func:`mean_or_nan`, :func:`std_or_nan`; also used
 to average over cross-validation folds). Cross-validation itself is in
@@ -26,6 +33,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from fall_predictor.learning.intervals import bootstrap_mean_interval, wilson_interval
 from fall_predictor.monitor.decision_list import PerModeDecisionLists
 from fall_predictor.monitor.predictor import (check_sample_times, falling_run_durations,
                                               first_true_time, guard_predictions, windowed_falling)
@@ -65,6 +73,14 @@ class EvaluationResult:
     oracle_lead_s: float              #: mean t_fallen - t_push over fallen trajectories
     lead_fraction: float              #: tau_lead_s / oracle_lead_s
     mean_rule_size: Optional[float] = None   #: of the decision lists, if the predictor has any
+    fpr_ci95: tuple[float, float] = (math.nan, math.nan)        #: Wilson 95 % interval of fpr
+    tau_lead_ci95: tuple[float, float] = (math.nan, math.nan)   #: bootstrap over trajectories
+    n_missed_lists_only: Optional[int] = None       #: misses with the CoM guard off
+    tau_lead_lists_only_s: float = math.nan         #: lead with the CoM guard off
+    tau_lead_lists_only_ci95: tuple[float, float] = (math.nan, math.nan)
+    tau_lead_guard_only_s: float = math.nan         #: lead of the CoM guard by itself
+    #: per fallen trajectory, its lead [s] (0 for a miss): for pooled intervals; not in JSON
+    leads_s: tuple[float, ...] = ()
 
     @property
     def n_pre_push_alarms(self) -> int:
@@ -88,22 +104,41 @@ def std_or_nan(values: Sequence[float]) -> float:
     return float(np.std(kept)) if kept else math.nan
 
 
-def evaluate(trajectories: Sequence[TrajectoryFeatures], alarms: Sequence[TrajectoryAlarms],
-             mean_rule_size: Optional[float] = None) -> EvaluationResult:
-    """SPEC §5 metrics from each trajectory's alarm times (``alarms[i]`` for ``trajectories[i]``)."""
-    if len(trajectories) != len(alarms):
-        raise ValueError(f'{len(trajectories)} trajectories but {len(alarms)} alarm records')
-    false_positives = pre_push_balanced = pre_push_fallen = missed = 0
+def _leads(trajectories: Sequence[TrajectoryFeatures],
+           alarms: Sequence[TrajectoryAlarms]) -> tuple[list[float], int]:
+    """Per fallen trajectory its lead [s] (0 for a miss), and the number of misses."""
     leads: list[float] = []
+    missed = 0
+    for traj, alarm in zip(trajectories, alarms):
+        if not traj.fallen:
+            continue
+        if traj.t_fallen is None:
+            raise ValueError(f'trajectory {traj.trajectory_id} fell but has no t_fallen')
+        t_predict = alarm.first_alarm_after_push_t
+        hit = t_predict is not None and t_predict < traj.t_fallen
+        leads.append(traj.t_fallen - t_predict if hit else 0.0)
+        missed += not hit
+    return leads, missed
+
+
+def evaluate(trajectories: Sequence[TrajectoryFeatures], alarms: Sequence[TrajectoryAlarms],
+             mean_rule_size: Optional[float] = None,
+             lists_only_alarms: Optional[Sequence[TrajectoryAlarms]] = None,
+             guard_only_alarms: Optional[Sequence[TrajectoryAlarms]] = None) -> EvaluationResult:
+    """SPEC §5 metrics from each trajectory's alarm times (``alarms[i]`` for ``trajectories[i]``).
+
+    ``lists_only_alarms`` (the predictor with the CoM guard off) and ``guard_only_alarms`` (the
+    CoM guard by itself), when given, fill the lists-alone and guard-alone fields.
+    """
+    for name, records in (('alarm', alarms), ('lists-only alarm', lists_only_alarms),
+                          ('guard-only alarm', guard_only_alarms)):
+        if records is not None and len(records) != len(trajectories):
+            raise ValueError(f'{len(trajectories)} trajectories but {len(records)} {name} records')
+    false_positives = pre_push_balanced = pre_push_fallen = 0
     oracle_leads: list[float] = []
+    leads, missed = _leads(trajectories, alarms)
     for traj, alarm in zip(trajectories, alarms):
         if traj.fallen:
-            if traj.t_fallen is None:
-                raise ValueError(f'trajectory {traj.trajectory_id} fell but has no t_fallen')
-            t_predict = alarm.first_alarm_after_push_t
-            hit = t_predict is not None and t_predict < traj.t_fallen
-            leads.append(traj.t_fallen - t_predict if hit else 0.0)
-            missed += not hit
             oracle_leads.append(traj.t_fallen - traj.t_push)
             pre_push_fallen += alarm.pre_push_alarm
         else:
@@ -113,6 +148,14 @@ def evaluate(trajectories: Sequence[TrajectoryFeatures], alarms: Sequence[Trajec
     n_balanced = len(trajectories) - n_fallen
     tau_lead_s = mean_or_nan(leads)
     oracle_lead_s = mean_or_nan(oracle_leads)
+    extra: dict = {}
+    if lists_only_alarms is not None:
+        lists_leads, lists_missed = _leads(trajectories, lists_only_alarms)
+        extra.update(n_missed_lists_only=lists_missed,
+                     tau_lead_lists_only_s=mean_or_nan(lists_leads),
+                     tau_lead_lists_only_ci95=bootstrap_mean_interval(lists_leads))
+    if guard_only_alarms is not None:
+        extra['tau_lead_guard_only_s'] = mean_or_nan(_leads(trajectories, guard_only_alarms)[0])
     return EvaluationResult(
         n_trajectories=len(trajectories), n_balanced=n_balanced, n_fallen=n_fallen,
         n_false_positives=false_positives,
@@ -121,7 +164,9 @@ def evaluate(trajectories: Sequence[TrajectoryFeatures], alarms: Sequence[Trajec
         n_pre_push_alarms_balanced=pre_push_balanced, n_pre_push_alarms_fallen=pre_push_fallen,
         oracle_lead_s=oracle_lead_s,
         lead_fraction=tau_lead_s / oracle_lead_s if oracle_lead_s > 0 else math.nan,
-        mean_rule_size=mean_rule_size)
+        mean_rule_size=mean_rule_size,
+        fpr_ci95=wilson_interval(false_positives, n_balanced),
+        tau_lead_ci95=bootstrap_mean_interval(leads), leads_s=tuple(leads), **extra)
 
 
 def evaluate_atomic(trajectories: Sequence[TrajectoryFeatures], atomic: Sequence[np.ndarray],
@@ -136,16 +181,24 @@ def evaluate_atomic(trajectories: Sequence[TrajectoryFeatures], atomic: Sequence
     if len(trajectories) != len(atomic):
         raise ValueError(f'{len(trajectories)} trajectories but {len(atomic)} atomic arrays')
     alarms: dict[float, list[TrajectoryAlarms]] = {float(tau): [] for tau in tau_his_values}
+    lists_only: dict[float, list[TrajectoryAlarms]] = {float(tau): [] for tau in tau_his_values}
+    guard_only: list[TrajectoryAlarms] = []
     for traj, atomic_falling in zip(trajectories, atomic):
         t = check_sample_times(traj.t)
         if np.shape(atomic_falling) != t.shape:
             raise ValueError(f'trajectory {traj.trajectory_id}: atomic predictions do not match its samples')
         durations = falling_run_durations(t, atomic_falling)
         guard = guard_predictions(traj.X, guard_com_height_m)
+        no_guard = np.zeros_like(guard)
+        guard_only.append(trajectory_alarms(t, guard, traj.t_push))
         for tau_his_s, records in alarms.items():
             falling = windowed_falling(durations, guard, tau_his_s, dt_s)
             records.append(trajectory_alarms(t, falling, traj.t_push))
-    return {tau_his_s: evaluate(trajectories, records, mean_rule_size)
+            lists_falling = windowed_falling(durations, no_guard, tau_his_s, dt_s)
+            lists_only[tau_his_s].append(trajectory_alarms(t, lists_falling, traj.t_push))
+    return {tau_his_s: evaluate(trajectories, records, mean_rule_size,
+                                lists_only_alarms=lists_only[tau_his_s],
+                                guard_only_alarms=guard_only)
             for tau_his_s, records in alarms.items()}
 
 

@@ -12,7 +12,9 @@ from typing import TYPE_CHECKING, Any, Optional
 from fall_predictor.learning.baselines import pareto_front
 from fall_predictor.learning.crossval import SweepPoint
 from fall_predictor.learning.evaluation import curve_point_json, evaluation_result_json, json_float
-from fall_predictor.learning.selection import PARETO_MAX_FPR, SELECTION_RULE, pareto_mean_lead
+from fall_predictor.learning.nested import nested_report_json, nested_table_lines
+from fall_predictor.learning.selection import (PAPER_PREDICTORS, PARETO_MAX_FPR, SELECTION_RULE,
+                                              pareto_mean_lead)
 from fall_predictor.learning.training import make_learner
 
 if TYPE_CHECKING:
@@ -27,6 +29,14 @@ def _point_json(point: SweepPoint, with_folds: bool = True) -> dict[str, Any]:
     if with_folds:
         payload['per_fold'] = [evaluation_result_json(r) for r in point.per_fold]
     return payload
+
+
+def _nested(result: SweepResult) -> Optional[dict[str, Any]]:
+    """SPEC §11 nested points and the paper's fixed settings, from the sweep's grid trainings."""
+    return nested_report_json(
+        [fit for fit in result.fits if fit.train_size is None
+         and fit.tau_plus_s in result.config.tau_plus_values_s],
+        {p.name: (p.tau_plus_s, p.tau_his_s) for p in PAPER_PREDICTORS})
 
 
 def sweep_json(result: SweepResult) -> dict[str, Any]:
@@ -50,6 +60,8 @@ def sweep_json(result: SweepResult) -> dict[str, Any]:
             'max_fpr': PARETO_MAX_FPR, 'learned': json_float(pareto_mean_lead(result.points)),
             **{f'baseline_{name}': json_float(pareto_mean_lead(curve))
                for name, curve in result.baselines.named().items()}},
+        'nested_selection': _nested(result),
+        'baselines_nested': result.baselines_nested,
         'learning_curve': [_point_json(p) for p in result.learning_curve],
         'trainings': [{'fold': fit.fold, 'tau_plus_s': fit.tau_plus_s, 'n_train': fit.n_train,
                        'fit_s': fit.fit_s, 'mean_rule_size': fit.mean_rule_size,
@@ -92,6 +104,7 @@ def sweep_table(result: SweepResult) -> str:
                                                      for _, p in result.selected) + ' |')
     lines.append('| lead fraction | ' + ' | '.join(f'— | {_fmt(p.lead_fraction, 2)}'
                                                    for _, p in result.selected) + ' |')
+    lines += nested_table_lines(_nested(result))
     lines += ['', f'Mean best tau_lead over FPR budgets in [0, {PARETO_MAX_FPR}] (area under the '
               f'Pareto front / {PARETO_MAX_FPR}): learned {_fmt(pareto_mean_lead(result.points))} s; '
               + ', '.join(f'{name} {_fmt(pareto_mean_lead(curve))} s'

@@ -33,6 +33,9 @@ from fall_predictor.learning.evaluation import (BaselineCurves, BaselineGrids, b
 from fall_predictor.learning.learners import RuleListLearner
 from fall_predictor.learning.plots import plot_sweep
 from fall_predictor.learning.report import sweep_json, sweep_table
+from fall_predictor.learning.fair_baselines import cross_validated_baselines
+from fall_predictor.learning.nested import nested_report_json
+from fall_predictor.learning.plots_intervals import plot_pareto_intervals
 from fall_predictor.learning.selection import PaperPredictor, select_paper_analogues
 from fall_predictor.learning.training import (BALANCED_WEIGHT, DEFAULT_SAMPLE_STRIDE,
                                               FALLING_WEIGHT, PathLike, check_sample_stride,
@@ -153,6 +156,8 @@ class SweepResult:
     timing: SweepTiming
     command: Optional[str]                       #: the command line that ran the sweep, if any
     files: tuple[str, ...]
+    #: SPEC §11 baselines: tau_his grid, thresholds chosen on the other folds (nested)
+    baselines_nested: Optional[dict[str, Any]] = None
 
 
 def run_sweep(data_dir: PathLike, out_dir: PathLike, config: SweepConfig = SweepConfig(),
@@ -181,6 +186,9 @@ def run_sweep(data_dir: PathLike, out_dir: PathLike, config: SweepConfig = Sweep
     capture_point_s = time.perf_counter() - start
     start = time.perf_counter()
     baselines = baseline_curves(trajectories, distances, config.baseline_grids)
+    baselines_nested = cross_validated_baselines(trajectories, distances, config.baseline_grids,
+                                                 config.tau_his_values_s, config.folds,
+                                                 config.seed)
     baselines_s = time.perf_counter() - start
 
     start = time.perf_counter()
@@ -205,6 +213,11 @@ def run_sweep(data_dir: PathLike, out_dir: PathLike, config: SweepConfig = Sweep
     out_dir.mkdir(parents=True, exist_ok=True)
     figures = plot_sweep(out_dir, points, pareto, selected, tuple(learning_curve), baselines,
                          config)
+    grid_fits = [fit for fit in fits if fit.train_size is None]
+    if grid_fits:
+        figures = list(figures) + [plot_pareto_intervals(
+            out_dir / 'pareto_intervals.png', grid_fits, points,
+            nested_report_json(grid_fits, {}), baselines_nested)]
     plots_s = time.perf_counter() - start
     sweep_fit_ids = {id(fit) for fit in fits}
     all_fits = tuple(fits) + tuple(fit for fit in curve_fits if id(fit) not in sweep_fit_ids)
@@ -219,7 +232,7 @@ def run_sweep(data_dir: PathLike, out_dir: PathLike, config: SweepConfig = Sweep
         n_trajectories=len(trajectories), n_fallen=sum(t.fallen for t in trajectories),
         unreadable=dict(report.errors), points=points, pareto=pareto, selected=selected,
         learning_curve=tuple(learning_curve), fits=all_fits, baselines=baselines, timing=timing,
-        command=command,
+        command=command, baselines_nested=baselines_nested,
         files=tuple(str(p) for p in figures)
         + (str(out_dir / 'sweep.json'), str(out_dir / 'table.md')))
     atomic_write_text(out_dir / 'sweep.json', json.dumps(sweep_json(result), indent=1) + '\n')

@@ -1,0 +1,58 @@
+"""Confidence intervals for the reported figures (SPEC §11).
+
+* :func:`wilson_interval`: the Wilson score interval of a binomial proportion (used for every
+  FPR: ``k`` false positives among ``n`` balanced trajectories).
+* :func:`bootstrap_mean_interval`: a percentile bootstrap interval of a mean over independent
+  units (used for every tau_lead: the per-trajectory leads of the fallen trajectories are
+  resampled with replacement, so the interval is over trajectories, not samples).
+
+Both return ``(low, high)``; with no data both bounds are NaN.
+"""
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+import numpy as np
+
+#: two-sided 95 % standard normal quantile
+Z_95 = 1.959963984540054
+
+
+def wilson_interval(k: int, n: int, z: float = Z_95) -> tuple[float, float]:
+    """Wilson score interval of the proportion ``k / n`` (default 95 %).
+
+    Args:
+        k: successes (e.g. false positives), ``0 <= k <= n``.
+        n: trials (e.g. balanced trajectories); 0 gives ``(nan, nan)``.
+        z: the normal quantile of the interval's level.
+    """
+    if not (0 <= k <= n):
+        raise ValueError(f'need 0 <= k <= n, got k={k}, n={n}')
+    if n == 0:
+        return math.nan, math.nan
+    p = k / n
+    denom = 1.0 + z * z / n
+    centre = (p + z * z / (2 * n)) / denom
+    half = z * math.sqrt(p * (1.0 - p) / n + z * z / (4 * n * n)) / denom
+    # the bounds bracket p exactly (rounding could put 0/n's lower bound at +1e-17)
+    return min(p, max(0.0, centre - half)), max(p, min(1.0, centre + half))
+
+
+def bootstrap_mean_interval(values: Sequence[float], level: float = 0.95,
+                            n_resamples: int = 2000, seed: int = 0) -> tuple[float, float]:
+    """Percentile bootstrap interval of the mean of ``values`` (one value per trajectory).
+
+    Deterministic for a given ``seed``. An empty sequence gives ``(nan, nan)``; a single value
+    gives ``(value, value)``.
+    """
+    if not 0.0 < level < 1.0:
+        raise ValueError(f'level must be in (0, 1), got {level!r}')
+    x = np.asarray(values, dtype=float)
+    if x.size == 0:
+        return math.nan, math.nan
+    rng = np.random.default_rng(seed)
+    means = x[rng.integers(0, x.size, size=(n_resamples, x.size))].mean(axis=1)
+    alpha = (1.0 - level) / 2.0
+    low, high = np.quantile(means, [alpha, 1.0 - alpha])
+    return float(low), float(high)

@@ -1,0 +1,36 @@
+import math
+
+import numpy as np
+import pytest
+
+from fall_predictor.learning.intervals import bootstrap_mean_interval, wilson_interval
+
+
+def test_wilson_known_values():
+    # Newcombe (1998), Table I: 81/263 -> [0.2553, 0.3662]; 15/148 -> [0.0624, 0.1605]
+    assert wilson_interval(81, 263) == pytest.approx((0.2553, 0.3662), abs=1e-4)
+    assert wilson_interval(15, 148) == pytest.approx((0.0624, 0.1605), abs=1e-4)
+    # 0/n has a positive upper bound (z^2 / (n + z^2)), n/n a lower bound below 1
+    low, high = wilson_interval(0, 50)
+    assert low == 0.0 and high == pytest.approx(1.959964 ** 2 / (50 + 1.959964 ** 2), rel=1e-6)
+    assert wilson_interval(50, 50)[1] == 1.0 and wilson_interval(50, 50)[0] < 1.0
+
+
+def test_wilson_issue_example_and_errors():
+    # issue 12: FP-L2's 28 false alarms of 529 -> about [0.037, 0.075]
+    low, high = wilson_interval(28, 529)
+    assert low == pytest.approx(0.037, abs=1e-3) and high == pytest.approx(0.075, abs=1e-3)
+    assert all(math.isnan(v) for v in wilson_interval(0, 0))
+    with pytest.raises(ValueError):
+        wilson_interval(3, 2)
+
+
+def test_bootstrap_interval_matches_normal_theory_for_a_large_sample():
+    x = np.random.default_rng(1).normal(0.8, 0.3, size=400)
+    low, high = bootstrap_mean_interval(x, n_resamples=4000)
+    half = 1.96 * x.std() / math.sqrt(x.size)
+    assert low == pytest.approx(x.mean() - half, abs=0.006)
+    assert high == pytest.approx(x.mean() + half, abs=0.006)
+    assert bootstrap_mean_interval(x) == bootstrap_mean_interval(x)       # deterministic seed
+    assert bootstrap_mean_interval([0.4]) == (0.4, 0.4)
+    assert all(math.isnan(v) for v in bootstrap_mean_interval([]))

@@ -1,0 +1,55 @@
+"""Nested selection of operating points (fall_predictor.learning.nested) on hand-made fold
+results with a known answer."""
+import pytest
+
+from fall_predictor.learning.crossval import FoldFit
+from fall_predictor.learning.intervals import wilson_interval
+from fall_predictor.learning.metrics import EvaluationResult
+from fall_predictor.learning.nested import fixed_setting, nested_operating_point
+
+A = (0.0, 0.0)      # long lead, false alarms concentrated in fold 2
+B = (0.5, 0.0)      # short lead, no false alarms
+
+
+def result(false_positives: int, lead_s: float) -> EvaluationResult:
+    return EvaluationResult(12, 10, 2, false_positives, false_positives / 10, lead_s, 0, 0, 0,
+                            1.5, lead_s / 1.5, leads_s=(lead_s, lead_s))
+
+
+def fits() -> list[FoldFit]:
+    a_false_positives = {0: 0, 1: 0, 2: 3}
+    out = []
+    for fold in range(3):
+        for (tau_plus, tau_his), res in ((A, result(a_false_positives[fold], 1.0)),
+                                         (B, result(0, 0.5))):
+            out.append(FoldFit(fold, tau_plus, None, 900, (1,), (1,), 0.1, {tau_his: res}))
+    return out
+
+
+def test_nested_choice_differs_from_hindsight_and_is_reported_on_the_outer_fold():
+    point = nested_operating_point(fits(), max_fpr=0.1)
+    # in hindsight A qualifies (3/30 = 0.1) with lead 1.0 ...
+    assert point.selected_in_hindsight == A
+    assert point.hindsight.fpr == pytest.approx(0.1) and point.hindsight.tau_lead_s == 1.0
+    # ... but leaving out fold 0 or 1 puts A at 3/20 = 0.15: those folds get B; fold 2 gets A
+    assert point.chosen == (B, B, A)
+    assert point.outer.n_false_positives == 3 and point.outer.n_balanced == 30
+    assert point.outer.tau_lead_s == pytest.approx((4 * 0.5 + 2 * 1.0) / 6)
+    assert point.outer.fpr_ci95 == pytest.approx(wilson_interval(3, 30))
+    low, high = point.outer.tau_lead_ci95
+    assert 0.5 <= low <= point.outer.tau_lead_s <= high <= 1.0
+
+
+def test_fixed_setting_needs_no_selection_and_rejects_unknown_settings():
+    pooled = fixed_setting(fits(), B)
+    assert pooled.fpr == 0.0 and pooled.tau_lead_s == 0.5 and pooled.n_fallen == 6
+    with pytest.raises(ValueError, match='not in the cross-validated grid'):
+        fixed_setting(fits(), (0.25, 0.06))
+
+
+def test_results_without_leads_cannot_be_pooled():
+    bare = [FoldFit(k, 0.0, None, 9, (1,), (1,), 0.1,
+                    {0.0: EvaluationResult(12, 10, 2, 0, 0.0, 1.0, 0, 0, 0, 1.5, 0.6)})
+            for k in range(2)]
+    with pytest.raises(ValueError, match='leads_s'):
+        fixed_setting(bare, (0.0, 0.0))
