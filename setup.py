@@ -23,6 +23,7 @@ setup(
         'scipy>=1.10',
         'scikit-learn>=1.3',
         'joblib>=1.3',
+        'distributed>=2023.1',
         'matplotlib>=3.7',
         'tqdm>=4.60',
         'pybullet>=3.2.5',

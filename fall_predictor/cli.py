@@ -65,21 +65,34 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_generate(args) -> int:
+    from fall_predictor.data.dataset import DatasetError, read_manifest
     from fall_predictor.data.generation import GenerationConfig, generate_dataset
 
-    config = GenerationConfig(seed=args.seed, horizon_after_push_s=args.horizon, gait_variety=not args.fixed_gait)
+    config = GenerationConfig(seed=args.seed, horizon_after_push_s=args.horizon,
+                              gait_variety=not args.fixed_gait)
     start = time.perf_counter()
-    rows = generate_dataset(args.out, args.trajectories, args.seed, jobs=args.jobs, config=config,
-                            progress=not args.json)
+    try:
+        rows = generate_dataset(args.out, args.trajectories, args.seed, jobs=args.jobs, config=config,
+                                progress=not args.json, scheduler=args.scheduler)
+    except (DatasetError, RuntimeError) as error:
+        return _fail('generate', error)
     wall = time.perf_counter() - start
     rows = [r for r in rows if int(r.trajectory_id.split('_')[1]) < args.trajectories]
     fallen = sum(r.fallen for r in rows)
     size = sum(f.stat().st_size for f in Path(args.out).rglob('*') if f.is_file() and 'cache' not in f.parts)
+    cost = read_manifest(args.out).get('generation', {})
     payload = {'out': str(args.out), 'trajectories': len(rows), 'fallen': fallen,
                'fall_fraction': fallen / len(rows) if rows else None, 'wall_s': wall,
-               'disk_bytes': size, 'seed': args.seed, 'jobs': args.jobs}
+               'disk_bytes': size, 'seed': args.seed, 'jobs': args.jobs, 'scheduler': args.scheduler,
+               'gait_variety': config.gait_variety, 'cpu_s': cost.get('cpu_s'),
+               'cpu_per_simulated_s': cost.get('cpu_per_simulated_s'),
+               'machines': cost.get('machines', {})}
+    machines = ', '.join(f'{host} ({m["cores"]} cores, {m["trajectories"]} traj)'
+                         for host, m in payload['machines'].items())
     _emit(args, payload, [f'{len(rows)} trajectories in {args.out} ({fallen} fallen, '
-                          f'{size / 1e6:.0f} MB) in {wall:.0f} s'])
+                          f'{size / 1e6:.0f} MB) in {wall:.0f} s',
+                          f'CPU {payload["cpu_s"]:.0f} s in all ({payload["cpu_per_simulated_s"]:.3f} s per '
+                          f'simulated s) on {machines}' if payload['cpu_s'] is not None else 'CPU: not recorded'])
     return 0
 
 
@@ -348,6 +361,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--fixed-gait', action='store_true',
                    help='every trajectory walks the default gait (faster: the walk is simulated once per '
                         'process) instead of drawing its gait (SPEC §3 amendment)')
+    argtypes.add_scheduler_argument(p, 'the simulations (bags come back here and are written to --out)')
     p.add_argument('--json', action='store_true')
     p.set_defaults(func=cmd_generate)
 
@@ -457,6 +471,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help='reduced grid: 5 tau_plus, 5 tau_his, learning curve 10,25,50, coarse baselines '
                         '(explicit --tau-plus/--tau-his/--learning-curve still apply)')
     p.add_argument('--jobs', type=argtypes.positive_int, default=1, help='parallel trainings')
+    argtypes.add_scheduler_argument(p, 'the trainings (features are read here and sent to the workers)')
     p.add_argument('--skip-unreadable', action='store_true',
                    help='leave out unreadable bags instead of failing')
     p.add_argument('--json', action='store_true', help='print one JSON summary object')

@@ -26,6 +26,15 @@ def fail(command: str, error: Exception | str) -> int:
     return 2
 
 
+def add_scheduler_argument(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--scheduler ADDRESS``: run ``what`` on a Dask cluster instead of local processes."""
+    parser.add_argument('--scheduler', default=None, metavar='ADDRESS',
+                        help=f'run {what} on the Dask cluster whose scheduler is at ADDRESS '
+                             '(e.g. tcp://10.0.0.5:8786; start it with `dask scheduler` and '
+                             '`dask worker ADDRESS --nthreads 1` on each machine); --jobs then '
+                             'applies only to the local work. Results equal a local run\'s')
+
+
 def finite(kind):
     def parse(text: str):
         value = kind(text)

@@ -7,13 +7,13 @@ import time
 from pathlib import Path
 
 from fall_predictor import cli_args as argtypes
-from fall_predictor.cli_args import emit
+from fall_predictor.cli_args import emit, fail
 
 
 def cmd_robustness(args) -> int:
-    from joblib import Parallel, delayed
-    from tqdm import tqdm
+    from joblib import delayed
 
+    from fall_predictor.data.parallel import compute_backend, compute_parallel, progress_bar
     from fall_predictor.sim.robustness import RobustnessGrid, run_robustness
 
     grid = RobustnessGrid(impulses_ns=tuple(args.impulses), n_phases=args.phases,
@@ -21,11 +21,20 @@ def cmd_robustness(args) -> int:
     n_cells = len(grid.impulses_ns) * len(grid.directions_deg) * grid.n_phases
 
     def parallel_map(function, items):
-        jobs = Parallel(n_jobs=args.jobs, return_as='generator')(delayed(function)(item) for item in items)
-        return list(tqdm(jobs, total=len(items), desc='pushes', unit='push', disable=args.json))
+        results = []
+        with progress_bar(len(items), desc='pushes', unit='push', disable=args.json) as bar:
+            for result in compute_parallel(args.jobs, return_as='generator')(
+                    delayed(function)(item) for item in items):
+                results.append(result)
+                bar.update(1)
+        return results
 
     start = time.perf_counter()
-    summary = run_robustness(grid, parallel_map)
+    try:
+        with compute_backend(args.scheduler):
+            summary = run_robustness(grid, parallel_map)
+    except RuntimeError as error:
+        return fail('robustness', error)
     summary['wall_s'] = time.perf_counter() - start
     summary['pushes'] = n_cells
     if args.out:
@@ -56,6 +65,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--horizon', type=argtypes.positive, default=3.0,
                    help='seconds after the push ends that the robot must stay up')
     p.add_argument('--jobs', type=argtypes.positive_int, default=1, help='parallel processes')
+    argtypes.add_scheduler_argument(p, 'the pushes')
     p.add_argument('--out', type=Path, help='also write the JSON summary here')
     p.add_argument('--json', action='store_true', help='print one JSON summary object')
     p.set_defaults(func=cmd_robustness)

@@ -6,6 +6,7 @@ Layout of a dataset directory (made by :mod:`fall_predictor.data.generation`)::
     bags/traj_00042/          one rosbag2 bag (MCAP) per trajectory
     index/traj_00042.json     its index row, written only once the bag is complete
     index.csv                 all rows in one table (rewritten after each run)
+    costs/traj_00042.json     what simulating it cost, and where (:mod:`fall_predictor.data.generation_cost`)
     cache/traj_00042.npz      features derived from the bag (:mod:`fall_predictor.data.cache`)
 
 A bag that cannot be read is reported with its file named and skipped; the rest of the dataset
@@ -169,14 +170,16 @@ def load_features(data_dir: str | os.PathLike, jobs: int = 1, progress: bool = T
     A bag that cannot be read is reported in ``errors`` (with its file named) and skipped;
     the rest of the dataset stays usable.
     """
-    from joblib import Parallel, delayed
+    from joblib import delayed
     from tqdm import tqdm
+
+    from fall_predictor.data.parallel import local_parallel
 
     out = Path(data_dir)
     rows = read_index(out)
     if not rows:
         raise DatasetError(f'{out}: the dataset has no finished trajectories')
-    results = Parallel(n_jobs=jobs)(delayed(_load_or_build)(out, row, settings)
+    results = local_parallel(jobs)(delayed(_load_or_build)(out, row, settings)
                                    for row in tqdm(rows, desc='features', unit='traj', disable=not progress))
     trajectories, errors, rebuilt = [], {}, 0
     h = hashlib.sha256()

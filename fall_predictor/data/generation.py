@@ -13,6 +13,8 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import tempfile
+import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable, Optional
@@ -22,7 +24,11 @@ import numpy as np
 from fall_predictor.data.bagio import BagError, BagWriter, read_trajectory
 from fall_predictor.data.dataset import (FORMAT, DatasetError, IndexRow, read_index, trajectory_id,
                                          write_index_csv)
+from fall_predictor.data.generation_cost import (COSTS_DIR, GENERATION_COST_KEY,
+                                                 record_generation_cost, trajectory_cost)
 from fall_predictor.data.outcomes import height_drop_time
+from fall_predictor.data.parallel import (PerThread, compute_backend, compute_parallel, machine,
+                                          progress_bar)
 from fall_predictor.monitor.fileio import atomic_write_text
 
 if TYPE_CHECKING:
@@ -62,6 +68,12 @@ class GenerationConfig:
                 'push_distribution': asdict(self.push_distribution), 'robot': simulated_robot()}
 
 
+def _settings(manifest: dict) -> dict:
+    """The generation settings of a manifest (what a resumed run must match): all but the
+    cost record, which every run updates."""
+    return {k: v for k, v in manifest.items() if k != GENERATION_COST_KEY}
+
+
 def _open_dataset(out: Path, config: GenerationConfig) -> None:
     manifest_path = out / 'dataset.json'
     manifest = json.loads(json.dumps(config.manifest()))   # as it reads back from the file
@@ -70,42 +82,37 @@ def _open_dataset(out: Path, config: GenerationConfig) -> None:
             existing = json.loads(manifest_path.read_text())
         except (OSError, json.JSONDecodeError) as exc:
             raise DatasetError(f'{manifest_path}: unreadable manifest: {exc}') from exc
-        if existing != manifest:
+        if _settings(existing) != manifest:
             raise DatasetError(f'{out}: exists with different generation settings '
-                               f'({existing}); use another --out or the same settings')
+                               f'({_settings(existing)}); use another --out or the same settings')
     else:
         out.mkdir(parents=True, exist_ok=True)
         atomic_write_text(manifest_path, json.dumps(manifest, indent=1, sort_keys=True))
-    (out / 'bags').mkdir(exist_ok=True)
-    (out / 'index').mkdir(exist_ok=True)
+    for sub in ('bags', 'index', COSTS_DIR):
+        (out / sub).mkdir(exist_ok=True)
 
 
-
-_WORKER_PREFIX: dict = {}
+#: Per worker thread: its simulator, or its simulated default walk (PyBullet worlds are not
+#: shared between threads).
+_WORKER = PerThread()
 
 
 def _walk_prefix(config: GenerationConfig):
-    """One simulator per worker process, with the unpushed walk up to the latest possible
-    push onset simulated once (trajectories then start from its snapshots, bit-identically)."""
+    """The unpushed default walk up to the latest possible push onset, simulated once per
+    worker thread (trajectories then start from its snapshots, bit-identically)."""
     from fall_predictor.sim.simulator import Simulator
     from fall_predictor.sim.trajectory import WalkPrefix
 
     dist = config.push_distribution
-    key = (dist.settle_s, dist.walk_cycle_s())
-    if key not in _WORKER_PREFIX:
-        until = dist.settle_s + dist.walk_cycle_s()
-        _WORKER_PREFIX[key] = WalkPrefix(Simulator(), until_s=until,
-                                         walk_duration_s=until + config.horizon_after_push_s + 5.0)
-    return _WORKER_PREFIX[key]
+    until = dist.settle_s + dist.walk_cycle_s()
+    return _WORKER.get(('prefix', dist.settle_s, dist.walk_cycle_s()), lambda: WalkPrefix(
+        Simulator(), until_s=until, walk_duration_s=until + config.horizon_after_push_s + 5.0))
 
 
 def _worker_simulator():
-    """One simulator per worker process, reset for every trajectory."""
+    """One simulator per worker thread, reset for every trajectory."""
     from fall_predictor.sim.simulator import Simulator
-
-    if 'simulator' not in _WORKER_PREFIX:
-        _WORKER_PREFIX['simulator'] = Simulator()
-    return _WORKER_PREFIX['simulator']
+    return _WORKER.get('simulator', Simulator)
 
 
 def _gait_fields(gait) -> dict:
@@ -116,51 +123,87 @@ def _gait_fields(gait) -> dict:
             'gait_step_width_m': round(2 * gait.stance_half_width_m, 6), 'gait_standing': gait.standing}
 
 
-def generate_one(out: Path, config: GenerationConfig, index: int) -> IndexRow:
-    """Simulate trajectory ``index`` and write its bag and index row (atomically)."""
+@dataclass
+class SimulatedTrajectory:
+    """What a worker sends back for one trajectory: its index row, its bag as the bytes of its
+    files (name -> content), and what it cost (:func:`trajectory_cost`)."""
+
+    row: IndexRow
+    bag_files: dict[str, bytes]
+    cost: dict[str, Any]
+
+
+def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
+    """Simulate trajectory ``index`` and record it as a bag in a private temporary directory;
+    return the bag's bytes. Writes nothing else, so it runs anywhere (a Dask worker included)."""
     from fall_predictor.sim.pushes import trajectory_seed
     from fall_predictor.sim.trajectory import ROBOT_JOINT_NAMES, run_trajectory
 
+    cpu0, wall0 = time.thread_time(), time.perf_counter()
     tid = trajectory_id(index)
     rng = trajectory_seed(config.seed, index)
+    duration_s = None
     if config.gait_variety:
         gait, push = config.push_distribution.sample_with_gait(rng)
-        result = run_trajectory(push, push.t_force_end + config.horizon_after_push_s, gait=gait,
-                                simulator=_worker_simulator())
+        duration_s = push.t_force_end + config.horizon_after_push_s
+        result = run_trajectory(push, duration_s, gait=gait, simulator=_worker_simulator())
     else:
         gait, push = None, config.push_distribution.sample(rng)
-        result = run_trajectory(push, push.t_force_end + config.horizon_after_push_s, prefix=_walk_prefix(config))
+        duration_s = push.t_force_end + config.horizon_after_push_s
+        result = run_trajectory(push, duration_s, prefix=_walk_prefix(config))
+    simulated_s = result.measurements[-1].t
     t_start = round(push.t_push - config.pre_push_s, 6)
-    keep = [i for i, m in enumerate(result.measurements) if m.t >= t_start - 1e-9]
-    measurements = [result.measurements[i] for i in keep]
+    first = next(i for i, m in enumerate(result.measurements) if m.t >= t_start - 1e-9)
+    measurements = result.measurements[first:]
     t_height_drop = None
     if result.fallen:
         t = np.array([m.t for m in measurements])
         z = np.array([m.com[2] for m in measurements])
         t_height_drop = height_drop_time(t, z, result.t_fallen)
-    final = out / 'bags' / tid
-    partial = out / 'bags' / (tid + '.partial')
-    shutil.rmtree(partial, ignore_errors=True)
-    shutil.rmtree(final, ignore_errors=True)
     joint_every = max(1, int(round(1.0 / (config.joint_state_rate_hz * 0.001))))
-    with BagWriter(partial) as bag:
-        applied = next((m.push_force for m in measurements if m.push_force.any()), np.zeros(3))
-        bag.write_push(push.t_push, applied)
-        for k, i in enumerate(keep):
-            m = result.measurements[i]
-            bag.write_measurement(m)
-            if k % joint_every == 0:
-                bag.write_joint_state(m.t, ROBOT_JOINT_NAMES, result.joint_positions[i], result.joint_velocities[i])
-    # metadata.yaml names the MCAP file relative to the bag directory, so renaming the
-    # directory keeps the bag valid.
-    os.replace(partial, final)
+    with tempfile.TemporaryDirectory(prefix='fall_predictor_bag_') as folder:
+        # The bag's own directory name is the one it is renamed from when committed
+        # (metadata.yaml names the MCAP file relative to it, so the files do not change).
+        partial = Path(folder) / (tid + '.partial')
+        with BagWriter(partial) as bag:
+            applied = next((m.push_force for m in measurements if m.push_force.any()), np.zeros(3))
+            bag.write_push(push.t_push, applied)
+            for k, m in enumerate(measurements):
+                bag.write_measurement(m)
+                if k % joint_every == 0:
+                    i = first + k
+                    bag.write_joint_state(m.t, ROBOT_JOINT_NAMES, result.joint_positions[i],
+                                          result.joint_velocities[i])
+        files = {f.name: f.read_bytes() for f in sorted(partial.iterdir())}
     row = IndexRow(trajectory_id=tid, bag=f'bags/{tid}', force_n=push.force_n, angle_deg=push.angle_deg,
                    height_m=push.height_m, t_push=push.t_push, t_force_end=push.t_force_end,
                    fallen=result.fallen, t_fallen=result.t_fallen, t_height_drop=t_height_drop,
                    t_reflex=result.t_reflex, t_start=measurements[0].t, t_end=measurements[-1].t,
                    samples=len(measurements), **_gait_fields(gait))
-    atomic_write_text(out / 'index' / f'{tid}.json', json.dumps(asdict(row), sort_keys=True))
-    return row
+    cost = trajectory_cost(time.thread_time() - cpu0, time.perf_counter() - wall0, simulated_s)
+    return SimulatedTrajectory(row, files, cost)
+
+
+def commit(out: Path, simulated: SimulatedTrajectory) -> IndexRow:
+    """Write a simulated trajectory into dataset ``out``: its bag (under a temporary name,
+    renamed when complete), its cost record, and last its index row, which marks it finished."""
+    tid = simulated.row.trajectory_id
+    final = out / 'bags' / tid
+    partial = out / 'bags' / (tid + '.partial')
+    shutil.rmtree(partial, ignore_errors=True)
+    shutil.rmtree(final, ignore_errors=True)
+    partial.mkdir(parents=True)
+    for name, content in simulated.bag_files.items():
+        (partial / name).write_bytes(content)
+    os.replace(partial, final)
+    atomic_write_text(out / COSTS_DIR / f'{tid}.json', json.dumps(simulated.cost, sort_keys=True))
+    atomic_write_text(out / 'index' / f'{tid}.json', json.dumps(asdict(simulated.row), sort_keys=True))
+    return simulated.row
+
+
+def generate_one(out: Path, config: GenerationConfig, index: int) -> IndexRow:
+    """Simulate trajectory ``index`` and write its bag and index row (atomically)."""
+    return commit(out, simulate_one(config, index))
 
 
 def _finished(out: Path, index: int) -> bool:
@@ -169,10 +212,18 @@ def _finished(out: Path, index: int) -> bool:
 
 
 def generate_dataset(out: str | os.PathLike, trajectories: int, seed: int, jobs: int = 1,
-                     config: Optional[GenerationConfig] = None, progress: bool = True) -> list[IndexRow]:
-    """Generate (or finish generating) ``trajectories`` push trajectories into ``out``."""
-    from joblib import Parallel, delayed
-    from tqdm import tqdm
+                     config: Optional[GenerationConfig] = None, progress: bool = True,
+                     scheduler: Optional[str] = None) -> list[IndexRow]:
+    """Generate (or finish generating) ``trajectories`` push trajectories into ``out``.
+
+    Trajectories are simulated by ``jobs`` local processes, or by the workers of the Dask
+    cluster whose scheduler is at ``scheduler`` (:mod:`fall_predictor.data.parallel`); either
+    way this process writes every bag into ``out`` as it arrives, so ``out`` need not be shared
+    with the workers. The result does not depend on where, in which order or by how many
+    processes the trajectories were simulated. ``dataset.json`` records the CPU time and the
+    machines that simulated them (:func:`generation_cost`).
+    """
+    from joblib import delayed
 
     out = Path(out)
     config = config or GenerationConfig(seed=seed)
@@ -180,14 +231,25 @@ def generate_dataset(out: str | os.PathLike, trajectories: int, seed: int, jobs:
         raise ValueError('seed and config.seed differ')
     _open_dataset(out, config)
     pending = [i for i in range(trajectories) if not _finished(out, i)]
-    bar = tqdm(total=trajectories, initial=trajectories - len(pending), desc='trajectories',
-               unit='traj', disable=not progress)
-    if pending:
-        results = Parallel(n_jobs=jobs, return_as='generator_unordered')(
-            delayed(generate_one)(out, config, i) for i in pending)
-        for _ in results:
-            bar.update(1)
-    bar.close()
+    started, wall0 = time.time(), time.perf_counter()
+    bar = progress_bar(trajectories, trajectories - len(pending), disable=not progress)
+    cpu_s = 0.0
+    try:
+        if pending:
+            with compute_backend(scheduler):
+                results = compute_parallel(jobs, return_as='generator_unordered')(
+                    delayed(simulate_one)(config, i) for i in pending)
+                for simulated in results:
+                    commit(out, simulated)
+                    cpu_s += simulated.cost['cpu_s']
+                    bar.set_postfix_str(f'CPU {cpu_s:.0f} s', refresh=False)
+                    bar.update(1)
+    finally:
+        bar.close()
+        run = {'started_utc': time.strftime('%Y-%m-%dT%H:%M:%SZ', time.gmtime(started)),
+               'wall_s': round(time.perf_counter() - wall0, 3), 'simulated_trajectories': len(pending),
+               'jobs': jobs, 'scheduler': scheduler, 'client': machine()}
+        record_generation_cost(out, run)
     rows = read_index(out)
     write_index_csv(out, rows)
     return rows

@@ -18,6 +18,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from fall_predictor.data.parallel import compute_parallel
 from fall_predictor.learning.learners import RuleListLearner
 from fall_predictor.learning.metrics import (EvaluationResult, evaluate_atomic, mean_or_nan,
                                              std_or_nan)
@@ -63,10 +64,22 @@ class FoldFit:
         return float(np.mean(self.rule_sizes))
 
 
-def _fit_and_predict(train: Sequence[TrajectoryFeatures], test: Sequence[TrajectoryFeatures],
+class _Trajectories:
+    """The trajectories as one argument object: joblib's Dask backend sends an argument that
+    is a (weak-referenceable) object once per call to the workers instead of once per task;
+    local processes get its memory-mapped arrays by reference."""
+
+    def __init__(self, items: Sequence[TrajectoryFeatures]):
+        self.items = list(items)
+
+
+def _fit_and_predict(trajectories: _Trajectories, train_index: np.ndarray, test_index: np.ndarray,
                      tau_plus_s: float, learner: RuleListLearner, sample_stride: int
                      ) -> tuple[list[np.ndarray], tuple[int, ...], tuple[int, ...], float]:
-    """Train on ``train``; atomic falling predictions (bool per sample) on ``test``."""
+    """Train on the trajectories ``train_index``; atomic falling predictions (bool per
+    sample) on those of ``test_index``."""
+    train = [trajectories.items[i] for i in train_index]
+    test = [trajectories.items[i] for i in test_index]
     start = time.perf_counter()
     lists = fit_strided(train, tau_plus_s, learner, sample_stride)
     fit_s = time.perf_counter() - start
@@ -111,9 +124,10 @@ def cross_validate_grid(trajectories: Sequence[TrajectoryFeatures], learner: Rul
     trains on ``n`` trajectories drawn from the other folds with their outcome mix (seeded by
     ``seed``, the fold and ``n``); ``None`` (or ``n`` at least the available count) trains on
     all of them. ``jobs`` trainings run in parallel processes (the trajectories reach them
-    memory-mapped from a temporary folder, deleted afterwards).
+    memory-mapped from a temporary folder, deleted afterwards), or on the Dask cluster of an
+    enclosing :func:`~fall_predictor.data.parallel.compute_backend`.
     """
-    from joblib import Parallel, delayed
+    from joblib import delayed
     from tqdm import tqdm
 
     tau_plus_values = [float(v) for v in tau_plus_values]
@@ -137,10 +151,9 @@ def cross_validate_grid(trajectories: Sequence[TrajectoryFeatures], learner: Rul
                 tasks.append((fold, tau_plus_s, n_train, chosen, test_index))
 
     with tempfile.TemporaryDirectory(prefix='fall_predictor_cv_') as folder:
-        shared = _shared_memory_view(trajectories, folder) if jobs > 1 else list(trajectories)
-        outputs = Parallel(n_jobs=jobs, return_as='generator')(
-            delayed(_fit_and_predict)([shared[i] for i in chosen], [shared[i] for i in test_index],
-                                      tau_plus_s, learner, sample_stride)
+        shared = _Trajectories(_shared_memory_view(trajectories, folder) if jobs > 1 else trajectories)
+        outputs = compute_parallel(jobs, return_as='generator')(
+            delayed(_fit_and_predict)(shared, chosen, test_index, tau_plus_s, learner, sample_stride)
             for _, tau_plus_s, _, chosen, test_index in tasks)
         fits = []
         for (fold, tau_plus_s, n_train, chosen, test_index), output in tqdm(

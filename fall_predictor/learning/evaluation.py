@@ -68,8 +68,10 @@ def capture_point_distances_cached(data_dir: PathLike, trajectories: Sequence[Tr
     ``DATA/cache/cp_<trajectory id>.npz``, keyed by the bag fingerprint like the feature cache,
     so that sweeps do not read bags again.
     """
-    from joblib import Parallel, delayed
+    from joblib import delayed
     from tqdm import tqdm
+
+    from fall_predictor.data.parallel import local_parallel
 
     data_dir = Path(data_dir)
     bags = {row.trajectory_id: row.bag for row in read_index(data_dir)}
@@ -77,7 +79,7 @@ def capture_point_distances_cached(data_dir: PathLike, trajectories: Sequence[Tr
     if missing:
         raise DatasetError(f'{data_dir}: trajectories not in the index: {", ".join(missing[:5])}')
     total_mass_kg = robot_total_mass_kg(data_dir)
-    entries = Parallel(n_jobs=jobs)(
+    entries = local_parallel(jobs)(
         delayed(_capture_point_entry)(data_dir, bags[traj.trajectory_id], traj.trajectory_id,
                                       traj.t.size, total_mass_kg)
         for traj in tqdm(trajectories, desc='capture point', unit='traj', disable=not progress))

@@ -25,6 +25,7 @@ from typing import Any, Optional, Sequence
 import numpy as np
 
 from fall_predictor.data.dataset import DatasetError
+from fall_predictor.data.parallel import compute_backend
 from fall_predictor.learning.baselines import pareto_front
 from fall_predictor.learning.crossval import (FoldFit, SweepPoint, aggregate_folds,
                                               cross_validate_grid)
@@ -162,13 +163,15 @@ class SweepResult:
 
 def run_sweep(data_dir: PathLike, out_dir: PathLike, config: SweepConfig = SweepConfig(),
               jobs: int = 1, skip_unreadable: bool = False, progress: bool = False,
-              command: Optional[str] = None) -> SweepResult:
+              command: Optional[str] = None, scheduler: Optional[str] = None) -> SweepResult:
     """Cross-validated sweep over ``config``'s tau_plus x tau_his grid, learning curve and
     baselines on the dataset ``data_dir``; writes ``sweep.json``, ``table.md`` and PNGs to
     ``out_dir`` and returns what it wrote.
 
     Trainings: ``folds`` x (number of tau_plus values + learning-curve sizes below the full
-    training set); ``jobs`` processes run them (and load the features).
+    training set); ``jobs`` processes run them (and load the features), or, with ``scheduler``
+    (a Dask scheduler's address), the cluster's workers run the trainings while ``jobs`` local
+    processes load the features (:mod:`fall_predictor.data.parallel`); the results are the same.
     """
     started = time.perf_counter()
     out_dir = Path(out_dir)
@@ -193,10 +196,11 @@ def run_sweep(data_dir: PathLike, out_dir: PathLike, config: SweepConfig = Sweep
 
     start = time.perf_counter()
     learner = make_learner(config.learner_name, config.learner_params)
-    fits = cross_validate_grid(trajectories, learner, config.tau_plus_values_s,
-                               config.tau_his_values_s, config.folds, config.seed,
-                               config.sample_stride, jobs=jobs, progress=progress)
-    curve_fits = _learning_curve_fits(trajectories, learner, fits, config, jobs, progress)
+    with compute_backend(scheduler):
+        fits = cross_validate_grid(trajectories, learner, config.tau_plus_values_s,
+                                   config.tau_his_values_s, config.folds, config.seed,
+                                   config.sample_stride, jobs=jobs, progress=progress)
+        curve_fits = _learning_curve_fits(trajectories, learner, fits, config, jobs, progress)
     cross_validation_s = time.perf_counter() - start
 
     points = tuple(aggregate_folds([fit for fit in fits if fit.tau_plus_s == tau_plus], tau_his)

@@ -7,6 +7,7 @@ gait has settled. A push is survived when the robot has not fallen ``horizon_s``
 """
 from __future__ import annotations
 
+import threading
 from dataclasses import asdict, dataclass
 from typing import Callable, Optional, Sequence
 
@@ -91,19 +92,19 @@ def run_robustness(grid: RobustnessGrid = RobustnessGrid(),
             **survival_table(grid, survived)}
 
 
-_PREFIX: dict = {}
+_PREFIX = threading.local()
 
 
 def survives(item: tuple[float, PushSpec]) -> bool:
-    """Whether the robot walking the default gait survives ``push`` (one worker-local walk,
-    simulated once and restored from snapshots)."""
+    """Whether the robot walking the default gait survives ``push`` (one walk per worker
+    thread, simulated once and restored from snapshots)."""
     from fall_predictor.sim.simulator import Simulator
     from fall_predictor.sim.trajectory import WalkPrefix, run_trajectory
 
     horizon_s, push = item
-    if 'prefix' not in _PREFIX:
+    if getattr(_PREFIX, 'prefix', None) is None:
         dist = PushDistribution()
         until = dist.settle_s + dist.walk_cycle_s() + 0.01
-        _PREFIX['prefix'] = WalkPrefix(Simulator(), until_s=until, walk_duration_s=until + 60.0)
-    result = run_trajectory(push, push.t_force_end + horizon_s, prefix=_PREFIX['prefix'])
+        _PREFIX.prefix = WalkPrefix(Simulator(), until_s=until, walk_duration_s=until + 60.0)
+    result = run_trajectory(push, push.t_force_end + horizon_s, prefix=_PREFIX.prefix)
     return not result.fallen
