@@ -37,7 +37,7 @@ def write_bag(path, measurements, *, compress=True, extras=True):
             writer.write_measurement(m)
             if extras and k % 10 == 0:
                 writer.write_joint_state(m.t, JOINTS, np.full(4, k * 0.01), np.ones(4))
-                writer.write_features(m.t, np.arange(15.0) + k, k % 16)
+                writer.write_features(m.t, (np.arange(15.0) + k) * 1e-3, k % 16)
                 writer.write_state(PredictorState(m.t, k >= 200, k >= 150, False, k >= 200,
                                                   k % 16, 0.044))
         if extras:

@@ -29,7 +29,8 @@ def meas(t=0.0, com=(0.02, 0.0, 0.59), lin_mom=(0.0, 0.0, 0.0), ang_mom=(0.0, 0.
 def random_trajectory(n=300, seed=0):
     """A smooth wandering state with contact changes (double support, left, right, flight)."""
     rng = np.random.default_rng(seed)
-    walk = np.cumsum(rng.normal(size=(n, 9)), axis=0) * 0.01
+    # Steps of a few mm per ms: fast, but within what physics allows (ContinuityCheck).
+    walk = np.cumsum(rng.normal(size=(n, 9)), axis=0) * 0.002
     phases = [(L_FLAT, R_FLAT), (L_FLAT, ()), ((), ()), ((), R_FLAT)]
     out = []
     for k in range(n):

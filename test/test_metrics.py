@@ -70,10 +70,11 @@ def test_misses_count_zero_lead():
 
 def test_guard_catches_a_fall_the_list_misses():
     fallen = trajectory('f', True, t_fallen=2.5, com_drop_at=2.3)
-    result = evaluate_atomic([fallen], [np.zeros(3000, bool)], tau_his_values=(0.0, 1.0))
+    result = evaluate_atomic([fallen], [np.zeros(3000, bool)], tau_his_values=(0.0, 0.05, 1.0))
     assert result[0.0].tau_lead_s == pytest.approx(0.2)
-    assert result[1.0].tau_lead_s == pytest.approx(0.2)     # the guard bypasses the window
-    assert result[0.0].n_missed == 0
+    assert result[0.05].tau_lead_s == pytest.approx(0.15)   # the guard is windowed too
+    assert result[0.0].n_missed == 0 and result[0.05].n_missed == 0
+    assert result[1.0].n_missed == 1                        # 0.2 s of low CoM < 1 s window
 
 
 def test_pre_push_alarms_are_reported_separately():

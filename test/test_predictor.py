@@ -61,12 +61,32 @@ def test_history_before_reset_counts_as_not_falling():
     assert run(predictor, np.arange(3) * 0.001, [5, 5, 5]) == [False, False, True]
 
 
-def test_guard_bypasses_the_window_and_is_reported_separately():
-    predictor = OnlinePredictor(momentum_lists(), tau_his_s=1.0)
+def test_guard_fires_without_a_window_and_is_reported_separately():
+    predictor = OnlinePredictor(momentum_lists(), tau_his_s=0.0)
     out = predictor.step(0.0, features(0.0, com_z=0.47), 0)
     assert (out.atomic, out.guard, out.falling, out.latched) == (False, True, True, True)
     out = predictor.step(0.001, features(0.0, com_z=0.48), 0)
     assert (out.atomic, out.guard, out.falling, out.latched) == (False, False, False, True)
+
+
+def test_a_single_guard_glitch_does_not_latch_but_a_held_low_com_does():
+    predictor = OnlinePredictor(momentum_lists(), tau_his_s=0.005)
+    out = predictor.step(0.0, features(0.0, com_z=0.0), 0)         # one glitch sample
+    assert (out.guard, out.falling, out.latched) == (True, False, False)
+    assert not predictor.step(0.001, features(0.0), 0).falling     # back to normal
+    assert not predictor.latched
+    # A CoM that stays low from 0.002 s fires once it has held for tau_his (at 0.007 s).
+    outs = [predictor.step(0.001 * k, features(0.0, com_z=0.45), 0) for k in range(2, 10)]
+    assert [o.falling for o in outs] == [False] * 5 + [True] * 3
+    assert outs[5].t == pytest.approx(0.007)
+
+
+def test_guard_and_list_samples_form_one_run():
+    predictor = OnlinePredictor(momentum_lists(), tau_his_s=0.003)
+    # atomic (momentum 5), then guard only (low CoM, momentum 0), alternating: one run.
+    xs = [features(5.0), features(0.0, com_z=0.4), features(5.0), features(0.0, com_z=0.4)]
+    outs = [predictor.step(0.001 * k, x, 0) for k, x in enumerate(xs)]
+    assert [o.falling for o in outs] == [False, False, False, True]
 
 
 def test_latch_is_one_way_until_reset():

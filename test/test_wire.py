@@ -57,7 +57,9 @@ def test_measurement_layout_positions(rng):
 
 def test_extreme_values_round_trip(rng):
     m = make_measurement(rng, 1, 0)
-    m.com = np.array([1e308, -0.0, 5e-324])
+    # Extremes the bounds allow: a negative zero, a denormal and the largest CoM height.
+    m.com = np.array([-0.0, 5e-324, 2.0])
+    m.left_contacts[:, :2] = 0.0
     back = unpack_measurement(pack_measurement(m))
     assert back.com.tobytes() == m.com.tobytes()
 
@@ -96,7 +98,7 @@ def _with(data, index, value):
     (lambda d: _with(d, 24, np.inf), 'n_left must be a non-negative integer, got inf'),
     (lambda d: _with(d, 0, np.nan), r'measurement.t is not finite'),
     (lambda d: _with(d, 0, np.inf), r'measurement.t is not finite'),
-    (lambda d: _with(d, 0, -0.001), r'measurement.t must be >= 0'),
+    (lambda d: _with(d, 0, -0.001), r'sample time -0.001 s is outside'),
     (lambda d: _with(d, 2, np.nan), r'measurement.com is not finite'),
     (lambda d: _with(d, 10, np.inf), r'measurement.heading is not finite'),
     (lambda d: _with(d, 12, np.nan), r'measurement.cop must be all finite or all NaN'),
@@ -158,8 +160,14 @@ def test_check_layout_rejects(layout, match):
 
 # ---------------------------------------------------------------------------- features
 
+def plausible_features(rng):
+    x = rng.normal(size=N_FEATURES) * 0.1
+    x[2] = 0.6      # CoM height within [0, 2] m
+    return x
+
+
 def test_features_round_trip(rng):
-    x = rng.normal(size=N_FEATURES)
+    x = plausible_features(rng)
     data = pack_features(2.5, x, 15)
     assert data.shape == (17,) and data[0] == 2.5 and data[16] == 15
     sample = unpack_features(data)
@@ -177,7 +185,7 @@ def test_features_round_trip(rng):
 ])
 def test_malformed_features_are_rejected(rng, mutate, match):
     with pytest.raises(WireFormatError, match=match):
-        unpack_features(mutate(pack_features(0.1, rng.normal(size=N_FEATURES), 3)))
+        unpack_features(mutate(pack_features(0.1, plausible_features(rng), 3)))
 
 
 def test_pack_features_rejects_wrong_shape():

@@ -42,6 +42,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from fall_predictor.data.topics import WORLD_FRAME, WireFormatError, ns_to_time, time_to_ns
+from fall_predictor.monitor.plausibility import (ImplausibleSample, check_feature_bounds,
+                                                 check_measurement_bounds)
 from fall_predictor.monitor.records import (
     CONTACT_MODE_NAMES,
     FEATURE_NAMES,
@@ -189,11 +191,15 @@ def _check_measurement(a: np.ndarray) -> tuple[int, int]:
     if not finite.all():
         index = int(np.argmin(finite))
         raise WireFormatError(f'measurement.{_field_at(index)} is not finite: {a[index]!r}')
-    if a[I_T] < 0.0:
-        raise WireFormatError(f'measurement.t must be >= 0 s, got {a[I_T]!r}')
     if a[I_NON_FOOT_CONTACT] not in (0.0, 1.0):
         raise WireFormatError(
             f'measurement.non_foot_contact must be 0 or 1, got {a[I_NON_FOOT_CONTACT]!r}')
+    try:
+        check_measurement_bounds(a[I_T], a[S_COM], a[S_LIN_MOM], a[S_ANG_MOM], a[I_HEADING],
+                                 a[S_COP], a[S_LEFT_FOOT], a[S_RIGHT_FOOT], a[S_PUSH_FORCE],
+                                 a[MEASUREMENT_HEADER_LEN:])
+    except ImplausibleSample as error:
+        raise WireFormatError(f'measurement: {error}') from None
     return n_left, n_right
 
 
@@ -269,6 +275,10 @@ def _check_features(a: np.ndarray) -> int:
         index = int(np.argmin(finite))
         name = ('t', *FEATURE_NAMES, 'mode')[index]
         raise WireFormatError(f'features.{name} is not finite: {a[index]!r}')
+    try:
+        check_feature_bounds(a[0], a[1:1 + N_FEATURES])
+    except ImplausibleSample as error:
+        raise WireFormatError(f'features: {error}') from None
     return _mode_index(float(a[-1]), 'features contact mode')
 
 

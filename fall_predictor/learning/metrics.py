@@ -182,23 +182,25 @@ def evaluate_atomic(trajectories: Sequence[TrajectoryFeatures], atomic: Sequence
         raise ValueError(f'{len(trajectories)} trajectories but {len(atomic)} atomic arrays')
     alarms: dict[float, list[TrajectoryAlarms]] = {float(tau): [] for tau in tau_his_values}
     lists_only: dict[float, list[TrajectoryAlarms]] = {float(tau): [] for tau in tau_his_values}
-    guard_only: list[TrajectoryAlarms] = []
+    guard_only: dict[float, list[TrajectoryAlarms]] = {float(tau): [] for tau in tau_his_values}
     for traj, atomic_falling in zip(trajectories, atomic):
         t = check_sample_times(traj.t)
         if np.shape(atomic_falling) != t.shape:
             raise ValueError(f'trajectory {traj.trajectory_id}: atomic predictions do not match its samples')
-        durations = falling_run_durations(t, atomic_falling)
         guard = guard_predictions(traj.X, guard_com_height_m)
-        no_guard = np.zeros_like(guard)
-        guard_only.append(trajectory_alarms(t, guard, traj.t_push))
+        durations = falling_run_durations(t, atomic_falling | guard)
+        lists_durations = falling_run_durations(t, atomic_falling)
+        guard_durations = falling_run_durations(t, guard)
         for tau_his_s, records in alarms.items():
-            falling = windowed_falling(durations, guard, tau_his_s, dt_s)
+            falling = windowed_falling(durations, tau_his_s, dt_s)
             records.append(trajectory_alarms(t, falling, traj.t_push))
-            lists_falling = windowed_falling(durations, no_guard, tau_his_s, dt_s)
+            lists_falling = windowed_falling(lists_durations, tau_his_s, dt_s)
             lists_only[tau_his_s].append(trajectory_alarms(t, lists_falling, traj.t_push))
+            guard_falling = windowed_falling(guard_durations, tau_his_s, dt_s)
+            guard_only[tau_his_s].append(trajectory_alarms(t, guard_falling, traj.t_push))
     return {tau_his_s: evaluate(trajectories, records, mean_rule_size,
                                 lists_only_alarms=lists_only[tau_his_s],
-                                guard_only_alarms=guard_only)
+                                guard_only_alarms=guard_only[tau_his_s])
             for tau_his_s, records in alarms.items()}
 
 

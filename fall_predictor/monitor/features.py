@@ -24,6 +24,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from fall_predictor.monitor.contact_modes import ContactMode, classify_contact_mode_and_cop, float_list
+from fall_predictor.monitor.plausibility import ContinuityCheck
 from fall_predictor.monitor.records import GUARD_COM_HEIGHT_M, N_FEATURES, Measurement
 
 _OUTSIDE = int(ContactMode.OUTSIDE)
@@ -110,17 +111,24 @@ class FeatureExtractor:
         # Past samples as (t, world linear momentum xyz, world angular momentum xyz); the
         # oldest entry is the sample window_samples steps back once the buffer is full.
         self._history: deque[tuple[float, ...]] = deque(maxlen=self.window_samples)
+        #: Rejects samples that jump further than physics allows (glitches), see
+        #: :mod:`fall_predictor.monitor.plausibility`.
+        self.continuity = ContinuityCheck()
 
     def reset(self) -> None:
         """Forget the momentum history (the next sample gets zero rates)."""
         self._history.clear()
+        self.continuity.reset()
 
     def update(self, m: Measurement) -> tuple[np.ndarray, int]:
         """Features (15,) in :data:`FEATURE_NAMES` order and the contact mode index of ``m``.
 
         Raises ValueError, leaving the extractor unchanged, if the CoM, momenta, heading or
         time are not finite or have wrong shapes, if the contacts are malformed, or if the
-        time does not increase (call :meth:`reset` when a new trajectory starts).
+        time does not increase (call :meth:`reset` when a new trajectory starts). Raises
+        :class:`~fall_predictor.monitor.plausibility.ImplausibleSample` (a ValueError), also
+        leaving it unchanged, if the CoM or a momentum jumped further than physics allows since
+        the last accepted sample.
         """
         t = float(m.t)
         cx, cy, cz = _finite_vector3(m.com, 'com')
@@ -134,6 +142,8 @@ class FeatureExtractor:
             raise ValueError(f'time must increase: got t={t} after t={history[-1][0]}; '
                              'reset() before a new trajectory')
         mode, ox, oy = classify_contact_mode_and_cop(m, self.edge_tolerance_m)
+        if self.continuity.check(t, (cx, cy, cz), (px, py, pz), (lx, ly, lz)):
+            history.clear()     # accepted after a real discontinuity: no rate across it
         if mode == _OUTSIDE:
             ox, oy = cx, cy
 

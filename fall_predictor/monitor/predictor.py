@@ -5,23 +5,25 @@ predictor node. Per sample at time ``t`` it computes
 
 * ``atomic``: the contact mode's decision list says falling for the feature vector ``x``;
 * ``guard``: the CoM height ``x[2]`` is below the guard height (0.48 m, SPEC §5);
-* ``falling = guard or (every atomic prediction in [t - tau_his, t] was falling)``;
+* ``falling``: ``atomic or guard`` held at every sample of ``[t - tau_his, t]``;
 * ``latched``: falling has been output at least once since :meth:`OnlinePredictor.reset`.
 
-**History window.** The atomic predictions since the last reset form runs of consecutive
-falling samples. ``falling`` needs the current run to have lasted at least ``tau_his``:
-``t - t_run_start >= tau_his``, where ``t_run_start`` is the time of the run's first sample.
-With regular sampling and ``tau_his`` a multiple of the period this is exactly "every sample in
-``[t - tau_his, t]`` is falling"; samples before the reset (or before the first sample) count
-as not falling, so a run starting at the first sample also has to last ``tau_his``. Times are
-used, not sample counts, so irregular spacing is handled; times are compared with a tolerance
-of ``dt_s / 1000`` so that float round-off in sample times (``0.003 - 0.001 < 0.002``) does not
-drop a sample. ``tau_his = 0`` passes every atomic prediction through.
+**History window.** The samples since the last reset whose ``atomic or guard`` is true form
+runs of consecutive samples. ``falling`` needs the current run to have lasted at least
+``tau_his``: ``t - t_run_start >= tau_his``, where ``t_run_start`` is the time of the run's
+first sample. With regular sampling and ``tau_his`` a multiple of the period this is exactly
+"every sample in ``[t - tau_his, t]`` is falling"; samples before the reset (or before the
+first sample) count as not falling, so a run starting at the first sample also has to last
+``tau_his``. Times are used, not sample counts, so irregular spacing is handled; times are
+compared with a tolerance of ``dt_s / 1000`` so that float round-off in sample times
+(``0.003 - 0.001 < 0.002``) does not drop a sample. ``tau_his = 0`` passes every sample's
+``atomic or guard`` through.
 
-**Guard.** The CoM guard bypasses the history window: it exists to remove false negatives of
-states that are certainly falling, and a CoM below 0.48 m (standing height 0.59 m, fallen
-0.33 m) is such a state; delaying it by ``tau_his`` would only cost lead time. The window runs
-over the decision list's atomic predictions only.
+**Guard.** The CoM guard removes false negatives of states that are certainly falling (a CoM
+below 0.48 m; standing height 0.59 m, fallen 0.33 m). It goes through the same window as the
+decision lists: a single glitch sample reporting a low CoM must not latch the fall for good,
+and the window's cost is small (the guard fires late in a fall anyway; the lead it costs on
+the dataset is in docs/results.md).
 
 :func:`predict_trajectory` is the vectorised offline twin of the streaming predictor and gives
 exactly the same outputs as :meth:`OnlinePredictor.step` sample by sample.
@@ -49,7 +51,7 @@ class PredictorOutput:
 
     t: float
     atomic: bool        #: the contact mode's decision list says falling
-    falling: bool       #: the prediction: guard, or atomic falling throughout the history window
+    falling: bool       #: the prediction: atomic or guard throughout the history window
     guard: bool         #: the CoM guard fired (CoM height below the guard height)
     latched: bool       #: falling was output at least once since the last reset (one-way)
 
@@ -135,13 +137,13 @@ class OnlinePredictor:
         values = x.tolist() if isinstance(x, np.ndarray) else x
         atomic = self._predict_by_mode[mode](values) == FALLING
         guard = values[COM_HEIGHT_FEATURE] < self._guard_com_height_m
-        if atomic:
+        if atomic or guard:
             if self._run_start_t is None:
                 self._run_start_t = t
-            falling = guard or t - self._run_start_t >= self._tau_his_s - self._time_tolerance_s
+            falling = t - self._run_start_t >= self._tau_his_s - self._time_tolerance_s
         else:
             self._run_start_t = None
-            falling = guard
+            falling = False
         if falling:
             self._latched = True
         self._last_t = t
@@ -187,9 +189,10 @@ def guard_predictions(X: np.ndarray, guard_com_height_m: float = GUARD_COM_HEIGH
 
 
 def falling_run_durations(t: np.ndarray, atomic: np.ndarray) -> np.ndarray:
-    """Per sample: ``t - t_run_start`` [s] of its run of consecutive atomic falling samples.
+    """Per sample: ``t - t_run_start`` [s] of its run of consecutive flagged samples.
 
-    NaN where the atomic prediction is not falling. Computed once per trajectory, it gives the
+    ``atomic`` is the per-sample candidate (``atomic | guard`` for the predictor). NaN where it
+    is not set. Computed once per trajectory, it gives the
     windowed output for any ``tau_his`` (:func:`windowed_falling`).
     """
     t = np.asarray(t, dtype=float)
@@ -200,17 +203,17 @@ def falling_run_durations(t: np.ndarray, atomic: np.ndarray) -> np.ndarray:
     return np.where(atomic, t - t[start_index], np.nan)
 
 
-def windowed_falling(run_durations: np.ndarray, guard: np.ndarray, tau_his_s: float,
+def windowed_falling(run_durations: np.ndarray, tau_his_s: float,
                      dt_s: float = 0.001) -> np.ndarray:
     """Bool (N,): the predictor output for history window ``tau_his_s`` [s].
 
-    ``run_durations`` from :func:`falling_run_durations`, ``guard`` from
-    :func:`guard_predictions`; same arithmetic as :meth:`OnlinePredictor.step`.
+    ``run_durations`` from :func:`falling_run_durations` of ``atomic | guard``; same
+    arithmetic as :meth:`OnlinePredictor.step`.
     """
     tau_his_s = _check_tau_his(tau_his_s)
     time_tolerance_s = _check_positive('dt_s', dt_s) * TIME_TOLERANCE_FRACTION
     with np.errstate(invalid='ignore'):
-        return guard | (run_durations >= tau_his_s - time_tolerance_s)
+        return run_durations >= tau_his_s - time_tolerance_s
 
 
 def predict_trajectory(lists: PerModeDecisionLists, X: np.ndarray, mode: np.ndarray,
@@ -224,5 +227,5 @@ def predict_trajectory(lists: PerModeDecisionLists, X: np.ndarray, mode: np.ndar
     t = check_sample_times(t)
     atomic = lists.predict(X, mode) == FALLING
     guard = guard_predictions(X, guard_com_height_m)
-    falling = windowed_falling(falling_run_durations(t, atomic), guard, tau_his_s, dt_s)
+    falling = windowed_falling(falling_run_durations(t, atomic | guard), tau_his_s, dt_s)
     return TrajectoryPrediction(t=t, atomic=atomic, guard=guard, falling=falling)

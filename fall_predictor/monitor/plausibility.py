@@ -1,0 +1,218 @@
+"""Physical plausibility of the monitor's inputs: the one place where the bounds live.
+
+A value can be finite, well formed and still impossible for a humanoid: a CoM 1e154 m away,
+a sample time of 1e10 s, momentum of 1e308 kg m/s, a CoM that moves 0.6 m in one millisecond.
+Such values overflow later arithmetic (squared distances, nanosecond stamps) or fool the
+predictor (a CoM at height 0 is "certainly fallen"). Every input is therefore checked twice:
+
+* **bounds, per sample** (:func:`check_measurement_bounds`, :func:`check_feature_bounds`): each
+  field within a stated range (table below). The wire layer (:mod:`fall_predictor.data.wire`)
+  applies them to every decoded message, so the live nodes and the offline bag readers reject
+  the same samples.
+* **continuity, between samples** (:class:`ContinuityCheck`): a sample that moved the CoM or
+  changed a momentum faster than physics allows since the last accepted sample is rejected.
+  The feature extractor applies it, so it is the same live and offline.
+
+Bounds (SI units; "horizontal range" is measured from the CoM's ground projection):
+
+========================  ===================================================================
+sample time ``t``         [0, 1e7] s (115 days; nanosecond stamps stay far below 2^63)
+CoM x, y                  within 1e4 m of the world origin
+CoM height                [0, 2] m
+CoP, feet, contacts       within 2 m horizontally of the CoM; contact/CoP z within [-0.5, 2] m
+linear momentum           norm <= 2000 kg m/s (a 100 kg robot at 20 m/s)
+angular momentum          norm <= 500 kg m^2/s
+push force                norm <= 1e5 N
+contact normal force      [0, 1e5] N
+heading                   within [-1e3, 1e3] rad (any yaw, unwrapped)
+========================  ===================================================================
+
+Continuity limits between consecutive accepted samples ``dt`` apart: CoM speed 20 m/s, rate of
+linear momentum 5e5 N, rate of angular momentum 2e5 N m. They are generous on purpose: over 60
+trajectories of the simulated dataset the largest sample-to-sample values were 2.7 m/s, 4.3e4 N
+and 1.2e4 N m (rigid ground impacts of falling robots), 7 to 16 times below the limits; a glitch
+of the kind that matters (a CoM reported at the origin, a momentum of 1e300) is far beyond them
+or beyond the bounds. A run of ``resync_samples``
+consecutive rejections is taken as a real discontinuity (a robot lifted and put down
+elsewhere): the check then accepts the current sample and starts over from it.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+#: Sample times [s] must lie in [0, MAX_SAMPLE_TIME_S].
+MAX_SAMPLE_TIME_S = 1e7
+#: |CoM x|, |CoM y| [m] at most this far from the world origin.
+MAX_WORLD_COORDINATE_M = 1e4
+#: CoM height range [m].
+COM_HEIGHT_RANGE_M = (0.0, 2.0)
+#: CoP, feet and contact points at most this far horizontally from the CoM [m].
+MAX_HORIZONTAL_OFFSET_M = 2.0
+#: z of the CoP and contact points [m].
+CONTACT_HEIGHT_RANGE_M = (-0.5, 2.0)
+#: Norm bounds of the momenta and forces.
+MAX_LINEAR_MOMENTUM_KG_M_S = 2000.0
+MAX_ANGULAR_MOMENTUM_KG_M2_S = 500.0
+MAX_PUSH_FORCE_N = 1e5
+MAX_CONTACT_FORCE_N = 1e5
+MAX_ABS_HEADING_RAD = 1e3
+#: Feature bounds: rates of linear [N] and angular [N m] momentum.
+MAX_LINEAR_MOMENTUM_RATE_N = 5e5
+MAX_ANGULAR_MOMENTUM_RATE_N_M = 2e5
+#: Continuity: fastest CoM motion [m/s] between accepted samples.
+MAX_COM_SPEED_M_S = 20.0
+
+
+class ImplausibleSample(ValueError):
+    """A sample outside the physical bounds or continuity limits (the message says which)."""
+
+
+def _norm3(v: Sequence[float]) -> float:
+    # math.hypot does not overflow for finite inputs up to the float range.
+    return math.hypot(float(v[0]), float(v[1]), float(v[2]))
+
+
+def check_time(t: float, what: str = 'sample time') -> float:
+    """``t`` as a float if it is finite and within [0, MAX_SAMPLE_TIME_S] s."""
+    t = float(t)
+    if not (0.0 <= t <= MAX_SAMPLE_TIME_S):
+        raise ImplausibleSample(f'{what} {t!r} s is outside [0, {MAX_SAMPLE_TIME_S:g}] s')
+    return t
+
+
+def _check_norm(value: Sequence[float], limit: float, what: str, unit: str) -> None:
+    norm = _norm3(value)
+    if not norm <= limit:
+        raise ImplausibleSample(f'|{what}| = {norm:.6g} {unit} exceeds {limit:g} {unit}')
+
+
+def _check_point(point: Sequence[float], com: Sequence[float], what: str,
+                 check_z: bool = True) -> None:
+    offset = math.hypot(float(point[0]) - float(com[0]), float(point[1]) - float(com[1]))
+    if not offset <= MAX_HORIZONTAL_OFFSET_M:
+        raise ImplausibleSample(f'{what} is {offset:.6g} m from the CoM horizontally '
+                                f'(at most {MAX_HORIZONTAL_OFFSET_M} m)')
+    if check_z:
+        low, high = CONTACT_HEIGHT_RANGE_M
+        if not low <= float(point[2]) <= high:
+            raise ImplausibleSample(f'{what} z = {float(point[2])!r} m is outside [{low}, {high}] m')
+
+
+def check_measurement_bounds(t: float, com: Sequence[float], lin_mom: Sequence[float],
+                             ang_mom: Sequence[float], heading: float, cop: Sequence[float],
+                             left_foot: Sequence[float], right_foot: Sequence[float],
+                             push_force: Sequence[float], contacts: np.ndarray) -> None:
+    """Raise :class:`ImplausibleSample` naming the first field outside the bounds table.
+
+    ``cop`` may be all NaN (no contact); ``contacts`` is (k, 3) rows of (x, y, normal force)
+    of both feet. Values are assumed finite (the wire layer checks that first).
+    """
+    check_time(t)
+    if not (abs(float(com[0])) <= MAX_WORLD_COORDINATE_M
+            and abs(float(com[1])) <= MAX_WORLD_COORDINATE_M):
+        raise ImplausibleSample(f'CoM x, y = {float(com[0])!r}, {float(com[1])!r} m are more '
+                                f'than {MAX_WORLD_COORDINATE_M:g} m from the origin')
+    low, high = COM_HEIGHT_RANGE_M
+    if not low <= float(com[2]) <= high:
+        raise ImplausibleSample(f'CoM height {float(com[2])!r} m is outside [{low}, {high}] m')
+    _check_norm(lin_mom, MAX_LINEAR_MOMENTUM_KG_M_S, 'linear momentum', 'kg m/s')
+    _check_norm(ang_mom, MAX_ANGULAR_MOMENTUM_KG_M2_S, 'angular momentum', 'kg m^2/s')
+    if not abs(float(heading)) <= MAX_ABS_HEADING_RAD:
+        raise ImplausibleSample(f'heading {float(heading)!r} rad exceeds {MAX_ABS_HEADING_RAD:g}')
+    if not math.isnan(float(cop[0])):
+        _check_point(cop, com, 'CoP')
+    _check_point(left_foot, com, 'left foot', check_z=False)
+    _check_point(right_foot, com, 'right foot', check_z=False)
+    _check_norm(push_force, MAX_PUSH_FORCE_N, 'push force', 'N')
+    rows = np.asarray(contacts, dtype=np.float64).reshape(-1, 3)
+    if rows.size:
+        offsets = np.hypot(rows[:, 0] - float(com[0]), rows[:, 1] - float(com[1]))
+        if not (offsets <= MAX_HORIZONTAL_OFFSET_M).all():
+            raise ImplausibleSample(f'a contact point is {float(np.max(offsets)):.6g} m from the '
+                                    f'CoM horizontally (at most {MAX_HORIZONTAL_OFFSET_M} m)')
+        forces = rows[:, 2]
+        if not ((forces >= 0.0) & (forces <= MAX_CONTACT_FORCE_N)).all():
+            raise ImplausibleSample(f'contact normal forces must be in [0, {MAX_CONTACT_FORCE_N:g}]'
+                                    f' N, got {forces.min():.6g} .. {forces.max():.6g}')
+
+
+def check_feature_bounds(t: float, x: Sequence[float]) -> None:
+    """Raise :class:`ImplausibleSample` if a feature vector (SPEC §6, CoP frame) is out of bounds.
+
+    Same table as the measurements; the rates use the rate bounds of this module.
+    """
+    check_time(t)
+    if not math.hypot(float(x[0]), float(x[1])) <= MAX_HORIZONTAL_OFFSET_M:
+        raise ImplausibleSample(f'CoM is {math.hypot(float(x[0]), float(x[1])):.6g} m from the '
+                                f'CoP horizontally (at most {MAX_HORIZONTAL_OFFSET_M} m)')
+    low, high = COM_HEIGHT_RANGE_M
+    if not low <= float(x[2]) <= high:
+        raise ImplausibleSample(f'CoM height {float(x[2])!r} m is outside [{low}, {high}] m')
+    _check_norm(x[3:6], MAX_LINEAR_MOMENTUM_KG_M_S, 'linear momentum', 'kg m/s')
+    _check_norm(x[6:9], MAX_ANGULAR_MOMENTUM_KG_M2_S, 'angular momentum', 'kg m^2/s')
+    _check_norm(x[9:12], MAX_LINEAR_MOMENTUM_RATE_N, 'rate of linear momentum', 'N')
+    _check_norm(x[12:15], MAX_ANGULAR_MOMENTUM_RATE_N_M, 'rate of angular momentum', 'N m')
+
+
+@dataclass
+class ContinuityCheck:
+    """Rejects a sample that moved further than physics allows since the last accepted one.
+
+    Args:
+        resync_samples: after this many consecutive rejections the current sample is accepted
+            and becomes the new reference (a real discontinuity, not a glitch).
+    """
+
+    resync_samples: int = 20
+    max_com_speed_m_s: float = MAX_COM_SPEED_M_S
+    max_linear_momentum_rate_n: float = MAX_LINEAR_MOMENTUM_RATE_N
+    max_angular_momentum_rate_n_m: float = MAX_ANGULAR_MOMENTUM_RATE_N_M
+
+    def __post_init__(self) -> None:
+        if self.resync_samples < 1:
+            raise ValueError(f'resync_samples must be >= 1, got {self.resync_samples}')
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the reference sample (the next sample is accepted as is)."""
+        self._last: tuple[float, tuple[float, ...]] | None = None
+        self.rejected_in_a_row = 0
+        self.resyncs = 0
+
+    def check(self, t: float, com: Sequence[float], lin_mom: Sequence[float],
+              ang_mom: Sequence[float]) -> bool:
+        """Accept the sample (it becomes the reference) or raise :class:`ImplausibleSample`.
+
+        ``t`` must be later than the reference's time (the caller checks the order). Returns
+        True when the sample was accepted by a resynchronisation (the caller should drop any
+        history built on the samples before the discontinuity).
+        """
+        values = (*(float(v) for v in com), *(float(v) for v in lin_mom),
+                  *(float(v) for v in ang_mom))
+        if self._last is not None:
+            t0, last = self._last
+            dt = float(t) - t0
+            problem = None
+            if dt > 0.0:
+                com_step = math.hypot(values[0] - last[0], values[1] - last[1], values[2] - last[2])
+                p_step = math.hypot(values[3] - last[3], values[4] - last[4], values[5] - last[5])
+                l_step = math.hypot(values[6] - last[6], values[7] - last[7], values[8] - last[8])
+                if not com_step <= self.max_com_speed_m_s * dt:
+                    problem = f'the CoM moved {com_step:.6g} m in {dt:.6g} s'
+                elif not p_step <= self.max_linear_momentum_rate_n * dt:
+                    problem = f'linear momentum changed by {p_step:.6g} kg m/s in {dt:.6g} s'
+                elif not l_step <= self.max_angular_momentum_rate_n_m * dt:
+                    problem = f'angular momentum changed by {l_step:.6g} kg m^2/s in {dt:.6g} s'
+            if problem is not None:
+                self.rejected_in_a_row += 1
+                if self.rejected_in_a_row < self.resync_samples:
+                    raise ImplausibleSample(f'jump: {problem} (faster than physics allows)')
+                self.resyncs += 1
+        resynced = self.rejected_in_a_row > 0
+        self.rejected_in_a_row = 0
+        self._last = (float(t), values)
+        return resynced

@@ -1,0 +1,124 @@
+"""Tests of the plausibility bounds and the continuity check (monitor/plausibility.py).
+
+The cases are the ones found by the adversarial tests of the issue: finite values that killed
+the nodes with OverflowError, a single glitch sample that fired the CoM guard, and a huge
+momentum that poisoned the rate window.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from fall_predictor.data.topics import WireFormatError
+from fall_predictor.data.wire import pack_features, pack_measurement, unpack_features, unpack_measurement
+from fall_predictor.monitor.features import FeatureExtractor
+from fall_predictor.monitor.plausibility import (MAX_SAMPLE_TIME_S, ContinuityCheck,
+                                                 ImplausibleSample, check_time)
+from fall_predictor.monitor.records import Measurement
+
+LEFT = [(0.1, 0.15), (-0.1, 0.15), (-0.1, 0.05), (0.1, 0.05)]
+RIGHT = [(0.1, -0.05), (-0.1, -0.05), (-0.1, -0.15), (0.1, -0.15)]
+
+
+def standing(t, com=(0.0, 0.0, 0.59), lin_mom=(0.0, 0.0, 0.0), cop=(0.0, 0.0, 0.0)):
+    rows = lambda pts: np.array([[x, y, 120.0] for x, y in pts])  # noqa: E731
+    return Measurement(t=t, com=np.array(com, float), lin_mom=np.array(lin_mom, float),
+                       ang_mom=np.zeros(3), heading=0.0, cop=np.array(cop, float),
+                       left_contacts=rows(LEFT), right_contacts=rows(RIGHT),
+                       left_foot=np.array([0.0, 0.1, 0.0]), right_foot=np.array([0.0, -0.1, 0.0]),
+                       non_foot_contact=False)
+
+
+def wire_round_trip(m):
+    return unpack_measurement(pack_measurement(m))
+
+
+@pytest.mark.parametrize('field, value, match', [
+    ('t', 9.3e9, 'sample time'),                        # overflowed the ns stamp conversion
+    ('t', 2.0 ** 31 + 1.0, 'sample time'),              # wrapped header sec to negative
+    ('com', (0.0, 0.0, -0.01), 'CoM height'),
+    ('com', (0.0, 0.0, 2.5), 'CoM height'),
+    ('com', (1e5, 0.0, 0.6), 'from the origin'),
+    ('cop', (1.3e154, 0.0, 0.0), 'CoP is'),             # overflowed a squared distance
+    ('lin_mom', (1e308, 0.0, 0.0), 'linear momentum'),  # poisoned the rate window
+    ('ang_mom', (0.0, 600.0, 0.0), 'angular momentum'),
+    ('heading', 1e9, 'heading'),
+])
+def test_each_bound_rejects_at_the_wire(field, value, match):
+    m = standing(0.5)
+    setattr(m, field, np.array(value, float) if isinstance(value, tuple) else value)
+    data = np.empty(0)
+    with pytest.raises(WireFormatError, match=match):
+        data = pack_measurement(m)
+    assert data.size == 0
+
+
+def test_contact_rows_far_away_or_negative_force_are_rejected():
+    m = standing(0.5)
+    m.left_contacts[0, 0] = 1.3e154
+    with pytest.raises(WireFormatError, match='contact point'):
+        pack_measurement(m)
+    m = standing(0.5)
+    m.right_contacts[1, 2] = -5.0
+    with pytest.raises(WireFormatError, match='normal forces'):
+        pack_measurement(m)
+
+
+def test_bounds_are_inclusive_and_accept_real_extremes():
+    m = standing(MAX_SAMPLE_TIME_S, com=(0.0, 0.0, 2.0))
+    assert wire_round_trip(m).t == MAX_SAMPLE_TIME_S
+    assert check_time(0.0) == 0.0
+    with pytest.raises(ImplausibleSample):
+        check_time(math.nan)
+
+
+def test_features_bounds_at_the_wire():
+    x = np.zeros(15)
+    x[2] = 0.6
+    assert unpack_features(pack_features(1.0, x, 0)).t == 1.0
+    x[9] = 6e5              # rate of linear momentum beyond 5e5 N
+    with pytest.raises(WireFormatError, match='rate of linear momentum'):
+        pack_features(1.0, x, 0)
+
+
+def test_a_com_glitch_to_the_origin_is_rejected_and_leaves_the_extractor_unchanged():
+    extractor = FeatureExtractor()
+    reference = FeatureExtractor()
+    for k in range(20):
+        extractor.update(standing(k * 0.001))
+        reference.update(standing(k * 0.001))
+    glitch = standing(0.020, com=(0.0, 0.0, 0.0))       # passes the bounds (height 0 m) ...
+    assert wire_round_trip(glitch).com[2] == 0.0
+    with pytest.raises(ImplausibleSample, match='CoM moved 0.59 m'):   # ... not continuity
+        extractor.update(glitch)
+    for k in range(21, 40):
+        x, mode = extractor.update(standing(k * 0.001))
+        x_ref, mode_ref = reference.update(standing(k * 0.001))
+        assert np.array_equal(x, x_ref) and mode == mode_ref
+
+
+def test_momentum_jump_is_rejected_but_the_next_valid_sample_is_not_blamed():
+    extractor = FeatureExtractor()
+    for k in range(20):
+        extractor.update(standing(k * 0.001, lin_mom=(1.0, 0.0, 0.0)))
+    with pytest.raises(ImplausibleSample, match='linear momentum changed'):
+        extractor.update(standing(0.020, lin_mom=(1000.0, 0.0, 0.0)))   # 1e6 N for 1 ms
+    x, _ = extractor.update(standing(0.030, lin_mom=(1.0, 0.0, 0.0)))
+    # The rate window holds only valid samples: constant momentum, zero rate.
+    assert np.all(x[9:12] == 0.0)
+
+
+def test_continuity_follows_real_fast_motion_and_resyncs_after_a_real_jump():
+    check = ContinuityCheck(resync_samples=5)
+    # 3 m/s, the fastest CoM motion seen in the simulated dataset, is accepted.
+    for k in range(10):
+        check.check(k * 0.001, (0.003 * k, 0.0, 0.6), (0, 0, 0), (0, 0, 0))
+    # The robot is lifted 1 m sideways: 4 rejections, then the 5th is accepted as a resync.
+    for k in range(10, 14):
+        with pytest.raises(ImplausibleSample):
+            check.check(k * 0.001, (0.0, 1.0, 0.6), (0, 0, 0), (0, 0, 0))
+    assert check.check(0.014, (0.0, 1.0, 0.6), (0, 0, 0), (0, 0, 0)) is True
+    assert check.resyncs == 1
+    assert check.check(0.015, (0.0, 1.0, 0.6), (0, 0, 0), (0, 0, 0)) is False
+    with pytest.raises(ValueError):
+        ContinuityCheck(resync_samples=0)
