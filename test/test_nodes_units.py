@@ -48,7 +48,7 @@ def test_push_request_onset_on_the_step_grid_and_never_in_the_past() -> None:
 
 
 def _request(fx: float = 100.0, fy: float = 0.0, fz: float = 0.0, torque=(0.0, 0.0, 0.0),
-             frame: str = 'heading') -> WrenchStamped:
+             frame: str = 'base_footprint') -> WrenchStamped:
     msg = WrenchStamped()
     msg.header.frame_id = frame
     msg.wrench.force.x, msg.wrench.force.y, msg.wrench.force.z = fx, fy, fz

@@ -12,7 +12,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
 from fall_predictor.ros import conversions as ros_qos
-from fall_predictor.data.topics import (CONTROLLER_MODE, MEASUREMENT, MEASUREMENT_LABEL, TOPICS, WireFormatError)
+from fall_predictor.data.topics import (MEASUREMENT, MEASUREMENT_LABEL, TOPICS, WireFormatError)
 from fall_predictor.data.wire import PredictorState, pack_measurement
 from random_records import make_measurement
 
@@ -28,9 +28,13 @@ def test_qos_profile_matches_spec(spec):
     assert profile.history == HistoryPolicy.KEEP_LAST
     assert profile.depth == spec.qos.depth
     assert profile.reliability == ReliabilityPolicy.RELIABLE
-    expected = (DurabilityPolicy.TRANSIENT_LOCAL if spec is CONTROLLER_MODE
-                else DurabilityPolicy.VOLATILE)
+    latched = spec.name in ('/fall_predictor/controller_mode', '/fall_predictor/falling',
+                            '/fall_predictor/fall_direction')
+    expected = DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE
     assert profile.durability == expected
+    if spec.rate_hz == 1000.0 and spec.name not in ('/clock', '/fall_predictor/joint_commands'):
+        sub = ros_qos.qos_profile(spec.subscription_qos)
+        assert sub.reliability == ReliabilityPolicy.BEST_EFFORT and sub.depth <= 10
 
 
 @pytest.mark.parametrize('n_left,n_right', [(0, 0), (4, 4), (8, 0)])
@@ -63,12 +67,17 @@ def test_features_state_joint_push_round_trips(rng):
     sample = ros_qos.features_from_msg(ros_qos.features_to_msg(0.5, x, 7))
     assert sample.t == 0.5 and sample.mode == 7 and np.array_equal(sample.x, x)
 
-    for state in (PredictorState(2.0, True, True, False, True, 9, 0.06),
-                  PredictorState(2.001, False, False, False, False, None, 0.06, 'no input')):
+    for state in (PredictorState(2.0, True, True, False, True, 9, 0.06, time_to_fall_s=0.2,
+                                 fall_direction=(0.0, -1.0)),
+                  PredictorState(2.001, False, False, False, False, None, 0.06, 'stale')):
         msg = ros_qos.state_to_msg(state)
-        assert msg.status[0].level == bytes((state.level,))
-        assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (2, round((state.t - 2) * 1e9))
+        assert msg.layout.dim[0].label == 'fall_predictor/state/v2'
+        assert msg.data[0] == state.t and msg.data[1] == state.status
         assert ros_qos.state_from_msg(msg) == state
+    assert ros_qos.falling_msg(True).data is True
+    direction = ros_qos.fall_direction_msg(1.5, (0.6, 0.8))
+    assert direction.header.frame_id == 'base_footprint' and direction.header.stamp.sec == 1
+    assert (direction.vector.x, direction.vector.y, direction.vector.z) == (0.6, 0.8, 0.0)
 
     js = ros_qos.joint_state_from_msg(
         ros_qos.joint_state_to_msg(0.01, ['hip', 'knee'], [0.1, -0.2], [1.0, 2.0]))
@@ -113,12 +122,14 @@ import numpy as np
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.monitor.records import Measurement
 from fall_predictor.data.wire import PredictorState
-m = Measurement(t=0.1, com=np.zeros(3), lin_mom=np.zeros(3), ang_mom=np.zeros(3), heading=0.0,
+m = Measurement(t=0.1, com=np.array([0.0, 0.0, 0.6]), lin_mom=np.zeros(3), ang_mom=np.zeros(3), heading=0.0,
                 cop=np.full(3, np.nan), left_contacts=np.zeros((2, 3)),
                 right_contacts=np.zeros((0, 3)), left_foot=np.zeros(3), right_foot=np.zeros(3),
                 non_foot_contact=False)
 assert ros_qos.measurement_from_msg(ros_qos.measurement_to_msg(m)).t == 0.1
 assert ros_qos.features_from_msg(ros_qos.features_to_msg(0.1, np.zeros(15), 1)).mode == 1
+ros_qos.falling_msg(True)
+ros_qos.fall_direction_msg(0.1, (1.0, 0.0))
 s = PredictorState(0.1, True, True, True, True, 2, 0.04)
 assert ros_qos.state_from_msg(ros_qos.state_to_msg(s)) == s
 ros_qos.joint_state_from_msg(ros_qos.joint_state_to_msg(0.1, ['a'], [1.0], [0.0], [0.0]))

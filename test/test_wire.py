@@ -6,9 +6,14 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from fall_predictor.monitor.records import CONTACT_MODE_NAMES, N_FEATURES
+from fall_predictor.monitor.records import N_FEATURES
 from fall_predictor.data.topics import (CONTROLLER_MODE, FEATURES_LABEL, LATCHED_QOS, MEASUREMENT_LABEL, SIM_RATE_HZ, STREAM_QOS, TOPICS, TOPICS_BY_NAME, QosSpec, WireFormatError, check_controller_mode, topics_markdown_table)
-from fall_predictor.data.wire import (MEASUREMENT_HEADER_LEN, JointStateSample, PredictorState, PushEvent, check_layout, pack_features, pack_measurement, push_from_wire, state_from_diagnostic, state_to_status, unpack_features, unpack_measurement)
+from fall_predictor.data.wire import (
+    I_STATE_CONTACT_MODE, I_STATE_FALLING, I_STATE_LATCHED, I_STATE_STATUS, I_STATE_T,
+    I_STATE_TAU_HIS, I_STATE_TIME_TO_FALL, MEASUREMENT_HEADER_LEN, STATE_LEN, STATUS_DISABLED,
+    STATUS_OK, STATUS_STALE, JointStateSample, PredictorState, PushEvent, check_layout,
+    pack_features, pack_measurement, pack_state, push_from_wire, unpack_features,
+    unpack_measurement, unpack_state)
 from fall_predictor.data.topics import time_to_ns, time_to_stamp
 from random_records import make_measurement
 
@@ -195,66 +200,62 @@ def test_pack_features_rejects_wrong_shape():
 
 # ---------------------------------------------------------------------------- state
 
-def _status(fields):
-    """StatusFields -> (stamp, rosbags-like status list) as a subscriber would see them."""
-    status = SimpleNamespace(level=fields.level, name=fields.name, message=fields.message,
-                             values=[SimpleNamespace(key=k, value=v) for k, v in fields.values])
-    return fields.stamp_ns, [status]
-
-
-@pytest.mark.parametrize('state,level,message', [
-    (PredictorState(0.25, False, True, False, False, 0, 0.044), 0, 'balanced'),
-    (PredictorState(1.001, True, True, True, True, 15, 0.016), 1, 'falling'),
-    (PredictorState(3.0, False, False, False, False, None, 0.06, 'no measurement for 0.05 s'),
-     3, 'stale: no measurement for 0.05 s'),
+@pytest.mark.parametrize('state,status,message', [
+    (PredictorState(0.25, False, True, False, False, 0, 0.044), STATUS_OK, 'balanced'),
+    (PredictorState(1.001, True, True, True, True, 15, 0.016, time_to_fall_s=0.31,
+                    fall_direction=(0.6, -0.8)), STATUS_OK, 'falling'),
+    (PredictorState(2.0, False, True, False, True, 4, 0.05, enabled=False), STATUS_DISABLED,
+     'disabled'),
+    (PredictorState(3.0, False, False, False, False, None, 0.06, 'stale'), STATUS_STALE, 'stale'),
 ])
-def test_state_round_trip(state, level, message):
-    fields = state_to_status(state)
-    assert (fields.level, fields.message, fields.name) == (level, message, 'fall_predictor')
-    assert fields.stamp_ns == time_to_ns(state.t)
-    values = dict(fields.values)
-    assert values['contact_mode'] in (*CONTACT_MODE_NAMES, 'unknown')
-    assert float(values['t']) == state.t
-    assert state_from_diagnostic(*_status(fields)) == state
+def test_state_round_trip(state, status, message):
+    data = pack_state(state)
+    assert data.shape == (STATE_LEN,) and data[I_STATE_STATUS] == status
+    assert state.message == message
+    # Slots as a C++ consumer reads them, by index (documented in the README).
+    assert data[I_STATE_T] == state.t and data[I_STATE_FALLING] == float(state.falling)
+    assert data[I_STATE_LATCHED] == float(state.latched)
+    assert data[I_STATE_CONTACT_MODE] == (-1 if state.contact_mode is None else state.contact_mode)
+    back = unpack_state(data)
+    assert back.t == state.t and back.status == status
+    assert (back.falling, back.atomic, back.guard, back.latched) == (
+        state.falling, state.atomic, state.guard, state.latched)
+    assert back.contact_mode == state.contact_mode and back.tau_his_s == state.tau_his_s
+    np.testing.assert_array_equal(back.fall_direction, state.fall_direction)
+    np.testing.assert_array_equal(back.time_to_fall_s, state.time_to_fall_s)
 
 
-def test_state_level_accepts_rclpy_bytes():
-    fields = state_to_status(PredictorState(0.5, True, True, False, False, 3, 0.044))
-    stamp, statuses = _status(fields)
-    statuses[0].level = bytes((fields.level,))
-    assert state_from_diagnostic(stamp, statuses).falling
+def test_stale_reason_stays_off_the_wire():
+    state = PredictorState(3.0, False, False, False, True, None, 0.06, 'no features for 0.6 s')
+    back = unpack_state(pack_state(state))
+    assert back.stale_reason == 'stale' and back.latched
 
 
-def _edit(fields, **changes):
-    values = dict(fields.values)
-    values.update(changes.pop('values', {}))
-    for key in changes.pop('drop', ()):
-        del values[key]
-    return fields._replace(values=tuple(values.items()), **changes)
+def _state_array():
+    return pack_state(PredictorState(0.5, True, True, False, True, 3, 0.044,
+                                     time_to_fall_s=0.2, fall_direction=(1.0, 0.0)))
 
 
-@pytest.mark.parametrize('edit,match', [
-    (dict(level=0), 'disagree with falling=true'),
-    (dict(message='balanced'), 'disagree with falling=true'),
-    (dict(name='other'), "status name 'other'"),
-    (dict(drop=('guard',)), 'must have keys'),
-    (dict(values={'falling': 'yes'}), "'falling' must be 'true' or 'false'"),
-    (dict(values={'contact_mode': 'L-RIGHT'}), "'L-RIGHT' is not a contact mode name"),
-    (dict(values={'tau_his_s': 'nan'}), "'tau_his_s' is not finite"),
-    (dict(values={'t': 'soon'}), "'t' is not a number"),
-    (dict(stamp_ns=123), 'header stamp 123 ns disagrees with t=0.5'),
+@pytest.mark.parametrize('index,value,match', [
+    (I_STATE_STATUS, 3.0, 'status must be 0, 1 or 2'),
+    (I_STATE_FALLING, 0.5, 'falling must be 0 or 1'),
+    (I_STATE_LATCHED, np.nan, 'latched is not finite'),
+    (I_STATE_CONTACT_MODE, 16.0, 'contact_mode must be < 16'),
+    (I_STATE_CONTACT_MODE, -2.0, 'contact_mode must be a non-negative integer'),
+    (I_STATE_TAU_HIS, -0.01, 'tau_his_s must be >= 0'),
+    (I_STATE_TIME_TO_FALL, -1.0, 'time_to_fall_s must be NaN or in'),
+    (9, 0.5, 'fall_direction must be a unit vector'),
+    (I_STATE_T, 2.0 ** 31, 'sample time'),
 ])
-def test_malformed_state_is_rejected(edit, match):
-    fields = state_to_status(PredictorState(0.5, True, True, False, False, 3, 0.044))
+def test_malformed_state_is_rejected(index, value, match):
+    data = _state_array()
+    data[index] = value
     with pytest.raises(WireFormatError, match=match):
-        state_from_diagnostic(*_status(_edit(fields, **edit)))
+        unpack_state(data)
 
-
-def test_state_needs_exactly_one_status():
-    stamp, statuses = _status(state_to_status(PredictorState(0.5, False, False, False, False,
-                                                             3, 0.044)))
-    with pytest.raises(WireFormatError, match='exactly 1 status, got 2'):
-        state_from_diagnostic(stamp, statuses * 2)
+def test_state_must_have_eleven_slots():
+    with pytest.raises(WireFormatError, match='10 values, expected 11'):
+        unpack_state(np.zeros(10))
 
 
 # ---------------------------------------------------------------------------- time, joints, push
@@ -266,9 +267,9 @@ def test_time_on_the_1khz_grid_is_exact():
     assert time_to_stamp(12.345) == (12, 345_000_000)
 
 
-@pytest.mark.parametrize('t', [math.nan, math.inf, -1e-3])
-def test_time_must_be_finite_and_non_negative(t):
-    with pytest.raises(WireFormatError, match='time must be finite and >= 0'):
+@pytest.mark.parametrize('t', [math.nan, math.inf, -1e-3, 1e7 + 1.0, 9.3e9])
+def test_time_must_be_finite_and_within_the_bounds(t):
+    with pytest.raises(WireFormatError, match='time must be finite and within'):
         time_to_ns(t)
 
 
@@ -309,6 +310,11 @@ def test_topic_table_is_consistent():
         assert package and kind == 'msg' and name[0].isupper()
         if spec.rate_hz == SIM_RATE_HZ:
             assert spec.qos == STREAM_QOS, spec.name
+        # REP 2003: sensor-style streams are read best effort with a shallow queue.
+        if spec.sub_qos is not None:
+            assert spec.sub_qos.reliability == 'best_effort' and spec.sub_qos.depth <= 10
+        assert spec.ros_name == (spec.name if spec.name in ('/clock', '/diagnostics')
+                                 else spec.name[1:])
         assert (spec.layout is not None) == (spec.msg_type == 'std_msgs/msg/Float64MultiArray')
     assert CONTROLLER_MODE.qos == LATCHED_QOS
     assert TOPICS_BY_NAME['/fall_predictor/push'].frame_id == 'world'

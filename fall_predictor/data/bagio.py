@@ -40,8 +40,13 @@ from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.store import Typestore
 
 from fall_predictor.monitor.records import Measurement
-from fall_predictor.data.topics import (FEATURES, FEATURES_LABEL, JOINT_STATES, MEASUREMENT, MEASUREMENT_LABEL, PUSH, STATE, TOPICS_BY_NAME, WORLD_FRAME, QosSpec, WireFormatError)
-from fall_predictor.data.wire import (FeatureSample, JointStateSample, PredictorState, PushEvent, check_layout, pack_features, pack_measurement, push_from_wire, state_from_diagnostic, state_to_status, unpack_features, unpack_measurement)
+from fall_predictor.data.topics import (FEATURES, FEATURES_LABEL, JOINT_STATES, MEASUREMENT,
+                                        MEASUREMENT_LABEL, PUSH, STATE, STATE_LABEL,
+                                        TOPICS_BY_NAME, WORLD_FRAME, QosSpec, WireFormatError)
+from fall_predictor.data.wire import (FeatureSample, JointStateSample, PredictorState, PushEvent,
+                                      check_layout, pack_features, pack_measurement, pack_state,
+                                      push_from_wire, unpack_features, unpack_measurement,
+                                      unpack_state)
 from fall_predictor.data.topics import ns_to_time, stamp_to_ns, time_to_ns, time_to_stamp
 
 if sys.version_info >= (3, 14):
@@ -190,16 +195,9 @@ class BagWriter:
         self.write(FEATURES.name, FEATURES.msg_type, time_to_ns(t), msg)
 
     def write_state(self, state: PredictorState) -> None:
-        """A PredictorState on ``/fall_predictor/state`` at log time ``state.t``."""
-        types = self._types
-        fields = state_to_status(state)
-        status = types['diagnostic_msgs/msg/DiagnosticStatus'](
-            level=fields.level, name=fields.name, message=fields.message, hardware_id='',
-            values=[types['diagnostic_msgs/msg/KeyValue'](key=key, value=value)
-                    for key, value in fields.values])
-        msg = types['diagnostic_msgs/msg/DiagnosticArray'](
-            header=self._header(state.t), status=[status])
-        self.write(STATE.name, STATE.msg_type, fields.stamp_ns, msg)
+        """A PredictorState on ``/fall_predictor/state`` (layout v2) at log time ``state.t``."""
+        msg = self._float64_array(pack_state(state), STATE_LABEL)
+        self.write(STATE.name, STATE.msg_type, time_to_ns(state.t), msg)
 
     def write_joint_state(self, t: float, names: Sequence[str], positions: ArrayLike,
                           velocities: ArrayLike = (), efforts: ArrayLike = (),
@@ -313,7 +311,8 @@ def _decode_push(msg: RosbagsMsg) -> PushEvent:
 
 
 def _decode_state(msg: RosbagsMsg) -> PredictorState:
-    return state_from_diagnostic(_header_ns(msg), msg.status)
+    check_layout(msg.layout, STATE_LABEL, len(msg.data))
+    return unpack_state(msg.data)
 
 
 _DECODERS = {

@@ -12,6 +12,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Literal, Optional
 
+from fall_predictor.monitor.plausibility import MAX_SAMPLE_TIME_S
 from fall_predictor.monitor.records import PUSH_DURATION_S
 
 
@@ -48,8 +49,13 @@ class QosSpec:
         return f'{self.reliability}, {self.durability}, keep_last {self.depth}'
 
 
-#: 1 kHz streams: reliable, volatile, 1 s of samples buffered.
+#: 1 kHz streams as published: reliable, volatile, 1 s of samples kept for reliable readers
+#: (the recorder) that fall briefly behind.
 STREAM_QOS = QosSpec('reliable', 'volatile', 1000)
+#: 1 kHz streams as the monitor and controller subscribe to them (REP 2003 sensor data):
+#: best effort with a shallow queue, so a reader that falls behind gets fresh samples, not
+#: a second-old backlog; a lost sample shows up in the gap counters.
+SENSOR_SUB_QOS = QosSpec('best_effort', 'volatile', 10)
 #: Latched state (late joiners get the last value).
 LATCHED_QOS = QosSpec('reliable', 'transient_local', 1)
 #: Sparse events (pushes, diagnostics).
@@ -66,38 +72,66 @@ WORLD_FRAME = 'world'
 
 MEASUREMENT_LABEL = 'fall_predictor/measurement/v1'
 FEATURES_LABEL = 'fall_predictor/features/v1'
+STATE_LABEL = 'fall_predictor/state/v2'
+#: Frame of heading-frame vectors (fall direction, push requests): REP 120's
+#: ``base_footprint``: on the ground below the robot, x along the pelvis heading, z up.
+HEADING_FRAME = 'base_footprint'
 
 
 @dataclass(frozen=True, slots=True)
 class TopicSpec:
-    """One row of the interface table."""
+    """One row of the interface table.
 
-    name: str                       #: topic name
+    ``name`` is the topic's name in the root namespace, as bags store it. Nodes use
+    :attr:`ros_name`: relative (no leading slash), so a node started in a namespace
+    (``/robot1``) uses ``/robot1/fall_predictor/...``, except for the global topics
+    ``/clock`` and ``/diagnostics``.
+    """
+
+    name: str                       #: topic name (root namespace; the bag topic name)
     msg_type: str                   #: ROS 2 type name, e.g. 'std_msgs/msg/Float64MultiArray'
-    qos: QosSpec
+    qos: QosSpec                    #: publisher QoS (and that of lossless readers: the recorder)
     rate_hz: Optional[float]        #: nominal rate [Hz]; None for event-driven topics
     frame_id: Optional[str]         #: header.frame_id; None when the type has no header
     layout: Optional[str]           #: Float64MultiArray layout label; None for other types
     content: str                    #: one-line description for the README
+    sub_qos: Optional[QosSpec] = None   #: subscriber QoS of the nodes; None = ``qos``
+    is_global: bool = False         #: resolved from the root namespace (``/clock``)
+
+    @property
+    def ros_name(self) -> str:
+        """The name nodes create the topic with: relative unless the topic is global."""
+        return self.name if self.is_global else self.name.lstrip('/')
+
+    @property
+    def subscription_qos(self) -> QosSpec:
+        return self.qos if self.sub_qos is None else self.sub_qos
 
 
 MEASUREMENT = TopicSpec(
     '/fall_predictor/measurement', 'std_msgs/msg/Float64MultiArray', STREAM_QOS, SIM_RATE_HZ,
-    None, MEASUREMENT_LABEL, 'one simulation sample (Measurement), layout v1')
+    None, MEASUREMENT_LABEL, 'one simulation sample (Measurement), layout v1', SENSOR_SUB_QOS)
 FEATURES = TopicSpec(
     '/fall_predictor/features', 'std_msgs/msg/Float64MultiArray', STREAM_QOS, SIM_RATE_HZ,
-    None, FEATURES_LABEL, 't, the 15 features, contact mode index')
+    None, FEATURES_LABEL, 't, the 15 features, contact mode index', SENSOR_SUB_QOS)
 STATE = TopicSpec(
-    '/fall_predictor/state', 'diagnostic_msgs/msg/DiagnosticArray', STREAM_QOS, SIM_RATE_HZ,
-    '', None, 'predictor output: OK balanced, WARN falling, STALE degraded')
+    '/fall_predictor/state', 'std_msgs/msg/Float64MultiArray', STREAM_QOS, SIM_RATE_HZ,
+    None, STATE_LABEL, 'predictor output per sample: status, falling, latch, mode, window, '
+    'time to fall, direction', SENSOR_SUB_QOS)
+FALLING = TopicSpec(
+    '/fall_predictor/falling', 'std_msgs/msg/Bool', LATCHED_QOS, None, None, None,
+    'the trigger: true from the first falling prediction until ~/reset (latched)')
+FALL_DIRECTION = TopicSpec(
+    '/fall_predictor/fall_direction', 'geometry_msgs/msg/Vector3Stamped', LATCHED_QOS, None,
+    HEADING_FRAME, None, 'predicted fall direction (unit, heading frame) at each falling event')
 JOINT_STATES = TopicSpec(
     '/joint_states', 'sensor_msgs/msg/JointState', STREAM_QOS, JOINT_STATE_RATE_HZ,
-    '', None, 'robot joint positions, velocities, efforts (visualisation, bags)')
+    '', None, 'robot joint positions, velocities, efforts (visualisation, bags)', SENSOR_SUB_QOS)
 PUSH = TopicSpec(
     '/fall_predictor/push', 'geometry_msgs/msg/WrenchStamped', EVENT_QOS, None,
     WORLD_FRAME, None, f'push onset (stamp) and world force [N], lasting {PUSH_DURATION_S} s')
 #: Frame of a push request's force: the robot's heading frame (x forward, y left, z up).
-PUSH_REQUEST_FRAME = 'heading'
+PUSH_REQUEST_FRAME = HEADING_FRAME
 #: Input of the simulator node: a push to apply. ``header.stamp`` = requested onset in
 #: simulation time (a time already past means "at the next step"); ``wrench.force`` = the
 #: horizontal force [N] in :data:`PUSH_REQUEST_FRAME`; ``wrench.torque`` = its moment about
@@ -115,15 +149,15 @@ JOINT_COMMANDS = TopicSpec(
     '', None, 'target joint angles (position field) of the active controller')
 CLOCK = TopicSpec(
     '/clock', 'rosgraph_msgs/msg/Clock', STREAM_QOS, SIM_RATE_HZ,
-    None, None, 'simulation time')
+    None, None, 'simulation time', is_global=True)
 DIAGNOSTICS = TopicSpec(
     '/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', EVENT_QOS, DIAGNOSTICS_RATE_HZ,
-    '', None, 'node health')
+    '', None, 'node health', is_global=True)
 
 #: The interface table, in README order.
 TOPICS: tuple[TopicSpec, ...] = (
-    MEASUREMENT, FEATURES, STATE, JOINT_STATES, PUSH, PUSH_REQUEST, CONTROLLER_MODE,
-    JOINT_COMMANDS, CLOCK, DIAGNOSTICS,
+    MEASUREMENT, FEATURES, STATE, FALLING, FALL_DIRECTION, JOINT_STATES, PUSH, PUSH_REQUEST,
+    CONTROLLER_MODE, JOINT_COMMANDS, CLOCK, DIAGNOSTICS,
 )
 TOPICS_BY_NAME: dict[str, TopicSpec] = {spec.name: spec for spec in TOPICS}
 
@@ -146,10 +180,16 @@ def topics_markdown_table(topics: Iterable[TopicSpec] = TOPICS) -> str:
 # Time
 # --------------------------------------------------------------------------------------------
 
+#: Largest time [s] converted to a stamp: the plausibility bound of sample times (1e7 s);
+#: beyond 2^31 s a ``builtin_interfaces/Time.sec`` would wrap to a negative number.
+MAX_STAMP_TIME_S = MAX_SAMPLE_TIME_S
+
+
 def time_to_ns(t: float) -> int:
     """Simulation time [s] to integer nanoseconds (bag log time, header stamps)."""
-    if not math.isfinite(t) or t < 0.0:
-        raise WireFormatError(f'time must be finite and >= 0 s, got {t!r}')
+    if not (math.isfinite(t) and 0.0 <= t <= MAX_STAMP_TIME_S):
+        raise WireFormatError(f'time must be finite and within [0, {MAX_STAMP_TIME_S:g}] s, '
+                              f'got {t!r}')
     return round(t * 1e9)
 
 
@@ -175,10 +215,16 @@ def ns_to_time(ns: int) -> float:
 #: Node names of the simulated system, in start order; the recorder is optional.
 PIPELINE_NODES = ('predictor_node', 'feature_node', 'controller_node', 'simulator_node')
 RECORDER_NODE = 'recorder_node'
+#: Service names relative to the caller's namespace (the nodes create them as ``~/<name>``).
 #: ``std_srvs/srv/Trigger``: put the robot back to standing and start a new run.
-RESET_SERVICE = '/simulator_node/reset'
+RESET_SERVICE = 'simulator_node/reset'
 #: ``std_srvs/srv/SetBool``: pause (true) or resume (false) the simulation.
-PAUSE_SERVICE = '/simulator_node/pause'
+PAUSE_SERVICE = 'simulator_node/pause'
+#: ``std_srvs/srv/Trigger`` of the monitor and controller nodes: start a new run (clear the
+#: history and the latch; the controller goes back to C_bal). The only way to undo a fall.
+MONITOR_RESET_SERVICES = ('feature_node/reset', 'predictor_node/reset', 'controller_node/reset')
+#: ``std_srvs/srv/SetBool``: enable (true) or disable (false) the fall trigger.
+ENABLE_SERVICE = 'predictor_node/enable'
 
 
 def check_controller_mode(mode: str) -> str:

@@ -28,6 +28,23 @@ Features layout v1 (17 float64): ``[0]`` t [s], ``[1:16]`` the 15 features in
 :data:`~fall_predictor.monitor.records.FEATURE_NAMES` order, ``[16]`` the contact mode index
 (:data:`~fall_predictor.monitor.records.CONTACT_MODE_NAMES`).
 
+State layout v2 (11 float64, ``/fall_predictor/state``; read it by slot, no strings)::
+
+    [0]  t               sample time [s] of the features the state was computed from
+    [1]  status          0 ok (predicted), 1 disabled (~/enable false), 2 stale (no prediction)
+    [2]  falling         1 = falling (window applied)
+    [3]  latched         1 = falling was predicted since the last reset (the trigger)
+    [4]  atomic          1 = the contact mode's decision list said falling
+    [5]  guard           1 = the CoM is below the guard height
+    [6]  contact_mode    index into CONTACT_MODE_NAMES, -1 unknown
+    [7]  tau_his_s       history window in use [s]
+    [8]  time_to_fall_s  predicted time left until fallen [s], NaN when not predicted
+    [9:11] fall_direction  unit (x, y) in the heading frame, NaN when not predicted
+
+Every field is also checked against the physical plausibility bounds of
+:mod:`fall_predictor.monitor.plausibility` (sample times within [0, 1e7] s, CoM height within
+[0, 2] m, ...): a finite value that no robot can produce is rejected like a malformed one.
+
 Header stamps and bag log times are simulation time, taken from the samples themselves (the
 nodes do not need ``use_sim_time``; ``/clock`` is published for tools that do). Every malformed input raises :class:`WireFormatError` naming the field.
 """
@@ -44,8 +61,8 @@ from numpy.typing import ArrayLike
 from fall_predictor.data.topics import WORLD_FRAME, WireFormatError, ns_to_time, time_to_ns
 from fall_predictor.monitor.plausibility import (ImplausibleSample, check_feature_bounds,
                                                  check_measurement_bounds)
+from fall_predictor.monitor.plausibility import check_time as _check_time
 from fall_predictor.monitor.records import (
-    CONTACT_MODE_NAMES,
     FEATURE_NAMES,
     N_CONTACT_MODES,
     N_FEATURES,
@@ -98,6 +115,14 @@ def _as_vector(data: ArrayLike, what: str) -> np.ndarray:
     if arr.ndim != 1:
         raise WireFormatError(f'{what}: data must be 1-D, got shape {arr.shape}')
     return arr
+
+
+def check_time_bounds(t: float) -> float:
+    """A sample time [s] within the plausibility bounds, else WireFormatError."""
+    try:
+        return _check_time(t)
+    except ImplausibleSample as error:
+        raise WireFormatError(str(error)) from None
 
 
 def _count(value: float, what: str) -> int:
@@ -290,26 +315,45 @@ def unpack_features(data: ArrayLike) -> FeatureSample:
 
 
 # --------------------------------------------------------------------------------------------
-# Predictor state (DiagnosticArray)
+# Predictor state (Float64MultiArray, layout v2)
 # --------------------------------------------------------------------------------------------
 
-STATE_STATUS_NAME = 'fall_predictor'
-LEVEL_OK, LEVEL_WARN, LEVEL_STALE = 0, 1, 3   # diagnostic_msgs/DiagnosticStatus levels
-_STALE_PREFIX = 'stale: '
-_UNKNOWN_MODE = 'unknown'
-_STATE_KEYS = ('falling', 'atomic', 'guard', 'latched', 'contact_mode', 'tau_his_s', 't')
+#: ``diagnostic_msgs/DiagnosticStatus`` levels used on ``/diagnostics``.
+LEVEL_OK, LEVEL_WARN, LEVEL_STALE = 0, 1, 3
+#: State status codes (slot ``I_STATE_STATUS``): predicted on a fresh sample; the monitor is
+#: disabled (``~/enable`` false: no trigger); stale (the sample was too old, invalid, or no
+#: input arrived for ``stale_timeout_s``: no prediction, the latch is kept).
+STATUS_OK, STATUS_DISABLED, STATUS_STALE = 0, 1, 2
+_STATUS_NAMES = ('ok', 'disabled', 'stale')
+
+#: State layout v2 slots (11 float64; flags are 0.0 or 1.0).
+I_STATE_T = 0               #: sample time [s] of the features the state was computed from
+I_STATE_STATUS = 1          #: STATUS_OK, STATUS_DISABLED or STATUS_STALE
+I_STATE_FALLING = 2         #: the prediction (window applied), 1 = falling
+I_STATE_LATCHED = 3         #: falling was predicted since the last reset (the trigger)
+I_STATE_ATOMIC = 4          #: the contact mode's decision list said falling
+I_STATE_GUARD = 5           #: the CoM was below the guard height
+I_STATE_CONTACT_MODE = 6    #: contact mode index, -1 when unknown (stale)
+I_STATE_TAU_HIS = 7         #: history window in use [s]
+I_STATE_TIME_TO_FALL = 8    #: predicted time left until fallen [s]; NaN when not predicted
+S_STATE_DIRECTION = slice(9, 11)   #: predicted fall direction (x, y), heading frame; NaN if none
+STATE_LEN = 11
+STATE_SLOT_NAMES = ('t', 'status', 'falling', 'latched', 'atomic', 'guard', 'contact_mode',
+                    'tau_his_s', 'time_to_fall_s', 'fall_direction_x', 'fall_direction_y')
 
 
 @dataclass(frozen=True, slots=True)
 class PredictorState:
-    """The predictor's output for one source sample.
+    """The predictor's output for one source sample (``/fall_predictor/state``).
 
-    ``falling`` is the published decision (history filter, CoM guard and latch applied);
-    ``atomic`` the decision list's raw output; ``guard`` the CoM guard (SPEC §5); ``latched``
-    whether the one-way switch to C_fall has fired. ``stale_reason`` set means degraded.
+    ``falling`` is the published decision (history window applied); ``atomic`` the decision
+    list's raw output; ``guard`` the CoM guard (SPEC §5); ``latched`` whether falling was
+    predicted since the last reset. ``stale_reason`` set means degraded (no prediction; the
+    reason goes to ``/diagnostics``, the wire carries only the status); ``enabled`` false means
+    the monitor is switched off (no trigger).
     """
 
-    t: float                            #: simulation time of the source sample [s]
+    t: float                            #: sample time of the source sample [s]
     falling: bool
     atomic: bool
     guard: bool
@@ -317,125 +361,87 @@ class PredictorState:
     contact_mode: Optional[int]         #: index into CONTACT_MODE_NAMES; None if unknown
     tau_his_s: float                    #: history window [s]
     stale_reason: Optional[str] = None  #: why inputs are stale/missing/invalid
+    enabled: bool = True
+    time_to_fall_s: float = math.nan    #: predicted time left until fallen [s]
+    fall_direction: tuple[float, float] = (math.nan, math.nan)  #: unit (x, y), heading frame
 
     @property
-    def level(self) -> int:
-        """DiagnosticStatus level: OK balanced, WARN falling, STALE degraded."""
+    def status(self) -> int:
+        """STATUS_STALE if degraded, else STATUS_DISABLED if disabled, else STATUS_OK."""
         if self.stale_reason is not None:
-            return LEVEL_STALE
-        return LEVEL_WARN if self.falling else LEVEL_OK
+            return STATUS_STALE
+        return STATUS_OK if self.enabled else STATUS_DISABLED
 
     @property
     def message(self) -> str:
-        if self.stale_reason is not None:
-            return _STALE_PREFIX + self.stale_reason
+        """One word for logs: falling, balanced, disabled or stale."""
+        if self.status != STATUS_OK:
+            return _STATUS_NAMES[self.status]
         return 'falling' if self.falling else 'balanced'
 
 
-class StatusFields(NamedTuple):
-    """The content of a state DiagnosticArray: header stamp and its single status."""
-
-    stamp_ns: int
-    level: int
-    name: str
-    message: str
-    values: tuple[tuple[str, str], ...]
-
-
-class KeyValueLike(Protocol):
-    """Duck type of ``diagnostic_msgs/msg/KeyValue``."""
-
-    key: str
-    value: str
-
-
-class StatusLike(Protocol):
-    """Duck type of ``diagnostic_msgs/msg/DiagnosticStatus``: rclpy (level bytes) or rosbags."""
-
-    level: int | bytes
-    name: str
-    message: str
-    values: Sequence[KeyValueLike]
+def pack_state(state: PredictorState) -> np.ndarray:
+    """PredictorState -> state layout v2 array, checked as a receiver would."""
+    out = np.empty(STATE_LEN, dtype=np.float64)
+    out[I_STATE_T] = state.t
+    out[I_STATE_STATUS] = state.status
+    out[I_STATE_FALLING] = float(bool(state.falling))
+    out[I_STATE_LATCHED] = float(bool(state.latched))
+    out[I_STATE_ATOMIC] = float(bool(state.atomic))
+    out[I_STATE_GUARD] = float(bool(state.guard))
+    out[I_STATE_CONTACT_MODE] = -1.0 if state.contact_mode is None else state.contact_mode
+    out[I_STATE_TAU_HIS] = state.tau_his_s
+    out[I_STATE_TIME_TO_FALL] = state.time_to_fall_s
+    out[S_STATE_DIRECTION] = state.fall_direction
+    unpack_state(out)
+    return out
 
 
-def _bool_text(value: bool) -> str:
-    return 'true' if value else 'false'
+def _flag(a: np.ndarray, index: int) -> bool:
+    if a[index] not in (0.0, 1.0):
+        raise WireFormatError(f'state.{STATE_SLOT_NAMES[index]} must be 0 or 1, got {a[index]!r}')
+    return bool(a[index])
 
 
-def state_to_status(state: PredictorState) -> StatusFields:
-    """PredictorState -> DiagnosticArray content (header stamp = source sample sim time)."""
-    mode = _UNKNOWN_MODE if state.contact_mode is None else CONTACT_MODE_NAMES[state.contact_mode]
-    values = (
-        ('falling', _bool_text(state.falling)),
-        ('atomic', _bool_text(state.atomic)),
-        ('guard', _bool_text(state.guard)),
-        ('latched', _bool_text(state.latched)),
-        ('contact_mode', mode),
-        ('tau_his_s', repr(float(state.tau_his_s))),
-        ('t', repr(float(state.t))),
-    )
-    return StatusFields(time_to_ns(state.t), state.level, STATE_STATUS_NAME, state.message, values)
+def unpack_state(data: ArrayLike) -> PredictorState:
+    """State layout v2 array -> PredictorState; raises WireFormatError naming the slot.
 
-
-def _parse_bool(text: str, key: str) -> bool:
-    if text not in ('true', 'false'):
-        raise WireFormatError(f"state value {key!r} must be 'true' or 'false', got {text!r}")
-    return text == 'true'
-
-
-def _parse_float(text: str, key: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise WireFormatError(f'state value {key!r} is not a number: {text!r}') from None
-    if not math.isfinite(value):
-        raise WireFormatError(f'state value {key!r} is not finite: {text!r}')
-    return value
-
-
-def state_from_diagnostic(stamp_ns: int, statuses: Sequence[StatusLike]) -> PredictorState:
-    """A state DiagnosticArray (header stamp, status list) -> PredictorState.
-
-    Checks every field and their consistency (level and message against ``falling``, header
-    stamp against ``t``).
+    A stale state comes back with ``stale_reason='stale'`` (the reason is not on the wire).
     """
-    if len(statuses) != 1:
-        raise WireFormatError(f'state must carry exactly 1 status, got {len(statuses)}')
-    status = statuses[0]
-    level = status.level[0] if isinstance(status.level, bytes) else int(status.level)
-    fields = StatusFields(stamp_ns, level, status.name, status.message,
-                          tuple((kv.key, kv.value) for kv in status.values))
-    if fields.name != STATE_STATUS_NAME:
-        raise WireFormatError(f'state status name {fields.name!r} is not {STATE_STATUS_NAME!r}')
-    values = dict(fields.values)
-    if len(values) != len(fields.values):
-        raise WireFormatError('state values contain duplicate keys')
-    if set(values) != set(_STATE_KEYS):
-        raise WireFormatError(
-            f'state values must have keys {sorted(_STATE_KEYS)}, got {sorted(values)}')
-    mode_name = values['contact_mode']
-    if mode_name != _UNKNOWN_MODE and mode_name not in CONTACT_MODE_NAMES:
-        raise WireFormatError(f'state contact_mode {mode_name!r} is not a contact mode name')
-    stale_reason = (fields.message[len(_STALE_PREFIX):]
-                    if fields.message.startswith(_STALE_PREFIX) else None)
-    state = PredictorState(
-        t=_parse_float(values['t'], 't'),
-        falling=_parse_bool(values['falling'], 'falling'),
-        atomic=_parse_bool(values['atomic'], 'atomic'),
-        guard=_parse_bool(values['guard'], 'guard'),
-        latched=_parse_bool(values['latched'], 'latched'),
-        contact_mode=None if mode_name == _UNKNOWN_MODE else CONTACT_MODE_NAMES.index(mode_name),
-        tau_his_s=_parse_float(values['tau_his_s'], 'tau_his_s'),
-        stale_reason=stale_reason,
-    )
-    if (fields.level, fields.message) != (state.level, state.message):
-        raise WireFormatError(
-            f'state level {fields.level} / message {fields.message!r} disagree with '
-            f'falling={values["falling"]} (expected level {state.level}, {state.message!r})')
-    if time_to_ns(state.t) != fields.stamp_ns:
-        raise WireFormatError(
-            f'state header stamp {fields.stamp_ns} ns disagrees with t={values["t"]} s')
-    return state
+    a = _as_vector(data, 'state')
+    if a.size != STATE_LEN:
+        raise WireFormatError(f'state: {a.size} values, expected {STATE_LEN}')
+    for index in range(I_STATE_TIME_TO_FALL):
+        if not math.isfinite(a[index]):
+            raise WireFormatError(f'state.{STATE_SLOT_NAMES[index]} is not finite: {a[index]!r}')
+    check_time_bounds(a[I_STATE_T])
+    status = a[I_STATE_STATUS]
+    if status not in (STATUS_OK, STATUS_DISABLED, STATUS_STALE):
+        raise WireFormatError(f'state.status must be 0, 1 or 2, got {status!r}')
+    mode = a[I_STATE_CONTACT_MODE]
+    if mode != -1.0:
+        _mode_index(mode, 'state.contact_mode')
+    tau = a[I_STATE_TAU_HIS]
+    if tau < 0.0:
+        raise WireFormatError(f'state.tau_his_s must be >= 0 s, got {tau!r}')
+    ttf = a[I_STATE_TIME_TO_FALL]
+    if not (math.isnan(ttf) or 0.0 <= ttf <= 1e3):
+        raise WireFormatError(f'state.time_to_fall_s must be NaN or in [0, 1000] s, got {ttf!r}')
+    dx, dy = float(a[S_STATE_DIRECTION][0]), float(a[S_STATE_DIRECTION][1])
+    if not (math.isnan(dx) and math.isnan(dy)) and not abs(math.hypot(dx, dy) - 1.0) <= 1e-6:
+        raise WireFormatError(f'state.fall_direction must be a unit vector or NaN, got {(dx, dy)}')
+    return PredictorState(
+        t=float(a[I_STATE_T]), falling=_flag(a, I_STATE_FALLING), atomic=_flag(a, I_STATE_ATOMIC),
+        guard=_flag(a, I_STATE_GUARD), latched=_flag(a, I_STATE_LATCHED),
+        contact_mode=None if mode == -1.0 else int(mode), tau_his_s=float(tau),
+        stale_reason='stale' if status == STATUS_STALE else None,
+        enabled=status != STATUS_DISABLED, time_to_fall_s=_nan_or(ttf),
+        fall_direction=(_nan_or(dx), _nan_or(dy)))
+
+
+def _nan_or(value: float) -> float:
+    # The one math.nan object, so that states compare equal field by field (NaN is NaN).
+    return math.nan if math.isnan(value) else float(value)
 
 
 # --------------------------------------------------------------------------------------------

@@ -16,20 +16,20 @@ from collections.abc import Sequence
 
 import numpy as np
 from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import WrenchStamped
+from geometry_msgs.msg import Vector3Stamped, WrenchStamped
 from numpy.typing import ArrayLike
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
+from std_msgs.msg import Bool, Float64MultiArray, MultiArrayDimension, String
 
-from fall_predictor.data.topics import (FEATURES_LABEL, MEASUREMENT_LABEL, PUSH_REQUEST_FRAME, WORLD_FRAME,
-                                        QosSpec, check_controller_mode, ns_to_time, stamp_to_ns,
+from fall_predictor.data.topics import (FEATURES_LABEL, HEADING_FRAME, MEASUREMENT_LABEL,
+                                        PUSH_REQUEST_FRAME, STATE_LABEL, WORLD_FRAME, QosSpec,
+                                        check_controller_mode, ns_to_time, stamp_to_ns,
                                         time_to_stamp)
 from fall_predictor.data.wire import (FeatureSample, JointStateSample, PredictorState, PushEvent,
-                                      check_layout, pack_features, pack_measurement, push_from_wire,
-                                      state_from_diagnostic, state_to_status, unpack_features,
-                                      unpack_measurement)
+                                      check_layout, pack_features, pack_measurement, pack_state,
+                                      push_from_wire, unpack_features, unpack_measurement,
+                                      unpack_state)
 from fall_predictor.monitor.records import PUSH_DURATION_S, Measurement, PushSpec
 
 _RELIABILITY = {'reliable': ReliabilityPolicy.RELIABLE,
@@ -94,20 +94,28 @@ def features_from_msg(msg: Float64MultiArray) -> FeatureSample:
     return unpack_features(_checked_data(msg, FEATURES_LABEL))
 
 
-def state_to_msg(state: PredictorState) -> DiagnosticArray:
-    """PredictorState -> ``/fall_predictor/state`` DiagnosticArray."""
-    fields = state_to_status(state)
-    status = DiagnosticStatus(
-        level=bytes((fields.level,)), name=fields.name, message=fields.message,
-        values=[KeyValue(key=key, value=value) for key, value in fields.values])
-    msg = DiagnosticArray(status=[status])
-    msg.header.stamp = stamp(state.t)
+def state_to_msg(state: PredictorState) -> Float64MultiArray:
+    """PredictorState -> ``/fall_predictor/state`` message (layout v2)."""
+    return float64_array_msg(pack_state(state), STATE_LABEL)
+
+
+def state_from_msg(msg: Float64MultiArray) -> PredictorState:
+    """``/fall_predictor/state`` message -> PredictorState; raises WireFormatError."""
+    return unpack_state(_checked_data(msg, STATE_LABEL))
+
+
+def falling_msg(falling: bool) -> Bool:
+    """The trigger on ``/fall_predictor/falling``."""
+    return Bool(data=bool(falling))
+
+
+def fall_direction_msg(t: float, direction_xy: Sequence[float]) -> Vector3Stamped:
+    """A unit heading-frame direction (x, y) at sample time ``t`` [s] -> Vector3Stamped."""
+    msg = Vector3Stamped()
+    msg.header.stamp = stamp(t)
+    msg.header.frame_id = HEADING_FRAME
+    msg.vector.x, msg.vector.y, msg.vector.z = float(direction_xy[0]), float(direction_xy[1]), 0.0
     return msg
-
-
-def state_from_msg(msg: DiagnosticArray) -> PredictorState:
-    """``/fall_predictor/state`` DiagnosticArray -> PredictorState; raises WireFormatError."""
-    return state_from_diagnostic(_stamp_ns(msg.header.stamp), msg.status)
 
 
 def joint_state_to_msg(t: float, names: Sequence[str], positions: ArrayLike,
