@@ -15,7 +15,7 @@ from rclpy.parameter import Parameter
 from test_nodes_support import MODEL_TAU_HIS_S, ros_context, test_domain_id, write_momentum_model
 
 from fall_predictor.ros.bringup import ros_environment
-from fall_predictor.ros.common import NodeStartupError, ParamSpec, RunTracker, Sample
+from fall_predictor.ros.common import NodeStartupError, ParamSpec
 from fall_predictor.ros.feature_node import FeatureNode
 from fall_predictor.ros.predictor_node import PredictorNode
 from fall_predictor.monitor.features import FeatureSettings
@@ -74,21 +74,6 @@ def test_empty_frame_means_heading_frame() -> None:
 
 
 # -- runs and parameters -----------------------------------------------------------------------
-
-def test_run_tracker_notices_resets_and_repeats() -> None:
-    runs = RunTracker()
-    kinds = [runs.classify(t) for t in (0.0, 0.001, 0.001, 0.002, 0.0, 0.0, 0.001, 0.0005)]
-    assert kinds == [Sample.NEXT, Sample.NEXT, Sample.REPEAT, Sample.NEXT, Sample.NEW_RUN,
-                     Sample.NEW_RUN, Sample.NEXT, Sample.NEW_RUN]
-    assert runs.runs == 3
-
-
-def test_run_tracker_with_a_start_window_keeps_stray_samples_in_the_run() -> None:
-    runs = RunTracker(restart_at_zero=False, max_start_t_s=1.0)
-    kinds = [runs.classify(t) for t in (0.0, 0.0, 3.0, 2.999, 3.001, 0.0)]
-    assert kinds == [Sample.NEXT, Sample.REPEAT, Sample.NEXT, Sample.NEXT, Sample.NEXT,
-                     Sample.NEW_RUN]
-
 
 def test_param_spec_checks_type_finiteness_and_range() -> None:
     spec = ParamSpec('tau_his_s', 0.05, 'window [s]', 0.0, 2.0)

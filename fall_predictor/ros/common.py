@@ -6,8 +6,10 @@ in common so that each node file only says what is specific to it:
 * :class:`ParamSpec` / :func:`declare_parameters`: parameters declared with a
   ``ParameterDescriptor`` (range, description, read-only flag) and validated by an
   ``on_set_parameters`` callback that rejects bad values with a reason;
-* :class:`RunTracker`: notices when sample time goes backwards (the simulator was reset,
-  a new trajectory started) so that stateful nodes reset themselves;
+* :class:`SampleIntake`: orders one 1 kHz stream of sample times: duplicates and
+  out-of-order samples are dropped and counted, missing samples (gaps) are counted, and a new
+  run starts only by an explicit reset or by the restart rule, which a single old stamp
+  cannot meet; :class:`SampleAge` measures how late a sample arrives;
 * :class:`Diagnostics`: a 1 Hz ``/diagnostics`` status per node (wall-clock timer);
 * :func:`run_node`: the ``main()`` body of every node (SingleThreadedExecutor, clean
   shutdown, a clear one-line error and exit code 1 when the node cannot start).
@@ -21,7 +23,6 @@ import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from enum import Enum
 from pathlib import Path
 from typing import Any, Callable, Optional, Union
 
@@ -36,6 +37,7 @@ from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedE
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
+from rclpy.qos_overriding_options import QoSOverridingOptions
 from rclpy.subscription import Subscription
 
 from fall_predictor.monitor.decision_list import PerModeDecisionLists
@@ -52,26 +54,42 @@ ParamValue = Union[bool, int, float, str]
 CrossCheck = Callable[[Mapping[str, ParamValue]], Optional[str]]
 
 
-def create_publisher(node: Node, msg_type: type, spec: TopicSpec) -> Publisher:
-    """A publisher on ``spec``'s topic with its wire QoS.
+#: Exceptions a message handler catches, counts and reports instead of dying: malformed or
+#: implausible values (ValueError, WireFormatError), and numeric failures of conversions
+#: (OverflowError, FloatingPointError, ZeroDivisionError are ArithmeticErrors; rclpy raises
+#: SystemError when a value does not fit a message field).
+HANDLED_ERRORS: tuple[type[BaseException], ...] = (ValueError, ArithmeticError, SystemError)
 
-    Without rclpy's default QoS-event handlers (incompatible QoS / type warnings): each one is
-    a waitable that the executor polls on every wake-up, a measurable cost at 1 kHz, and the
-    QoS of every topic comes from :mod:`fall_predictor.data.wire`, so they cannot disagree.
+
+def create_publisher(node: Node, msg_type: type, spec: TopicSpec) -> Publisher:
+    """A publisher on ``spec``'s topic (relative name) with its wire QoS.
+
+    The QoS can be overridden by parameters (``qos_overrides.<topic>.publisher.<policy>``,
+    rclpy's ``QoSOverridingOptions``). Without rclpy's default QoS-event handlers (incompatible
+    QoS / type warnings): each one is a waitable that the executor polls on every wake-up, a
+    measurable cost at 1 kHz, and the QoS of every topic comes from
+    :mod:`fall_predictor.data.topics`, so they cannot disagree.
     """
-    return node.create_publisher(msg_type, spec.name, ros_qos.qos_profile(spec.qos),
+    return node.create_publisher(msg_type, spec.ros_name, ros_qos.qos_profile(spec.qos),
                                  event_callbacks=PublisherEventCallbacks(
-                                     use_default_callbacks=False))
+                                     use_default_callbacks=False),
+                                 qos_overriding_options=QoSOverridingOptions.with_default_policies())
 
 
 def create_subscription(node: Node, msg_type: type, spec: TopicSpec,
-                        callback: Callable[[Any], None], raw: bool = False) -> Subscription:
-    """A subscription to ``spec``'s topic with its wire QoS (no QoS-event handlers, see
-    :func:`create_publisher`); ``raw`` delivers the serialized bytes."""
-    return node.create_subscription(msg_type, spec.name, callback, ros_qos.qos_profile(spec.qos),
+                        callback: Callable[[Any], None], raw: bool = False,
+                        lossless: bool = False) -> Subscription:
+    """A subscription to ``spec``'s topic (relative name) with the subscriber QoS of the
+    contract (best effort, shallow, for sensor streams: REP 2003), or with the publisher's
+    reliable deep QoS when ``lossless`` (the recorder). Overridable by parameters like the
+    publishers; no QoS-event handlers (see :func:`create_publisher`); ``raw`` delivers the
+    serialized bytes."""
+    qos = spec.qos if lossless else spec.subscription_qos
+    return node.create_subscription(msg_type, spec.ros_name, callback, ros_qos.qos_profile(qos),
                                     event_callbacks=SubscriptionEventCallbacks(
                                         use_default_callbacks=False),
-                                    raw=raw)
+                                    raw=raw,
+                                    qos_overriding_options=QoSOverridingOptions.with_default_policies())
 
 
 class BringupError(RuntimeError):
@@ -234,42 +252,36 @@ def declare_parameters(node: Node, specs: Sequence[ParamSpec],
 # Runs (trajectories) in a stream of sample times
 # --------------------------------------------------------------------------------------------
 
-class Sample(Enum):
-    """How a sample time relates to the previous one of the same stream."""
+class SampleAge:
+    """How late a sample arrives: its age [s] when received.
 
-    NEXT = 'next'           #: later than the previous sample (or the first sample)
-    NEW_RUN = 'new_run'     #: time went backwards: a new trajectory started
-    REPEAT = 'repeat'       #: the same time again: a duplicate
-
-
-class RunTracker:
-    """Splits one stream of sample times into runs.
-
-    Time going backwards starts a new run. With ``restart_at_zero`` a sample at exactly
-    t = 0 also starts one even after another t = 0 sample: every fresh simulator world
-    starts at t = 0, so a reset before the first step is still noticed. With
-    ``max_start_t_s`` a jump back only starts a run if it lands before that time (runs start
-    at t = 0); a smaller jump back is taken as an out-of-order sample of the same run.
+    With ``use_sim_time`` the age is the node's ROS clock (``/clock``) minus the sample time.
+    Otherwise the sample times are assumed to advance at the rate of wall time (a robot, a
+    replay at 1x), and the age is the arrival delay beyond the least-delayed sample of the
+    run: ``(wall - t) - min over the run of (wall - t)`` (the clock offset estimated from the
+    freshest samples, as NTP does). :meth:`reset` at every new run.
     """
 
-    def __init__(self, restart_at_zero: bool = True, max_start_t_s: float = math.inf) -> None:
-        self.restart_at_zero = restart_at_zero
-        self.max_start_t_s = max_start_t_s
-        self.last_t: Optional[float] = None
-        self.runs = 0               #: number of runs started after the first
+    def __init__(self, node: Node) -> None:
+        self._node = node
+        self._sim_time = bool(node.get_parameter('use_sim_time').value)
+        self.reset()
 
-    def classify(self, t: float) -> Sample:
-        """Classify sample time ``t`` [s] and remember it (a REPEAT leaves the state as is)."""
-        last = self.last_t
-        if last is None or (t > last or (t < last and t >= self.max_start_t_s)):
-            kind = Sample.NEXT
-        elif t == last and not (self.restart_at_zero and t == 0.0):
-            return Sample.REPEAT
-        else:
-            kind = Sample.NEW_RUN
-            self.runs += 1
-        self.last_t = t
-        return kind
+    def reset(self) -> None:
+        self._min_offset_s = math.inf
+
+    def age_s(self, t: float) -> float:
+        if self._sim_time:
+            return self._node.get_clock().now().nanoseconds * 1e-9 - t
+        offset = time.monotonic() - t
+        if offset < self._min_offset_s:
+            self._min_offset_s = offset
+        return offset - self._min_offset_s
+
+
+MAX_SAMPLE_AGE = ParamSpec(
+    'max_sample_age_s', 0.05, 'a sample older than this when received [s] is counted and '
+    'reported stale instead of being used (0 = no age check); see SampleAge', 0.0, 10.0)
 
 
 # --------------------------------------------------------------------------------------------
@@ -299,8 +311,10 @@ class Diagnostics:
 
     def __init__(self, node: Node, report: Callable[[], Report],
                  sample_time: Callable[[], float], inputs: Sequence[Subscription] = (),
+                 errors: Optional['InputErrors'] = None,
                  period_s: float = 1.0 / DIAGNOSTICS_RATE_HZ) -> None:
         self._node = node
+        self._errors = errors
         self._report = report
         self._sample_time = sample_time
         self._inputs = inputs
@@ -308,7 +322,15 @@ class Diagnostics:
         self._timer = node.create_timer(period_s, self.publish, clock=steady_clock())
 
     def publish(self) -> None:
-        """Publish the current report now."""
+        """Publish the current report now; a numeric failure is counted, never raised."""
+        try:
+            self._publish()
+        except HANDLED_ERRORS as error:
+            if self._errors is None:
+                raise
+            self._errors.reject('diagnostics report', error)
+
+    def _publish(self) -> None:
         level, message, values = self._report()
         unmatched = ' '.join(s.topic_name for s in self._inputs if s.get_publisher_count() == 0)
         status = DiagnosticStatus(
@@ -342,6 +364,22 @@ class InputErrors:
         """Inputs rejected since the previous call (for a periodic health report)."""
         new, self._reported = self.count - self._reported, self.count
         return new
+
+
+def guarded(what: str) -> Callable[[Callable[..., None]], Callable[..., None]]:
+    """Decorator of a node's message callback: the exceptions of :data:`HANDLED_ERRORS` are
+    counted and logged by the node's ``_bad_inputs`` (:class:`InputErrors`) as a rejected
+    ``what``, never raised into the executor (which would kill the node)."""
+    def decorate(method: Callable[..., None]) -> Callable[..., None]:
+        def handler(self: Any, *args: Any) -> None:
+            try:
+                method(self, *args)
+            except HANDLED_ERRORS as error:
+                self._bad_inputs.reject(what, error)
+        handler.__name__ = method.__name__
+        handler.__doc__ = method.__doc__
+        return handler
+    return decorate
 
 
 # --------------------------------------------------------------------------------------------

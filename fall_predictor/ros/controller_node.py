@@ -1,37 +1,43 @@
 """controller_node: C_bal (walking with the balance reflex) until the predictor says falling,
 then C_fall (freeze) for good (SPEC §2).
 
-For every ``/fall_predictor/measurement`` it runs
+For every ``fall_predictor/measurement`` it runs
 :class:`~fall_predictor.robot.controllers.ControllerSwitch` and publishes the joint targets on
-``/fall_predictor/joint_commands`` (sensor_msgs/JointState, position field, URDF joint order),
-stamped with the measurement's time so that the lock-stepped simulator can match them.
+``fall_predictor/joint_commands`` (sensor_msgs/JointState, position field, URDF joint order),
+stamped with the measurement's time so that the lock-stepped simulator can match them. It
+reads the measurements reliably (it closes the simulator's lock-step loop).
 
-It listens to ``/fall_predictor/state``: the first state of the current run that says falling
-(or latched), and is not degraded, switches to C_fall; the switch is one-way until the run
-ends. ``/fall_predictor/controller_mode`` (latched) carries ``'balance'`` or ``'fall'``.
-The switch takes effect from the next measurement, so its delay is the pipeline latency
-(measurement -> features -> state), as on a robot.
+It listens to the trigger ``fall_predictor/falling`` (std_msgs/Bool, latched): ``true``
+switches to C_fall. The switch is one-way until ``~/reset`` (std_srvs/Trigger), which builds a
+fresh C_bal; nothing on the wire undoes it (an old stamp, a ``false`` trigger, a new run).
+``fall_predictor/controller_mode`` (latched) carries ``'balance'`` or ``'fall'``. The switch
+takes effect from the next measurement, so its delay is the pipeline latency (measurement ->
+features -> trigger), as on a robot.
 
-A new run (measurement time going backwards, or a new t = 0 sample) builds a fresh C_bal and
-publishes ``'balance'`` again. Malformed inputs are logged (throttled), counted and dropped.
+Sample order as in the monitor nodes (:class:`~fall_predictor.data.sample_order.SampleIntake`):
+a new run by ``~/reset`` or the restart rule; a restarted run in C_bal gets a fresh C_bal, one
+in C_fall stays in C_fall. Malformed inputs and numeric failures are logged (throttled),
+counted and dropped.
 """
 from __future__ import annotations
 
 from typing import Optional
 
-from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray, String
+from std_msgs.msg import Bool, Float64MultiArray, String
+from std_srvs.srv import Trigger
 
 from fall_predictor.robot import model as rm
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.robot.controllers import BalanceController, ControllerSwitch, GaitConfig, ReflexConfig
-from fall_predictor.ros.common import (SAMPLE_PERIOD_S, Diagnostics, InputErrors, ParamSpec,
-                                         Report, RunTracker, Sample, create_publisher,
-                                         create_subscription, declare_parameters, run_node)
-from fall_predictor.data.topics import CONTROLLER_MODE, JOINT_COMMANDS, MEASUREMENT, STATE
+from fall_predictor.ros.common import (HANDLED_ERRORS, SAMPLE_PERIOD_S, Diagnostics,
+                                       InputErrors, ParamSpec, Report, create_publisher,
+                                       create_subscription, declare_parameters, guarded,
+                                       run_node)
+from fall_predictor.data.sample_order import Sample, SampleIntake
+from fall_predictor.data.topics import CONTROLLER_MODE, FALLING, JOINT_COMMANDS, MEASUREMENT
 from fall_predictor.data.wire import LEVEL_OK, LEVEL_WARN
 
 NODE_NAME = 'controller_node'
@@ -42,7 +48,7 @@ PARAMS = (
               read_only=True),
     ParamSpec('reflex_enabled', True, "C_bal's stepping reflex on large momentum (SPEC §2)",
               read_only=True),
-    ParamSpec('fall_trigger_enabled', True, 'switch to C_fall on the first falling state; '
+    ParamSpec('fall_trigger_enabled', True, 'switch to C_fall when the trigger says falling; '
               'false: C_bal throughout (as in data generation)'),
 )
 
@@ -60,17 +66,18 @@ class ControllerNode(Node):
 
         self._command_pub = create_publisher(self, JointState, JOINT_COMMANDS)
         self._mode_pub = create_publisher(self, String, CONTROLLER_MODE)
-        inputs = [create_subscription(self, Float64MultiArray, MEASUREMENT, self._on_measurement),
-                  create_subscription(self, DiagnosticArray, STATE, self._on_state)]
+        inputs = [create_subscription(self, Float64MultiArray, MEASUREMENT, self._on_measurement,
+                                      lossless=True),
+                  create_subscription(self, Bool, FALLING, self._on_falling)]
 
-        self._runs = RunTracker()
-        self._bad_measurements = InputErrors(self)
-        self._bad_states = InputErrors(self)
+        self._intake = SampleIntake(SAMPLE_PERIOD_S)
+        self._bad_inputs = InputErrors(self)
         #: Counters by event name (reported in /diagnostics).
-        self.counts = {'commands': 0, 'modes': 0, 'duplicates': 0, 'runs': 0}
+        self.counts = {'commands': 0, 'modes': 0, 'resets': 0, 'triggers': 0}
         self._switch = self._new_switch()
-        self._diagnostics = Diagnostics(self, self._report, lambda: self._runs.last_t or 0.0,
-                                        inputs)
+        self.create_service(Trigger, '~/reset', self._on_reset)
+        self._diagnostics = Diagnostics(self, self._report, lambda: self._intake.last_t or 0.0,
+                                        inputs, self._bad_inputs)
         self.get_logger().info(
             f'controller ready: fall_trigger_enabled={self._fall_trigger_enabled}')
 
@@ -90,55 +97,50 @@ class ControllerNode(Node):
         self._mode_pub.publish(ros_qos.controller_mode_msg(mode))
         self.counts['modes'] += 1
 
+    def _on_reset(self, request: Trigger.Request, response: Trigger.Response
+                  ) -> Trigger.Response:
+        self._intake.reset()
+        self._switch = self._new_switch()
+        self.counts['resets'] += 1
+        self.get_logger().info('reset: fresh C_bal')
+        response.success, response.message = True, 'fresh C_bal; next sample starts a run'
+        return response
+
+    @guarded('measurement')
     def _on_measurement(self, msg: Float64MultiArray) -> None:
-        try:
-            m = ros_qos.measurement_from_msg(msg)
-        except ValueError as error:
-            self._bad_measurements.reject('measurement', error)
-            return
-        kind = self._runs.classify(m.t)
-        if kind is Sample.REPEAT:
-            self.counts['duplicates'] += 1
-            return
-        if kind is Sample.NEW_RUN:
-            self.counts['runs'] += 1
-            self._switch = self._new_switch()
+        m = ros_qos.measurement_from_msg(msg)
+        kind = self._intake.classify(m.t)
+        if kind is Sample.NEW_RUN and self._switch.mode == 'balance':
+            self._switch = self._new_switch()   # C_fall stays until ~/reset (one-way)
+        elif kind is not Sample.NEXT and kind is not Sample.NEW_RUN:
+            return                              # duplicate, out of order: counted
         try:
             q = self._switch.update(m)
             command = ros_qos.joint_state_to_msg(m.t, rm.JOINT_NAMES, q)
-        except ValueError as error:
+        except HANDLED_ERRORS as error:
             # A finite but implausible measurement can make the leg IK fail.
-            self._bad_measurements.reject(f'measurement at t = {m.t} s (controller)', error)
+            self._bad_inputs.reject(f'measurement at t = {m.t} s (controller)', error)
             return
         self._command_pub.publish(command)
         self.counts['commands'] += 1
 
-    def _on_state(self, msg: DiagnosticArray) -> None:
-        try:
-            state = ros_qos.state_from_msg(msg)
-        except ValueError as error:
-            self._bad_states.reject('state', error)
+    @guarded('trigger')
+    def _on_falling(self, msg: Bool) -> None:
+        current_t = self._intake.last_t
+        if not msg.data or not self._fall_trigger_enabled or self._switch.mode == 'fall':
             return
-        current_t = self._runs.last_t
-        if (not self._fall_trigger_enabled or self._switch.mode == 'fall'
-                or state.stale_reason is not None or not (state.falling or state.latched)
-                or current_t is None or state.t > current_t):
-            # state.t > current_t: a state from before the last reset, still in flight.
-            return
-        self._switch.trigger_fall(current_t)
+        self.counts['triggers'] += 1
+        t_switch = current_t if current_t is not None else 0.0
+        self._switch.trigger_fall(t_switch)
         self._publish_mode('fall')
-        self.get_logger().info(
-            f'C_fall from t = {current_t:.3f} s (falling state at t = {state.t:.3f} s)')
+        self.get_logger().info(f'C_fall from t = {t_switch:.3f} s')
 
     def _report(self) -> Report:
         values = {'mode': self._switch.mode, 't_switch_s': self._switch.t_switch,
-                  't_s': self._runs.last_t, 'fall_trigger_enabled': self._fall_trigger_enabled,
-                  'invalid_measurements': self._bad_measurements.count,
-                  'invalid_states': self._bad_states.count,
-                  'last_error': self._bad_measurements.last or self._bad_states.last,
-                  **self.counts}
-        dropped = (self._bad_measurements.new_since_last_call()
-                   + self._bad_states.new_since_last_call())
+                  't_s': self._intake.last_t, 'fall_trigger_enabled': self._fall_trigger_enabled,
+                  'invalid_inputs': self._bad_inputs.count, 'last_error': self._bad_inputs.last,
+                  **self._intake.counters(), **self.counts}
+        dropped = self._bad_inputs.new_since_last_call()
         if dropped:
             return LEVEL_WARN, f'{self._switch.mode}; {dropped} invalid inputs dropped', values
         return LEVEL_OK, self._switch.mode, values

@@ -4,16 +4,21 @@ The features are computed as the model was trained: the node reads the model fil
 (``model_path``) for its feature settings (rate window, edge tolerance, sample period) and
 adopts them; a parameter set to another value stops the node at start with one clear error.
 
-For every ``/fall_predictor/measurement`` it runs
-:class:`~fall_predictor.monitor.features.FeatureExtractor` and publishes ``/fall_predictor/features``
-(layout v1, stamped by the sample time in ``data[0]``). A new run (sample time going
-backwards, or a new t = 0 sample) resets the extractor's momentum history.
+For every ``fall_predictor/measurement`` it runs
+:class:`~fall_predictor.monitor.features.FeatureExtractor` and publishes ``fall_predictor/features``
+(layout v1, stamped by the sample time in ``data[0]``).
 
-Bad input never stops the node: a measurement that breaks the wire contract, or that the
-extractor rejects (non-finite values, time not increasing), is logged (throttled), counted and
-dropped. Health goes to ``/diagnostics``: OK, WARN when inputs were dropped in the last period,
-STALE when no measurement arrived for ``stale_timeout_s`` of wall time. The predictor node,
-not this one, owns ``/fall_predictor/state``.
+Sample order (:class:`~fall_predictor.data.sample_order.SampleIntake`): duplicates and
+out-of-order samples are dropped and counted, missing samples counted; ``~/reset``
+(std_srvs/Trigger) starts a new run (clears the momentum history), and so does the restart
+rule (several consecutive samples restarting near t = 0), never a single old stamp.
+
+Bad input never stops the node: a measurement that breaks the wire contract or the
+plausibility bounds, that the extractor rejects (a jump faster than physics allows), or whose
+handling raises a numeric error (overflow, conversion) is logged (throttled), counted and
+dropped. Health goes to ``/diagnostics``: OK; WARN when inputs were dropped or samples were
+missing in the last period; STALE when no measurement arrived for ``stale_timeout_s`` of wall
+time. The predictor node, not this one, owns ``fall_predictor/state``.
 """
 from __future__ import annotations
 
@@ -23,12 +28,14 @@ from typing import Optional
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import Trigger
 
+from fall_predictor.data.sample_order import Sample, SampleIntake
 from fall_predictor.ros import conversions as ros_qos
-from fall_predictor.ros.common import (MODEL_PATH, Diagnostics, InputErrors, ParamSpec, Report,
-                                       RunTracker, Sample, create_publisher, create_subscription,
-                                       declare_parameters, feature_setting_params, load_model_for,
-                                       run_node)
+from fall_predictor.ros.common import (HANDLED_ERRORS, MODEL_PATH, Diagnostics, InputErrors,
+                                       ParamSpec, Report, create_publisher, create_subscription,
+                                       declare_parameters, feature_setting_params, guarded,
+                                       load_model_for, run_node)
 from fall_predictor.data.topics import FEATURES, MEASUREMENT
 from fall_predictor.data.wire import LEVEL_OK, LEVEL_STALE, LEVEL_WARN
 
@@ -57,13 +64,15 @@ class FeatureNode(Node):
 
         self._features_pub = create_publisher(self, Float64MultiArray, FEATURES)
         inputs = [create_subscription(self, Float64MultiArray, MEASUREMENT, self._on_measurement)]
-        self._runs = RunTracker()
+        self._intake = SampleIntake(settings.sample_period_s)
         self._bad_inputs = InputErrors(self)
         #: Counters by event name (reported in /diagnostics).
-        self.counts = {'measurements': 0, 'features': 0, 'duplicates': 0, 'runs': 0}
+        self.counts = {'measurements': 0, 'features': 0, 'resets': 0}
+        self._missing_at_report = 0
         self._last_input_wall: Optional[float] = None
-        self._diagnostics = Diagnostics(self, self._report, lambda: self._runs.last_t or 0.0,
-                                        inputs)
+        self.create_service(Trigger, '~/reset', self._on_reset)
+        self._diagnostics = Diagnostics(self, self._report, lambda: self._intake.last_t or 0.0,
+                                        inputs, self._bad_inputs)
         self.get_logger().info('feature extractor ready')
 
     def _apply_parameters(self, parameters: list[Parameter]) -> None:
@@ -71,41 +80,47 @@ class FeatureNode(Node):
             if parameter.name == 'stale_timeout_s':
                 self._stale_timeout_s = float(parameter.value)
 
+    def _on_reset(self, request: Trigger.Request, response: Trigger.Response
+                  ) -> Trigger.Response:
+        self._intake.reset()
+        self._extractor.reset()
+        self.counts['resets'] += 1
+        response.success, response.message = True, 'feature history cleared; next sample starts a run'
+        return response
+
+    @guarded('measurement')
     def _on_measurement(self, msg: Float64MultiArray) -> None:
         self.counts['measurements'] += 1
         self._last_input_wall = time.monotonic()
-        try:
-            m = ros_qos.measurement_from_msg(msg)
-        except ValueError as error:
-            self._bad_inputs.reject('measurement', error)
-            return
-        kind = self._runs.classify(m.t)
-        if kind is Sample.REPEAT:
-            self.counts['duplicates'] += 1
-            return
+        m = ros_qos.measurement_from_msg(msg)
+        kind = self._intake.classify(m.t)
         if kind is Sample.NEW_RUN:
-            self.counts['runs'] += 1
             self._extractor.reset()
+        elif kind is not Sample.NEXT:
+            return                          # duplicate, out of order: counted by the intake
         try:
             x, mode = self._extractor.update(m)
             features = ros_qos.features_to_msg(m.t, x, mode)
-        except ValueError as error:
+        except HANDLED_ERRORS as error:
             self._bad_inputs.reject(f'measurement at t = {m.t} s', error)
             return
         self._features_pub.publish(features)
         self.counts['features'] += 1
 
     def _report(self) -> Report:
-        values = {'t_s': self._runs.last_t, 'invalid_measurements': self._bad_inputs.count,
-                  'last_error': self._bad_inputs.last, **self.counts}
+        values = {'t_s': self._intake.last_t, 'invalid_measurements': self._bad_inputs.count,
+                  'last_error': self._bad_inputs.last, **self._intake.counters(), **self.counts}
         dropped = self._bad_inputs.new_since_last_call()
+        missing = self._intake.missing - self._missing_at_report
+        self._missing_at_report = self._intake.missing
         if self._last_input_wall is None:
             return LEVEL_STALE, 'no measurement received yet', values
         silent_s = time.monotonic() - self._last_input_wall
         if silent_s > self._stale_timeout_s:
             return LEVEL_STALE, f'no measurement for {silent_s:.1f} s', values
-        if dropped:
-            return LEVEL_WARN, f'{dropped} invalid measurements dropped', values
+        if dropped or missing:
+            return (LEVEL_WARN, f'{dropped} invalid measurements dropped, {missing} samples '
+                    'missing', values)
         return LEVEL_OK, 'running', values
 
 

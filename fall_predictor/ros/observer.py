@@ -31,8 +31,9 @@ from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.ros.common import (BringupError, UNMATCHED_INPUTS,
                                          create_publisher, create_subscription, spin_until)
 from fall_predictor.monitor.records import Measurement, PushSpec
-from fall_predictor.data.topics import (PUSH_REQUEST, CONTROLLER_MODE, DIAGNOSTICS, MEASUREMENT,
-                                        PAUSE_SERVICE, RESET_SERVICE, STATE, WireFormatError)
+from fall_predictor.data.topics import (CONTROLLER_MODE, DIAGNOSTICS, MEASUREMENT,
+                                        MONITOR_RESET_SERVICES, PAUSE_SERVICE, PUSH_REQUEST,
+                                        RESET_SERVICE, STATE, WireFormatError)
 from fall_predictor.data.wire import PredictorState
 
 #: After a reset, samples from this time on still belong to the previous run [s].
@@ -181,11 +182,15 @@ class Observer:
         node = self.node
         self.reset_client = node.create_client(Trigger, RESET_SERVICE)
         self.pause_client = node.create_client(SetBool, PAUSE_SERVICE)
+        #: ``~/reset`` of the feature, predictor and controller nodes, by node name.
+        self.monitor_reset_clients = {name.split('/')[0]: node.create_client(Trigger, name)
+                                      for name in MONITOR_RESET_SERVICES}
         self.push_pub = create_publisher(node, WrenchStamped, PUSH_REQUEST)
         #: The stream subscriptions (each must be matched before a run can be followed).
         self.subscriptions = [
-            create_subscription(node, Float64MultiArray, MEASUREMENT, self._on_measurement),
-            create_subscription(node, DiagnosticArray, STATE, self._on_state),
+            create_subscription(node, Float64MultiArray, MEASUREMENT, self._on_measurement,
+                                lossless=True),
+            create_subscription(node, Float64MultiArray, STATE, self._on_state, lossless=True),
             create_subscription(node, String, CONTROLLER_MODE, self._on_mode),
         ] if follow_streams else []
         self._diagnostics_sub = create_subscription(node, DiagnosticArray, DIAGNOSTICS,
@@ -220,7 +225,7 @@ class Observer:
         if self.run is not None:
             self.run.add_measurement(m)
 
-    def _on_state(self, msg: DiagnosticArray) -> None:
+    def _on_state(self, msg: Float64MultiArray) -> None:
         try:
             state = ros_qos.state_from_msg(msg)
         except WireFormatError:
@@ -259,8 +264,13 @@ class Observer:
                    for status in statuses)
 
     def connected(self, node_names: Iterable[str]) -> bool:
-        """Every named node reports all its inputs matched, and so is this node."""
+        """Every named node reports all its inputs matched, and so is this node (including
+        the ``~/reset`` services of the named monitor and controller nodes)."""
+        node_names = list(node_names)
+        resets = [client for name, client in self.monitor_reset_clients.items()
+                  if name in (n.lstrip('/') for n in node_names)]
         return (self.all_inputs_matched(node_names)
+                and all(client.service_is_ready() for client in resets)
                 and self.reset_client.service_is_ready() and self.pause_client.service_is_ready()
                 and self.push_pub.get_subscription_count() >= 1
                 and all(s.get_publisher_count() >= 1 for s in self.subscriptions))
@@ -292,11 +302,19 @@ class Observer:
             raise ObserverError(f'{client.srv_name} failed: {future.result().message}')
 
     def reset_world(self) -> None:
-        """Reset the simulator (a fresh world at t = 0) and start a new record."""
+        """Start a new run: pause the simulator, reset the monitor and controller nodes that
+        are up (their ``~/reset``: the only way to undo a fall), then reset the simulator (a
+        fresh world at t = 0), and start a new record."""
         self.samples.clear()
         self.states.clear()
         self.modes.clear()
         self._skip_old_samples = self._skip_old_states = True
+        if self.pause_client.service_is_ready():
+            self.call(self.pause_client, SetBool.Request(data=True))
+            self.spin_for(0.05)             # let the last samples of the old run arrive
+        for client in self.monitor_reset_clients.values():
+            if client.service_is_ready():
+                self.call(client, Trigger.Request())
         self.call(self.reset_client, Trigger.Request())
 
     def pause_world(self) -> None:

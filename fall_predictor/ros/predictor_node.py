@@ -1,43 +1,61 @@
-"""predictor_node: features -> the fall prediction on ``/fall_predictor/state`` (SPEC §5, §8).
+"""predictor_node: features -> the fall prediction, the trigger and the fall direction.
 
 Loads a decision-list model (:func:`~fall_predictor.monitor.model_file.load_model`) and runs
-:class:`~fall_predictor.monitor.predictor.OnlinePredictor` on every ``/fall_predictor/features``
-sample, publishing one state per sample (``ros_qos.state_to_msg``), stamped with the sample's
-time: OK balanced, WARN falling, with the contact mode, the atomic and guard outputs, the
-latch and the history window in use.
+:class:`~fall_predictor.monitor.predictor.OnlinePredictor` on every ``fall_predictor/features``
+sample. Outputs (the contract is in :mod:`fall_predictor.data.topics` and the README):
 
-Parameters: ``model_path`` (default: ``models/default_model.json`` of the installed package
-share directory, else of the source tree); ``tau_his_s``, the history window, settable at run
-time (default: the model's recommended window, else 0); ``stale_timeout_s``.
+* ``fall_predictor/state`` (``std_msgs/Float64MultiArray``, layout ``fall_predictor/state/v2``):
+  one per sample, stamped with the sample's time in slot 0; slots are read by index (status,
+  falling, latch, contact mode, window, time to fall, direction), no strings to parse.
+* ``fall_predictor/falling`` (``std_msgs/Bool``, reliable, transient local, depth 1): the
+  trigger. ``false`` at start-up; ``true`` from the first falling prediction until ``~/reset``
+  (or until the monitor is disabled). A node that starts late still gets the current value.
+* ``fall_predictor/fall_direction`` (``geometry_msgs/Vector3Stamped``, frame
+  ``base_footprint``, latched): with each falling event, the predicted direction of the fall
+  (the capture point's bearing from the CoP, :mod:`fall_predictor.monitor.fall_direction`).
 
-A missing or invalid model file makes the node refuse to start: one FATAL log line naming the
-file and the problem, exit code 1.
+Services: ``~/reset`` (std_srvs/Trigger) clears the history, the latch and the trigger;
+``~/enable`` (std_srvs/SetBool) switches the trigger off (false: no trigger, the states say
+``disabled``; the history restarts when enabled again).
 
-Degraded states (level STALE, ``stale: <reason>``): a features message that breaks the wire
-contract gets a degraded state instead of a prediction; and a wall-clock watchdog publishes a
-degraded state whenever no valid features arrived for ``stale_timeout_s`` (at start-up, when
-the simulator stops, when the feature node dies), repeated every ``stale_timeout_s`` while it
-lasts. ``/diagnostics`` reports the same. A new run (sample time going backwards, or a new
-t = 0 sample) resets the predictor's history and latch.
+Inputs are ordered by :class:`~fall_predictor.data.sample_order.SampleIntake` (duplicates and
+out-of-order samples dropped and counted; a new run by ``~/reset`` or the restart rule, which
+clears the history but never the latch). A sample older than ``max_sample_age_s`` when it
+arrives (:class:`~fall_predictor.ros.common.SampleAge`) is counted and answered with a stale
+state instead of a prediction. A features message that breaks the wire contract gets a stale
+state too; a wall-clock watchdog publishes a stale state whenever no valid features arrived for
+``stale_timeout_s`` (repeated every ``stale_timeout_s``). Stale states keep the latch. Health,
+counters and reasons go to ``/diagnostics``.
+
+Parameters: ``model_path`` (default: the shipped model), ``tau_his_s`` (settable at run time;
+default: the model's recommended window), ``stale_timeout_s``, ``max_sample_age_s``,
+``robot_mass_kg`` (for the fall direction). A missing or invalid model file makes the node
+refuse to start with one FATAL line (exit code 1).
 """
 from __future__ import annotations
 
+import math
 import time
 from typing import Optional
 
-from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import Vector3Stamped
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from std_msgs.msg import Float64MultiArray
+from std_msgs.msg import Bool, Float64MultiArray
+from std_srvs.srv import SetBool, Trigger
 
-from fall_predictor.data.topics import FEATURES, STATE
-from fall_predictor.data.wire import LEVEL_OK, LEVEL_STALE, LEVEL_WARN, PredictorState
+from fall_predictor.data.sample_order import Sample, SampleIntake
+from fall_predictor.data.topics import FALL_DIRECTION, FALLING, FEATURES, STATE
+from fall_predictor.data.wire import LEVEL_OK, LEVEL_STALE, LEVEL_WARN, FeatureSample, PredictorState
+from fall_predictor.monitor.fall_direction import capture_point_direction
 from fall_predictor.monitor.predictor import OnlinePredictor
+from fall_predictor.robot.model import TOTAL_MASS_KG
 from fall_predictor.ros import conversions as ros_qos
-from fall_predictor.ros.common import (MODEL_PATH, Diagnostics, InputErrors, ParamSpec, Report,
-                                       RunTracker, Sample, create_publisher, create_subscription,
-                                       declare_parameters, feature_setting_params, load_model_for,
-                                       run_node, steady_clock)
+from fall_predictor.ros.common import (MAX_SAMPLE_AGE, MODEL_PATH, Diagnostics, InputErrors,
+                                       ParamSpec, Report, SampleAge, create_publisher,
+                                       create_subscription, declare_parameters,
+                                       feature_setting_params, guarded, load_model_for, run_node,
+                                       steady_clock)
 
 NODE_NAME = 'predictor_node'
 #: Largest accepted history window [s]: beyond the longest oracle lead a window only hides falls.
@@ -48,6 +66,9 @@ _WATCHDOG_PERIOD_S = 0.05
 STALE_TIMEOUT = ParamSpec(
     'stale_timeout_s', 0.5, 'wall time [s] without valid features after which a degraded '
     'STALE state is published (and repeated every stale_timeout_s)', 0.01, 60.0)
+ROBOT_MASS = ParamSpec(
+    'robot_mass_kg', float(TOTAL_MASS_KG), 'total robot mass [kg]: turns the momentum feature '
+    'into a CoM velocity for the fall direction', 1.0, 1000.0, read_only=True)
 #: Feature settings this node uses, checked against the model's.
 SETTINGS = ('sample_period_s', 'guard_com_height_m')
 
@@ -64,32 +85,45 @@ class PredictorNode(Node):
 
     def __init__(self, **kwargs: object) -> None:
         super().__init__(NODE_NAME, **kwargs)
-        p = declare_parameters(self, (MODEL_PATH, STALE_TIMEOUT, *feature_setting_params(SETTINGS)))
+        p = declare_parameters(self, (MODEL_PATH, STALE_TIMEOUT, MAX_SAMPLE_AGE, ROBOT_MASS,
+                                      *feature_setting_params(SETTINGS)))
         lists, metadata, settings = load_model_for(self, str(p['model_path']),
                                                    {k: p[k] for k in SETTINGS})
         # Declared once the model is known: its recommended window is the default.
         recommended_s = min(metadata.recommended_tau_his_s or 0.0, MAX_TAU_HIS_S)
         tau_his_s = float(declare_parameters(self, (tau_his_param(recommended_s),))['tau_his_s'])
         self._stale_timeout_s = float(p['stale_timeout_s'])
+        self._max_sample_age_s = float(p['max_sample_age_s'])
+        self._mass_kg = float(p['robot_mass_kg'])
         self._predictor = OnlinePredictor(lists, tau_his_s, settings.sample_period_s,
                                           settings.guard_com_height_m)
         self.add_post_set_parameters_callback(self._apply_parameters)
 
-        self._state_pub = create_publisher(self, DiagnosticArray, STATE)
+        self._state_pub = create_publisher(self, Float64MultiArray, STATE)
+        self._falling_pub = create_publisher(self, Bool, FALLING)
+        self._direction_pub = create_publisher(self, Vector3Stamped, FALL_DIRECTION)
         inputs = [create_subscription(self, Float64MultiArray, FEATURES, self._on_features)]
-        self._runs = RunTracker()
+        self._intake = SampleIntake(settings.sample_period_s)
+        self._age = SampleAge(self)
         self._bad_inputs = InputErrors(self)
+        self._enabled = True
+        self._trigger = False               # value last published on fall_predictor/falling
         #: Counters by event name (reported in /diagnostics).
         self.counts = {'features': 0, 'states': 0, 'falling_states': 0, 'stale_states': 0,
-                       'duplicates': 0, 'runs': 0}
+                       'stale_samples': 0, 'falling_events': 0, 'resets': 0,
+                       'trigger_messages': 0, 'direction_messages': 0}
+        self._missing_at_report = 0
         self._last_valid_wall = time.monotonic()
-        self._last_stale_wall = -float('inf')
+        self._last_stale_wall = -math.inf
         self._stale_reason: Optional[str] = None
+        self._publish_trigger(False)
+        self.create_service(Trigger, '~/reset', self._on_reset)
+        self.create_service(SetBool, '~/enable', self._on_enable)
         self.create_timer(_WATCHDOG_PERIOD_S, self._on_watchdog, clock=steady_clock())
-        self._diagnostics = Diagnostics(self, self._report, lambda: self._runs.last_t or 0.0,
-                                        inputs)
-        self._model_description = (f'{p["model_path"] or "the shipped model"} (mean rule size {lists.mean_rule_size:.1f}, '
-                                   f'tau_plus {metadata.tau_plus_s} s)')
+        self._diagnostics = Diagnostics(self, self._report, lambda: self._intake.last_t or 0.0,
+                                        inputs, self._bad_inputs)
+        self._model_description = (f'{p["model_path"] or "the shipped model"} (mean rule size '
+                                   f'{lists.mean_rule_size:.1f}, tau_plus {metadata.tau_plus_s} s)')
         self.get_logger().info(f'predictor ready: model {self._model_description}, '
                                f'tau_his_s={tau_his_s}')
 
@@ -100,8 +134,38 @@ class PredictorNode(Node):
                 self.get_logger().info(f'tau_his_s = {parameter.value} s')
             elif parameter.name == 'stale_timeout_s':
                 self._stale_timeout_s = float(parameter.value)
+            elif parameter.name == 'max_sample_age_s':
+                self._max_sample_age_s = float(parameter.value)
+
+    # -- services --------------------------------------------------------------------------
+    def _clear(self) -> None:
+        self._predictor.reset()
+        self._intake.reset()
+        self._age.reset()
+        self._publish_trigger(False)
+
+    def _on_reset(self, request: Trigger.Request, response: Trigger.Response
+                  ) -> Trigger.Response:
+        self._clear()
+        self.counts['resets'] += 1
+        self.get_logger().info('reset: history, latch and trigger cleared')
+        response.success, response.message = True, 'history, latch and trigger cleared'
+        return response
+
+    def _on_enable(self, request: SetBool.Request, response: SetBool.Response
+                   ) -> SetBool.Response:
+        if bool(request.data) != self._enabled:
+            self._enabled = bool(request.data)
+            self._predictor.reset()         # a fresh window either way; no trigger while off
+            if not self._enabled:
+                self._publish_trigger(False)
+            self.get_logger().info(f'fall trigger {"enabled" if self._enabled else "disabled"}')
+        response.success = True
+        response.message = 'enabled' if self._enabled else 'disabled: no trigger'
+        return response
 
     # -- samples ---------------------------------------------------------------------------
+    @guarded('features')
     def _on_features(self, msg: Float64MultiArray) -> None:
         self.counts['features'] += 1
         try:
@@ -110,33 +174,66 @@ class PredictorNode(Node):
             self._bad_inputs.reject('features', error)
             self._publish_degraded(f'invalid features: {error}')
             return
-        kind = self._runs.classify(sample.t)
-        if kind is Sample.REPEAT:
-            self.counts['duplicates'] += 1
-            return
+        kind = self._intake.classify(sample.t)
         if kind is Sample.NEW_RUN:
-            self.counts['runs'] += 1
-            self._predictor.reset()
-        out = self._predictor.step(sample.t, sample.x, sample.mode)
+            self._predictor.reset()         # the window restarts; the latch is kept (one-way)
+            self._age.reset()
+        elif kind is not Sample.NEXT:
+            return                          # duplicate, out of order: counted by the intake
         self._last_valid_wall = time.monotonic()
         self._stale_reason = None
-        self._publish(PredictorState(t=out.t, falling=out.falling, atomic=out.atomic,
-                                     guard=out.guard, latched=out.latched,
-                                     contact_mode=sample.mode,
-                                     tau_his_s=self._predictor.tau_his_s))
+        age_s = self._age.age_s(sample.t)
+        if self._max_sample_age_s > 0.0 and age_s > self._max_sample_age_s:
+            self.counts['stale_samples'] += 1
+            self._publish_degraded(f'sample at t = {sample.t:.3f} s arrived {age_s:.3f} s late',
+                                   sample.t)
+            return
+        if not self._enabled:
+            self._publish(PredictorState(t=sample.t, falling=False, atomic=False, guard=False,
+                                         latched=False, contact_mode=sample.mode,
+                                         tau_his_s=self._predictor.tau_his_s, enabled=False))
+            return
+        self._predict(sample)
+
+    def _predict(self, sample: FeatureSample) -> None:
+        was_latched = self._predictor.latched or self._trigger
+        out = self._predictor.step(sample.t, sample.x, sample.mode)
+        direction = (math.nan, math.nan)
         if out.falling:
             self.counts['falling_states'] += 1
+            d = capture_point_direction(sample.x, self._mass_kg)
+            direction = (float(d[0]), float(d[1]))
+            if not was_latched:
+                self.counts['falling_events'] += 1
+                if math.isfinite(direction[0]):
+                    self._direction_pub.publish(ros_qos.fall_direction_msg(sample.t, direction))
+                    self.counts['direction_messages'] += 1
+                self._publish_trigger(True)
+                self.get_logger().info(f'falling at t = {sample.t:.3f} s, direction '
+                                       f'({direction[0]:.2f}, {direction[1]:.2f})')
+        self._publish(PredictorState(t=out.t, falling=out.falling, atomic=out.atomic,
+                                     guard=out.guard, latched=out.latched or self._trigger,
+                                     contact_mode=sample.mode,
+                                     tau_his_s=self._predictor.tau_his_s,
+                                     fall_direction=direction))
+
+    def _publish_trigger(self, falling: bool) -> None:
+        if falling != self._trigger or falling is False:
+            self._falling_pub.publish(ros_qos.falling_msg(falling))
+            self.counts['trigger_messages'] += 1
+        self._trigger = falling
 
     def _publish(self, state: PredictorState) -> None:
         self._state_pub.publish(ros_qos.state_to_msg(state))
         self.counts['states'] += 1
 
-    def _publish_degraded(self, reason: str) -> None:
-        """A STALE state at the latest valid sample time, keeping the latch."""
-        self._publish(PredictorState(t=self._runs.last_t or 0.0, falling=False, atomic=False,
-                                     guard=False, latched=self._predictor.latched,
+    def _publish_degraded(self, reason: str, t: Optional[float] = None) -> None:
+        """A STALE state (at ``t``, else the latest valid sample time), keeping the latch."""
+        self._publish(PredictorState(t=self._intake.last_t or 0.0 if t is None else t,
+                                     falling=False, atomic=False, guard=False,
+                                     latched=self._predictor.latched or self._trigger,
                                      contact_mode=None, tau_his_s=self._predictor.tau_his_s,
-                                     stale_reason=reason))
+                                     stale_reason=reason, enabled=self._enabled))
         self.counts['stale_states'] += 1
 
     def _on_watchdog(self) -> None:
@@ -144,21 +241,26 @@ class PredictorNode(Node):
         silent_s = now - self._last_valid_wall
         if silent_s > self._stale_timeout_s and now - self._last_stale_wall > self._stale_timeout_s:
             self._last_stale_wall = now
-            what = 'no features received' if self._runs.last_t is None else 'no valid features'
+            what = 'no features received' if self._intake.last_t is None else 'no valid features'
             self._stale_reason = f'{what} for {silent_s:.2f} s'
             self._publish_degraded(self._stale_reason)
 
     def _report(self) -> Report:
-        values = {'t_s': self._runs.last_t, 'tau_his_s': self._predictor.tau_his_s,
-                  'latched': self._predictor.latched, 'model': self._model_description,
-                  'invalid_features': self._bad_inputs.count, 'last_error': self._bad_inputs.last,
-                  **self.counts}
+        values = {'t_s': self._intake.last_t, 'tau_his_s': self._predictor.tau_his_s,
+                  'enabled': self._enabled, 'latched': self._predictor.latched or self._trigger,
+                  'model': self._model_description, 'invalid_features': self._bad_inputs.count,
+                  'last_error': self._bad_inputs.last, **self._intake.counters(), **self.counts}
         dropped = self._bad_inputs.new_since_last_call()
+        missing = self._intake.missing - self._missing_at_report
+        self._missing_at_report = self._intake.missing
         if self._stale_reason is not None:
             return LEVEL_STALE, self._stale_reason, values
-        if dropped:
-            return LEVEL_WARN, f'{dropped} invalid features messages', values
-        return LEVEL_OK, 'falling (latched)' if self._predictor.latched else 'balanced', values
+        if dropped or missing:
+            return (LEVEL_WARN, f'{dropped} invalid features messages, {missing} samples '
+                    'missing', values)
+        if not self._enabled:
+            return LEVEL_WARN, 'disabled: no fall trigger', values
+        return LEVEL_OK, 'falling (latched)' if values['latched'] else 'balanced', values
 
 
 def main(args: Optional[list[str]] = None) -> int:

@@ -36,26 +36,28 @@ from pathlib import Path
 from typing import Optional
 
 import rclpy
-from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import WrenchStamped
+from geometry_msgs.msg import Vector3Stamped, WrenchStamped
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray, String
+from std_msgs.msg import Bool, Float64MultiArray, String
 
 from fall_predictor.data import bagio
+from fall_predictor.data.sample_order import RunTracker, Sample
 from fall_predictor.ros.common import (Diagnostics, InputErrors, NodeStartupError, ParamSpec,
-                                         Report, RunTracker, Sample, create_subscription,
-                                         declare_parameters, run_node)
-from fall_predictor.data.topics import (CONTROLLER_MODE, FEATURES, JOINT_COMMANDS, JOINT_STATES, MEASUREMENT, PUSH, STATE, TopicSpec, check_controller_mode)
+                                         Report, create_subscription, declare_parameters,
+                                         run_node)
+from fall_predictor.data.topics import (CONTROLLER_MODE, FALL_DIRECTION, FALLING, FEATURES,
+                                        JOINT_COMMANDS, JOINT_STATES, MEASUREMENT, PUSH, STATE,
+                                        TopicSpec, WireFormatError, check_controller_mode)
 from fall_predictor.data.wire import LEVEL_OK, LEVEL_WARN, JointStateSample
 from fall_predictor.data.topics import ns_to_time, stamp_to_ns, time_to_ns
 
 NODE_NAME = 'recorder_node'
 #: Recorded topics and their rclpy message classes.
 RECORDED: tuple[tuple[TopicSpec, type], ...] = (
-    (MEASUREMENT, Float64MultiArray), (FEATURES, Float64MultiArray), (STATE, DiagnosticArray),
+    (MEASUREMENT, Float64MultiArray), (FEATURES, Float64MultiArray), (STATE, Float64MultiArray),
     (JOINT_STATES, JointState), (JOINT_COMMANDS, JointState), (PUSH, WrenchStamped),
-    (CONTROLLER_MODE, String),
+    (CONTROLLER_MODE, String), (FALLING, Bool), (FALL_DIRECTION, Vector3Stamped),
 )
 #: Stamped streams split into runs on their own time line; the value says whether a new
 #: t = 0 sample starts a run (not for states: degraded states repeat the last sample time).
@@ -83,6 +85,14 @@ def _sample_time(topic: str, msg: bagio.RosbagsMsg) -> Optional[float]:
                                 tuple(msg.name), msg.position, msg.velocity, msg.effort).t
     if topic == CONTROLLER_MODE.name:
         check_controller_mode(msg.data)
+        return None
+    if topic == FALLING.name:
+        if not isinstance(msg.data, bool):
+            raise WireFormatError(f'falling must be a bool, got {msg.data!r}')
+        return None
+    if topic == FALL_DIRECTION.name:
+        # Logged at the latest measurement's time, like the unstamped topics.
+        time_to_ns(ns_to_time(stamp_to_ns(msg.header.stamp.sec, msg.header.stamp.nanosec)))
         return None
     record = bagio.decode(bagio.BagMessage(topic, '', 0, msg))
     return float(record.t)  # type: ignore[attr-defined]
@@ -122,7 +132,8 @@ class RecorderNode(Node):
         self._types = {spec.name: spec.msg_type for spec, _ in RECORDED}
 
         self._inputs = [
-            create_subscription(self, msg_class, spec, self._queue_callback(spec.name), raw=True)
+            create_subscription(self, msg_class, spec, self._queue_callback(spec.name), raw=True,
+                                lossless=True)
             for spec, msg_class in RECORDED]
         self._writer = threading.Thread(target=self._write_loop, name='bag_writer', daemon=True)
         self._writer.start()
