@@ -44,6 +44,7 @@ setup(
             'feature_node = fall_predictor.ros.feature_node:main',
             'predictor_node = fall_predictor.ros.predictor_node:main',
             'recorder_node = fall_predictor.ros.recorder_node:main',
+            'fall_monitor = fall_predictor.ros.fall_monitor:main',
         ],
     },
 )

@@ -9,7 +9,9 @@ Usage (full ROS 2 install, package built with colcon)::
 
 Parameters come from ``config/fall_predictor.yaml`` (``params_file``); the launch arguments
 ``real_time_factor``, ``model_path`` and ``bag_path`` are applied on top of it, so they win
-over the file's values. Each node is a console script of the package (setup.py).
+over the file's values. Each node is a console script of the package (setup.py). All topics are
+relative: ``namespace:=robot1`` runs the whole simulated system under ``/robot1``. For the
+monitor alone (a real robot) use ``monitor.launch.py``.
 """
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
@@ -36,10 +38,13 @@ def generate_launch_description() -> LaunchDescription:
                               description='also run the recorder node'),
         DeclareLaunchArgument('bag_path', default_value='',
                               description='recorder output directory (one bag per run)'),
+        DeclareLaunchArgument('namespace', default_value='',
+                              description='namespace of every node and topic (e.g. robot1)'),
     ]
 
     def node(executable: str, overrides: dict | None = None, **kwargs) -> Node:
         return Node(package='fall_predictor', executable=executable, name=executable,
+                    namespace=LaunchConfiguration('namespace'),
                     parameters=[params_file, overrides or {}], output='screen', **kwargs)
 
     return LaunchDescription(arguments + [

@@ -392,23 +392,34 @@ def run_node(factory: Callable[[], Node], name: str, args: Optional[list[str]] =
     Returns the process exit code: 0 after a normal shutdown, 1 if the node could not start
     (the reason is logged as one FATAL line, no traceback).
     """
+    return run_nodes((factory,), name, args)
+
+
+def run_nodes(factories: Sequence[Callable[[], Node]], name: str,
+              args: Optional[list[str]] = None) -> int:
+    """Create one node per factory in this process and spin them all with one
+    SingleThreadedExecutor (the callbacks of all nodes run in turn, no threads), until
+    Ctrl-C / SIGTERM / shutdown. Exit code as :func:`run_node`; if one node cannot start,
+    none runs."""
     rclpy.init(args=args)
-    node: Optional[Node] = None
+    nodes: list[Node] = []
     try:
         try:
-            node = factory()
+            for factory in factories:
+                nodes.append(factory())
         except NodeStartupError as error:
             rclpy.logging.get_logger(name).fatal(f'cannot start: {error}')
             return 1
         executor = SingleThreadedExecutor()
-        executor.add_node(node)
+        for node in nodes:
+            executor.add_node(node)
         try:
             executor.spin()
         except (KeyboardInterrupt, ExternalShutdownException):
             pass
         return 0
     finally:
-        if node is not None:
+        for node in nodes:
             node.destroy_node()
         rclpy.try_shutdown()
 
