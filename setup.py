@@ -15,6 +15,7 @@ setup(
         ('share/' + package_name + '/config', glob('config/*.yaml')),
         ('share/' + package_name + '/launch', glob('launch/*.py')),
         ('share/' + package_name + '/models', glob('models/*')),
+        ('share/' + package_name + '/examples', glob('examples/*.py')),
     ],
     python_requires='>=3.10',
     install_requires=[

@@ -87,19 +87,21 @@ def test_readme_topic_table_matches_the_contract():
     readme = README.read_text(encoding='utf-8')
     assert topics_markdown_table() in readme
     for spec in TOPICS:
-        assert f'`{spec.name}`' in readme
+        assert f'`{spec.ros_name}`' in readme
 
 
 def test_readme_has_the_fresh_machine_commands_and_the_ros_usage():
     readme = README.read_text(encoding='utf-8')
     for needle in ('scripts/demo.sh', 'scripts/test.sh', 'colcon build', 'source install/setup.bash',
-                   'ros2 run fall_predictor', 'launch/fall_predictor.launch.py',
-                   '/fall_predictor/state'):
+                   'ros2 launch fall_predictor fall_predictor.launch.py',
+                   'ros2 launch fall_predictor monitor.launch.py', 'fall_predictor/state',
+                   'examples/fall_consumer.py', 'config/monitor.yaml'):
         assert needle in readme, needle
-    for script in ('scripts/demo.sh', 'scripts/test.sh', 'launch/fall_predictor.launch.py'):
+    for script in ('scripts/demo.sh', 'scripts/test.sh', 'launch/fall_predictor.launch.py',
+                   'launch/monitor.launch.py', 'examples/fall_consumer.py', 'config/monitor.yaml'):
         assert (ROOT / script).is_file(), script
     for node in ('simulator_node', 'controller_node', 'feature_node', 'predictor_node',
-                 'recorder_node'):
+                 'recorder_node', 'fall_monitor'):
         assert f'`{node}`' in readme, node
     assert '[`docs/method.md`](docs/method.md)' in readme
     assert '[`docs/results.md`](docs/results.md)' in readme

@@ -325,7 +325,7 @@ def test_markdown_table_lists_every_topic():
     rows = table.strip().splitlines()
     assert len(rows) == 2 + len(TOPICS)
     for spec in TOPICS:
-        assert f'`{spec.name}`' in table and f'`{spec.msg_type}`' in table
+        assert f'`{spec.ros_name}`' in table and f'`{spec.msg_type}`' in table
     assert 'reliable, transient_local, keep_last 1' in table
 
 

@@ -165,13 +165,18 @@ CONTROLLER_MODES: tuple[str, ...] = ('balance', 'fall')
 
 
 def topics_markdown_table(topics: Iterable[TopicSpec] = TOPICS) -> str:
-    """The interface table in Markdown (for the README)."""
-    lines = ['| topic | type | QoS | rate | frame | content |', '|---|---|---|---|---|---|']
+    """The interface table in Markdown (for the README): names as nodes use them (relative
+    unless global), the publisher QoS and, where the nodes read otherwise, the reader QoS."""
+    lines = ['| topic | type | QoS (publisher; reader) | rate | frame | content |',
+             '|---|---|---|---|---|---|']
     for spec in topics:
         rate = 'on event' if spec.rate_hz is None else f'{spec.rate_hz:g} Hz'
         frame = '-' if not spec.frame_id else f'`{spec.frame_id}`'
         content = spec.content if spec.layout is None else f'{spec.content} (`{spec.layout}`)'
-        lines.append(f'| `{spec.name}` | `{spec.msg_type}` | {spec.qos.describe()} | {rate} '
+        qos = spec.qos.describe()
+        if spec.sub_qos is not None:
+            qos += f'; read {spec.sub_qos.describe()}'
+        lines.append(f'| `{spec.ros_name}` | `{spec.msg_type}` | {qos} | {rate} '
                      f'| {frame} | {content} |')
     return '\n'.join(lines) + '\n'
 
