@@ -31,8 +31,8 @@ from typing import Optional
 
 import numpy as np
 import rclpy
-from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
+from std_msgs.msg import Float64MultiArray
 from rclpy.subscription import Subscription
 
 from fall_predictor.ros.bringup import (NodeProcess, default_domain_id, default_params_file,
@@ -45,7 +45,7 @@ from fall_predictor.ros.observer import Observer
 from fall_predictor.ros.simulator_node import NODE_NAME, SimulatorNode
 from fall_predictor.monitor.records import FALLING, FEATURE_NAMES, N_CONTACT_MODES, Measurement
 from fall_predictor.data.topics import STATE
-from fall_predictor.data.wire import LEVEL_STALE
+from fall_predictor.data.wire import I_STATE_STATUS, I_STATE_T, STATUS_STALE
 
 _SIMULATOR_CHILD = '--simulator-child'
 
@@ -88,13 +88,12 @@ def _subscribe_timed_states(node: Node, arrivals: list[tuple[int, float]]) -> Su
     The benchmark's own subscription (its observer follows no stream): the time is taken
     first thing and only the stamp is read, so that little of this process's work is counted.
     """
-    def on_state(msg: DiagnosticArray) -> None:
+    def on_state(msg: Float64MultiArray) -> None:
         now = time.monotonic()
-        if msg.status[0].level[0] != LEVEL_STALE:
-            stamp = msg.header.stamp
-            arrivals.append((round(stamp.sec * 1000 + stamp.nanosec / 1e6), now))
+        if msg.data[I_STATE_STATUS] != STATUS_STALE:
+            arrivals.append((round(msg.data[I_STATE_T] * 1000), now))
 
-    return create_subscription(node, DiagnosticArray, STATE, on_state)
+    return create_subscription(node, Float64MultiArray, STATE, on_state, lossless=True)
 
 
 def _percentiles_ms(latencies_s: np.ndarray) -> dict[str, float]:
@@ -104,8 +103,12 @@ def _percentiles_ms(latencies_s: np.ndarray) -> dict[str, float]:
             'p99': round(float(np.percentile(ms, 99)), 3), 'max': round(float(ms.max()), 3)}
 
 
+#: The nodes of the simulated system (diagnostics names), whatever process runs them.
+NODE_NAMES = ('predictor_node', 'feature_node', 'controller_node', 'simulator_node')
+
+
 def run_benchmark(duration_s: float, real_time_factor: float, model: Optional[Path],
-                  domain_id: int) -> dict[str, object]:
+                  domain_id: int, single_process_monitor: bool = False) -> dict[str, object]:
     tmp = Path(tempfile.mkdtemp(prefix='bench_latency_'))
     model = model or _momentum_model(tmp / 'model.json')
     env = ros_environment(domain_id)
@@ -118,8 +121,9 @@ def run_benchmark(duration_s: float, real_time_factor: float, model: Optional[Pa
     observer: Optional[Observer] = None
     state_arrivals: list[tuple[int, float]] = []     # (sample time [ms], wall [s])
     try:
-        for name, overrides in (('predictor_node', {'model_path': str(model)}),
-                                ('feature_node', {}), ('controller_node', {})):
+        monitor = ((('fall_monitor', {'model_path': str(model)}),) if single_process_monitor
+                   else (('predictor_node', {'model_path': str(model)}), ('feature_node', {})))
+        for name, overrides in (*monitor, ('controller_node', {})):
             nodes[name] = start_node(name, params, overrides, env, tmp)
         ros_args = node_command('simulator_node', params, {
             'real_time_factor': repr(float(real_time_factor)), 'autostart': 'false',
@@ -136,7 +140,7 @@ def run_benchmark(duration_s: float, real_time_factor: float, model: Optional[Pa
                 if node.process.poll() is not None:
                     raise RuntimeError(f'{node.name} exited:\n{node.log_tail()}')
 
-        if not observer.spin_until(lambda: observer.connected(nodes.keys())
+        if not observer.spin_until(lambda: observer.connected(NODE_NAMES)
                                    and state_sub.get_publisher_count() >= 1, 60.0, check_alive):
             raise RuntimeError(f'the nodes did not come up (logs in {tmp})')
         load_before = os.getloadavg()
@@ -175,6 +179,7 @@ def run_benchmark(duration_s: float, real_time_factor: float, model: Optional[Pa
         'duration_s': simulated_s,
         'wall_s': round(wall_s, 3),
         'real_time_factor_target': real_time_factor,
+        'monitor': 'fall_monitor (one process)' if single_process_monitor else 'two processes',
         'real_time_factor': round(simulated_s / wall_s, 4),
         'samples_published': len(samples),
         'states_received': int(latencies.size),
@@ -199,10 +204,17 @@ def main() -> None:
                         help='simulator pacing: 1.0 = real time (default), 0 = as fast as possible')
     parser.add_argument('--model', type=Path, default=None, help='model file')
     parser.add_argument('--domain-id', type=int, default=None)
+    parser.add_argument('--single-process-monitor', action='store_true',
+                        help='run the feature and predictor nodes as fall_monitor (one process)')
+    parser.add_argument('--out', type=Path, default=None, help='also write the JSON here')
     args = parser.parse_args()
     result = run_benchmark(args.duration, args.real_time_factor, args.model,
-                           default_domain_id() if args.domain_id is None else args.domain_id)
-    print(json.dumps(result, indent=1))
+                           default_domain_id() if args.domain_id is None else args.domain_id,
+                           args.single_process_monitor)
+    text = json.dumps(result, indent=1)
+    print(text)
+    if args.out is not None:
+        args.out.write_text(text + '\n')
 
 
 if __name__ == '__main__':
