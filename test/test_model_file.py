@@ -159,3 +159,27 @@ def test_save_rejects_metadata_that_would_not_load(tmp_path):
 
 def test_saved_model_is_readable_by_others(model_path):
     assert model_path.stat().st_mode & 0o044 == 0o044
+
+
+# -- reading only what a model file can be ----------------------------------------------------
+
+def test_only_regular_files_within_the_size_limit_are_read(tmp_path):
+    import os
+    from fall_predictor.monitor.fileio import UnsafeFileError, read_regular_file
+
+    fifo = tmp_path / 'fifo'
+    os.mkfifo(fifo)
+    big = tmp_path / 'big.json'
+    with open(big, 'wb') as f:          # 200 MB, sparse: it must be refused without reading
+        f.truncate(200_000_000)
+    for path, match in ((fifo, 'not a regular file'), (Path('/dev/zero'), 'not a regular file'),
+                        (tmp_path, 'not a regular file'), (big, 'more than the limit')):
+        with pytest.raises(UnsafeFileError, match=match):
+            read_regular_file(path, 20_000_000)
+        with pytest.raises(ModelFileError, match=match):
+            load_model(path)
+    small = tmp_path / 'small.txt'
+    small.write_bytes(b'x' * 10)
+    assert read_regular_file(small, 10) == b'x' * 10
+    with pytest.raises(UnsafeFileError, match='10 bytes, more than the limit of 9'):
+        read_regular_file(small, 9)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 
 import math
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -161,15 +162,21 @@ def test_default_model_is_looked_up_in_the_package_models_directory() -> None:
 
 
 def test_predictor_process_refuses_to_start_with_a_clear_error(tmp_path: Path) -> None:
-    """Missing model, corrupt model, invalid parameter: exit code 1, one FATAL line naming
-    the problem, no traceback (three processes started at once)."""
+    """Missing, corrupt, FIFO, device, oversized model, invalid parameter: exit code 1, one
+    FATAL line naming the problem, no traceback, no hang (processes started at once)."""
     good = write_momentum_model(tmp_path / 'good.json')
     corrupt = tmp_path / 'corrupt.json'
     corrupt.write_text(good.read_text()[:200])
+    fifo = tmp_path / 'model.fifo'
+    os.mkfifo(fifo)                     # opening it for reading used to block forever
     cases = {
         'missing': (['-p', f'model_path:={tmp_path / "missing.json"}'], 'missing.json'),
         'corrupt': (['-p', f'model_path:={corrupt}'], 'malformed or truncated JSON'),
         'bad tau_his': (['-p', f'model_path:={good}', '-p', 'tau_his_s:=5.0'], 'tau_his_s'),
+        'fifo': (['-p', f'model_path:={fifo}'], 'not a regular file'),
+        'device': (['-p', 'model_path:=/dev/zero'], 'not a regular file'),
+        'too large': (['-p', f'model_path:={good}', '-p', 'max_model_bytes:=1000'],
+                      'more than the limit of 1000 bytes'),
     }
     env = ros_environment(DOMAIN)
     processes = {

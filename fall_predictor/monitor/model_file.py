@@ -40,7 +40,7 @@ from typing import Any, Optional, Union
 
 from fall_predictor import __version__
 from fall_predictor.monitor.features import FeatureSettings
-from fall_predictor.monitor.fileio import atomic_output
+from fall_predictor.monitor.fileio import atomic_output, read_regular_file
 from fall_predictor.monitor.decision_list import (COMPARISON_OPS, Condition, DecisionList,
                                           PerModeDecisionLists, Rule)
 from fall_predictor.monitor.records import (BALANCED, CLASS_NAMES, CONTACT_MODE_NAMES, FALLING,
@@ -129,11 +129,21 @@ def save_model(path: PathLike, lists: PerModeDecisionLists, metadata: ModelMetad
         temporary.write_text(text, encoding='utf-8')
 
 
-def load_model(path: PathLike) -> tuple[PerModeDecisionLists, ModelMetadata]:
-    """Read and validate a model file; raises :class:`ModelFileError` on any problem."""
+#: Largest model file read [bytes] by default: the shipped model is ~0.1 MB; a file far
+#: larger is not a model, and reading it would cost the node memory and start-up time.
+DEFAULT_MAX_MODEL_BYTES = 20_000_000
+
+
+def load_model(path: PathLike, max_bytes: int = DEFAULT_MAX_MODEL_BYTES
+               ) -> tuple[PerModeDecisionLists, ModelMetadata]:
+    """Read and validate a model file; raises :class:`ModelFileError` on any problem.
+
+    Only a regular file of at most ``max_bytes`` bytes is read (a FIFO, a device or a directory
+    is refused without reading, see :func:`~fall_predictor.monitor.fileio.read_regular_file`).
+    """
     path = Path(path)
     try:
-        text = path.read_bytes().decode('utf-8')
+        text = read_regular_file(path, max_bytes).decode('utf-8')
     except OSError as error:
         raise ModelFileError(f'{path}: cannot read model file: {error}') from error
     except UnicodeDecodeError as error:

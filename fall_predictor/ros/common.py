@@ -42,7 +42,8 @@ from rclpy.subscription import Subscription
 
 from fall_predictor.monitor.decision_list import PerModeDecisionLists
 from fall_predictor.monitor.features import FeatureSettings, FeatureSettingsMismatch
-from fall_predictor.monitor.model_file import ModelFileError, ModelMetadata, load_model
+from fall_predictor.monitor.model_file import (DEFAULT_MAX_MODEL_BYTES, ModelFileError,
+                                              ModelMetadata, load_model)
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.ros.share import default_model_path
 from fall_predictor.data.topics import DIAGNOSTICS, DIAGNOSTICS_RATE_HZ, SIM_RATE_HZ, TopicSpec
@@ -156,6 +157,10 @@ MODEL_PATH = ParamSpec(
     'model_path', '', 'model file (JSON decision lists); empty = models/default_model.json of '
     'the installed package, else of the source tree', read_only=True)
 
+MAX_MODEL_BYTES = ParamSpec(
+    'max_model_bytes', DEFAULT_MAX_MODEL_BYTES, 'largest model file read [bytes]; only regular '
+    'files are read (a FIFO or a device is refused)', 1, 2_000_000_000, read_only=True)
+
 #: "Adopt the model's value": the unset value of the feature-settings parameters.
 FROM_MODEL = -1.0
 
@@ -181,7 +186,8 @@ def feature_setting_params(names: Sequence[str]) -> tuple[ParamSpec, ...]:
     return tuple(specs[name] for name in names)
 
 
-def load_model_for(node: Node, model_path: str, requested: Mapping[str, ParamValue]
+def load_model_for(node: Node, model_path: str, requested: Mapping[str, ParamValue],
+                   max_bytes: int = DEFAULT_MAX_MODEL_BYTES
                    ) -> tuple[PerModeDecisionLists, ModelMetadata, FeatureSettings]:
     """Load the model named by ``model_path`` ('' = the shipped default) and resolve the
     node's feature-setting parameters against it: ``(lists, metadata, settings)``.
@@ -191,7 +197,7 @@ def load_model_for(node: Node, model_path: str, requested: Mapping[str, ParamVal
     """
     path = Path(model_path).expanduser() if model_path else default_model_path()
     try:
-        lists, metadata = load_model(path)
+        lists, metadata = load_model(path, max_bytes)
     except ModelFileError as error:
         raise NodeStartupError(f'no usable model: {error}') from error
     specs = {spec.name: spec for spec in feature_setting_params(list(requested))}

@@ -32,7 +32,8 @@ from std_srvs.srv import Trigger
 
 from fall_predictor.data.sample_order import Sample, SampleIntake
 from fall_predictor.ros import conversions as ros_qos
-from fall_predictor.ros.common import (HANDLED_ERRORS, MODEL_PATH, Diagnostics, InputErrors,
+from fall_predictor.ros.common import (HANDLED_ERRORS, MAX_MODEL_BYTES, MODEL_PATH,
+                                       Diagnostics, InputErrors,
                                        ParamSpec, Report, create_publisher, create_subscription,
                                        declare_parameters, feature_setting_params, guarded,
                                        load_model_for, run_node)
@@ -44,7 +45,7 @@ NODE_NAME = 'feature_node'
 #: Feature settings this node uses, checked against the model's.
 SETTINGS = ('rate_window_s', 'edge_tolerance_m', 'sample_period_s')
 PARAMS = (
-    MODEL_PATH,
+    MODEL_PATH, MAX_MODEL_BYTES,
     *feature_setting_params(SETTINGS),
     ParamSpec('stale_timeout_s', 0.5, 'wall time [s] without a measurement after which '
               '/diagnostics reports STALE', 0.01, 60.0),
@@ -57,7 +58,8 @@ class FeatureNode(Node):
     def __init__(self, **kwargs: object) -> None:
         super().__init__(NODE_NAME, **kwargs)
         p = declare_parameters(self, PARAMS)
-        _, _, settings = load_model_for(self, str(p['model_path']), {k: p[k] for k in SETTINGS})
+        _, _, settings = load_model_for(self, str(p['model_path']), {k: p[k] for k in SETTINGS},
+                                        int(p['max_model_bytes']))
         self._extractor = settings.extractor()
         self._stale_timeout_s = float(p['stale_timeout_s'])
         self.add_post_set_parameters_callback(self._apply_parameters)

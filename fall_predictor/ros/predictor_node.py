@@ -51,7 +51,8 @@ from fall_predictor.monitor.fall_direction import capture_point_direction
 from fall_predictor.monitor.predictor import OnlinePredictor
 from fall_predictor.robot.model import TOTAL_MASS_KG
 from fall_predictor.ros import conversions as ros_qos
-from fall_predictor.ros.common import (MAX_SAMPLE_AGE, MODEL_PATH, Diagnostics, InputErrors,
+from fall_predictor.ros.common import (MAX_MODEL_BYTES, MAX_SAMPLE_AGE, MODEL_PATH,
+                                       Diagnostics, InputErrors,
                                        ParamSpec, Report, SampleAge, create_publisher,
                                        create_subscription, declare_parameters,
                                        feature_setting_params, guarded, load_model_for, run_node,
@@ -85,10 +86,11 @@ class PredictorNode(Node):
 
     def __init__(self, **kwargs: object) -> None:
         super().__init__(NODE_NAME, **kwargs)
-        p = declare_parameters(self, (MODEL_PATH, STALE_TIMEOUT, MAX_SAMPLE_AGE, ROBOT_MASS,
-                                      *feature_setting_params(SETTINGS)))
+        p = declare_parameters(self, (MODEL_PATH, MAX_MODEL_BYTES, STALE_TIMEOUT, MAX_SAMPLE_AGE,
+                                      ROBOT_MASS, *feature_setting_params(SETTINGS)))
         lists, metadata, settings = load_model_for(self, str(p['model_path']),
-                                                   {k: p[k] for k in SETTINGS})
+                                                   {k: p[k] for k in SETTINGS},
+                                                   int(p['max_model_bytes']))
         # Declared once the model is known: its recommended window is the default.
         recommended_s = min(metadata.recommended_tau_his_s or 0.0, MAX_TAU_HIS_S)
         tau_his_s = float(declare_parameters(self, (tau_his_param(recommended_s),))['tau_his_s'])
