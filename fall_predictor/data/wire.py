@@ -28,18 +28,8 @@ Features layout v1 (17 float64): ``[0]`` t [s], ``[1:16]`` the 15 features in
 :data:`~fall_predictor.monitor.records.FEATURE_NAMES` order, ``[16]`` the contact mode index
 (:data:`~fall_predictor.monitor.records.CONTACT_MODE_NAMES`).
 
-State layout v2 (11 float64, ``/fall_predictor/state``; read it by slot, no strings)::
-
-    [0]  t               sample time [s] of the features the state was computed from
-    [1]  status          0 ok (predicted), 1 disabled (~/enable false), 2 stale (no prediction)
-    [2]  falling         1 = falling (window applied)
-    [3]  latched         1 = falling was predicted since the last reset (the trigger)
-    [4]  atomic          1 = the contact mode's decision list said falling
-    [5]  guard           1 = the CoM is below the guard height
-    [6]  contact_mode    index into CONTACT_MODE_NAMES, -1 unknown
-    [7]  tau_his_s       history window in use [s]
-    [8]  time_to_fall_s  predicted time left until fallen [s], NaN when not predicted
-    [9:11] fall_direction  unit (x, y) in the heading frame, NaN when not predicted
+State layout v2 (11 float64, ``/fall_predictor/state``; read by slot, no strings): the
+``I_STATE_*`` / ``S_STATE_*`` constants below, documented slot by slot in the README.
 
 Every field is also checked against the physical plausibility bounds of
 :mod:`fall_predictor.monitor.plausibility` (sample times within [0, 1e7] s, CoM height within
