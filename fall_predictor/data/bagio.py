@@ -12,10 +12,12 @@ bag; library exceptions never escape.
 """
 from __future__ import annotations
 
+import heapq
 import os
 import sys
+import warnings
 from collections.abc import Collection, Iterator, Sequence
-from contextlib import contextmanager, suppress
+from contextlib import ExitStack, contextmanager, suppress
 from dataclasses import dataclass
 from functools import lru_cache, partial
 from pathlib import Path
@@ -278,12 +280,43 @@ def _messages(reader: Reader, path: Path,
         yield BagMessage(connection.topic, connection.msgtype, t_ns, msg)
 
 
+#: Parts of a recording split by duration (the recorder's ``run_NNN/part_MMM``).
+PART_GLOB = 'part_*'
+
+
+def bag_parts(path: str | os.PathLike[str]) -> list[Path]:
+    """The bags that make up the recording at ``path``: ``[path]`` for one bag, else its
+    finished parts (``part_*`` directories with a ``metadata.yaml``) in order.
+
+    A part without ``metadata.yaml`` was still being written when its recorder was killed: it is
+    left out with a warning (``fall-predictor repair-bag`` recovers what it holds).
+    """
+    bag = Path(path)
+    if (bag / 'metadata.yaml').exists() or not bag.is_dir():
+        return [bag]
+    parts = sorted(p for p in bag.glob(PART_GLOB) if p.is_dir())
+    if not parts:
+        return [bag]
+    finished = [p for p in parts if (p / 'metadata.yaml').exists()]
+    for part in parts:
+        if part not in finished:
+            warnings.warn(f'{part}: unfinished part (its recorder was stopped while writing it) '
+                          'left out; fall-predictor repair-bag recovers its messages')
+    if not finished:
+        raise BagError(f'{bag}: no finished part (every part lacks metadata.yaml)')
+    return finished
+
+
 def iter_messages(path: str | os.PathLike[str],
                   topics: Optional[Collection[str]] = None) -> Iterator[BagMessage]:
-    """Messages of the bag at ``path`` in log time order, all topics or only ``topics``."""
-    bag = Path(path)
-    with _open_reader(bag) as reader:
-        yield from _messages(reader, bag, topics)
+    """Messages of the bag (or split recording, see :func:`bag_parts`) at ``path`` in log time
+    order, all topics or only ``topics``."""
+    streams = []
+    with ExitStack() as stack:
+        for bag in bag_parts(path):
+            reader = stack.enter_context(_open_reader(bag))
+            streams.append(_messages(reader, bag, topics))
+        yield from heapq.merge(*streams, key=lambda message: message.t_ns)
 
 
 def _header_ns(msg: RosbagsMsg) -> int:
@@ -383,34 +416,39 @@ def read_trajectory(path: str | os.PathLike[str], *,
                     required: Collection[str] = (MEASUREMENT.name,)) -> RecordedTrajectory:
     """Read and validate a whole bag.
 
-    Raises BagError if the bag is missing or damaged, a ``required`` topic is absent or empty,
+    ``path`` is one bag or a split recording (:func:`bag_parts`). Raises BagError if the bag is
+    missing or damaged, a ``required`` topic is absent or empty,
     a known topic has the wrong type, any decoded message is malformed, or fewer messages are
     read than ``metadata.yaml`` declares.
     """
     bag = Path(path)
     decoded: dict[str, list[object]] = {}
-    with _open_reader(bag) as reader:
-        topics = {c.topic: c.msgtype for c in reader.connections}
-        declared: dict[str, int] = {}
-        for c in reader.connections:
-            declared[c.topic] = declared.get(c.topic, 0) + c.msgcount
-        for topic in required:
-            if not declared.get(topic):
-                state = 'has no messages' if topic in topics else 'is missing'
-                raise BagError(f'{bag}: required topic {topic} {state}')
-        for topic, msg_type in topics.items():
-            spec = TOPICS_BY_NAME.get(topic)
-            if spec is not None and spec.msg_type != msg_type:
-                raise BagError(f'{bag}: topic {topic} has type {msg_type}, expected '
-                               f'{spec.msg_type}')
-            if topic in _DECODERS:
-                decoded[topic] = []
-        for message in _messages(reader, bag, decoded.keys()):
-            try:
-                decoded[message.topic].append(decode(message))
-            except WireFormatError as exc:
-                raise BagError(f'{bag}: malformed {message.topic} message at '
-                               f'{message.t_ns} ns: {exc}') from exc
+    topics: dict[str, str] = {}
+    declared: dict[str, int] = {}
+    parts = bag_parts(bag)
+    for part in parts:                  # the parts of a split recording follow each other
+        with _open_reader(part) as reader:
+            for c in reader.connections:
+                if topics.setdefault(c.topic, c.msgtype) != c.msgtype:
+                    raise BagError(f'{part}: topic {c.topic} has type {c.msgtype}, '
+                                   f'{topics[c.topic]} in an earlier part')
+                declared[c.topic] = declared.get(c.topic, 0) + c.msgcount
+                spec = TOPICS_BY_NAME.get(c.topic)
+                if spec is not None and spec.msg_type != c.msgtype:
+                    raise BagError(f'{part}: topic {c.topic} has type {c.msgtype}, expected '
+                                   f'{spec.msg_type}')
+                if c.topic in _DECODERS:
+                    decoded.setdefault(c.topic, [])
+            for message in _messages(reader, part, decoded.keys()):
+                try:
+                    decoded[message.topic].append(decode(message))
+                except WireFormatError as exc:
+                    raise BagError(f'{part}: malformed {message.topic} message at '
+                                   f'{message.t_ns} ns: {exc}') from exc
+    for topic in required:
+        if not declared.get(topic):
+            state = 'has no messages' if topic in topics else 'is missing'
+            raise BagError(f'{bag}: required topic {topic} {state}')
     for topic, records in decoded.items():
         if len(records) != declared[topic]:
             raise BagError(f'{bag}: {topic} has {len(records)} messages, metadata declares '

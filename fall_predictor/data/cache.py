@@ -17,14 +17,16 @@ from fall_predictor.monitor.fileio import atomic_output
 
 
 def bag_fingerprint(bag_dir: Path) -> str:
-    """Identifies a bag's content cheaply: names, sizes and modification times of its files.
+    """Identifies a bag's content cheaply: relative names, sizes and modification times of its
+    files (also inside the parts of a split recording).
 
     Raises ``OSError`` if the bag directory cannot be listed.
     """
     h = hashlib.sha256()
-    for f in sorted(Path(bag_dir).iterdir()):
+    root = Path(bag_dir)
+    for f in sorted(p for p in root.rglob('*') if p.is_file()):
         st = f.stat()
-        h.update(f'{f.name}:{st.st_size}:{st.st_mtime_ns};'.encode())
+        h.update(f'{f.relative_to(root).as_posix()}:{st.st_size}:{st.st_mtime_ns};'.encode())
     return h.hexdigest()[:32]
 
 

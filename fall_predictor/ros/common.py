@@ -79,15 +79,17 @@ def create_publisher(node: Node, msg_type: type, spec: TopicSpec) -> Publisher:
 
 def create_subscription(node: Node, msg_type: type, spec: TopicSpec,
                         callback: Callable[[Any], None], raw: bool = False,
-                        lossless: bool = False) -> Subscription:
+                        lossless: bool = False,
+                        on_message_lost: Optional[Callable[[Any], None]] = None) -> Subscription:
     """A subscription to ``spec``'s topic (relative name) with the subscriber QoS of the
     contract (best effort, shallow, for sensor streams: REP 2003), or with the publisher's
     reliable deep QoS when ``lossless`` (the recorder). Overridable by parameters like the
     publishers; no QoS-event handlers (see :func:`create_publisher`); ``raw`` delivers the
-    serialized bytes."""
+    serialized bytes; ``on_message_lost`` receives DDS's message-lost events."""
     qos = spec.qos if lossless else spec.subscription_qos
     return node.create_subscription(msg_type, spec.ros_name, callback, ros_qos.qos_profile(qos),
                                     event_callbacks=SubscriptionEventCallbacks(
+                                        message_lost=on_message_lost,
                                         use_default_callbacks=False),
                                     raw=raw,
                                     qos_overriding_options=QoSOverridingOptions.with_default_policies())

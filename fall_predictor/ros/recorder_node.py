@@ -7,7 +7,20 @@ joint states, joint commands, push and controller mode topics, and writes them w
 :func:`~fall_predictor.data.bagio.read_trajectory` and the dataset/training code like a generated
 one.
 
-One bag per run: ``<bag_path>/run_000``, ``run_001``, ... A run ends when sample time goes
+One recording per run: ``<bag_path>/run_000``, ``run_001``, ..., each written as parts of at
+most ``split_duration_s`` of sample time (``run_000/part_000``, ``part_001``, ...; each part a
+complete rosbag2 bag once closed), so a recorder that is killed loses only its open part, and
+that only until ``fall-predictor repair-bag`` recovers it; the package's reader
+(:func:`~fall_predictor.data.bagio.read_trajectory`) reads a run's parts as one recording.
+Next to the parts, ``fall_predictor.json`` (written when the run starts and at every part
+change, atomically) records the parts, the messages written and the samples missing per topic.
+
+**Gaps.** For every 1 kHz stamped stream the recorder counts the sample times missing on the
+1 ms grid (lost by DDS or never published), and DDS's own message-lost events; both are in
+``/diagnostics`` (WARN while they grow: never OK while losing data) and in the run's
+``fall_predictor.json``.
+
+A run ends when sample time goes
 back to the start (a simulator ``~/reset``); each stamped topic is split on its own time line,
 so messages of the old run still in flight go to the old bag, which is closed once every
 stamped topic has moved on. A message that is merely out of order (a stray publisher) stays in
@@ -42,6 +55,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64MultiArray, String
 
 from fall_predictor.data import bagio
+from fall_predictor.monitor.fileio import atomic_write_text
 from fall_predictor.data.sample_order import RunTracker, Sample
 from fall_predictor.ros.common import (Diagnostics, InputErrors, NodeStartupError, ParamSpec,
                                          Report, create_subscription, declare_parameters,
@@ -70,9 +84,18 @@ _RUN_START_WINDOW_S = 1.0
 #: Queue length above which /diagnostics warns that the writer falls behind.
 _BACKLOG_WARN = 1000
 
+#: Stamped 1 kHz streams whose gaps are counted, with their sample period [s].
+_GAP_PERIOD_S: dict[str, float] = {MEASUREMENT.name: 1e-3, FEATURES.name: 1e-3,
+                                   STATE.name: 1e-3, JOINT_COMMANDS.name: 1e-3}
+#: The run's record next to its parts.
+RUN_RECORD = 'fall_predictor.json'
+
 PARAMS = (
-    ParamSpec('bag_path', '', 'directory receiving one bag per run (run_000, run_001, ...); '
-              'empty = ./fall_predictor_<UTC time>', read_only=True),
+    ParamSpec('bag_path', '', 'directory receiving one recording per run (run_000, run_001, '
+              '...); empty = ./fall_predictor_<UTC time>', read_only=True),
+    ParamSpec('split_duration_s', 10.0, 'each run is written as parts of at most this much '
+              'sample time [s]: a killed recorder loses at most its open part; 0 = one part',
+              0.0, 86400.0, read_only=True),
 )
 
 
@@ -126,14 +149,24 @@ class RecorderNode(Node):
                           for name, restart in _RUN_SPLIT.items()}
         self._topic_run = dict.fromkeys(_RUN_SPLIT, 0)
         self._seen: set[str] = set()
-        self._open: dict[int, tuple[ExitStack, bagio.BagWriter]] = {}
+        #: Open part of each run: (part index, first log time [ns], exit stack, writer).
+        self._open: dict[int, tuple[int, int, ExitStack, bagio.BagWriter]] = {}
+        self._parts: dict[int, list[str]] = {}
+        self._split_ns = round(float(p['split_duration_s']) * 1e9)
+        #: Samples missing on the 1 ms grid: per topic in total, and per run and topic.
+        self.missing = dict.fromkeys(_GAP_PERIOD_S, 0)
+        self._run_missing: dict[int, dict[str, int]] = {}
+        self._run_written: dict[int, dict[str, int]] = {}
+        self.messages_lost = 0              # DDS message-lost events (count of messages)
+        self._lost_at_report = 0
+        self._missing_at_report = 0
         self._measurement_t_ns = 0
         self._write_errors = 0
         self._types = {spec.name: spec.msg_type for spec, _ in RECORDED}
 
         self._inputs = [
             create_subscription(self, msg_class, spec, self._queue_callback(spec.name), raw=True,
-                                lossless=True)
+                                lossless=True, on_message_lost=self._on_message_lost)
             for spec, msg_class in RECORDED]
         self._writer = threading.Thread(target=self._write_loop, name='bag_writer', daemon=True)
         self._writer.start()
@@ -169,10 +202,19 @@ class RecorderNode(Node):
             return
         if topic in self._trackers:
             assert t is not None
-            if self._trackers[topic].classify(t) is Sample.NEW_RUN:
+            tracker = self._trackers[topic]
+            previous_t = tracker.last_t
+            kind = tracker.classify(t)
+            if kind is Sample.NEW_RUN:
                 self._topic_run[topic] += 1
-            self._seen.add(topic)
             run = self._topic_run[topic]
+            if kind is Sample.NEXT and previous_t is not None and topic in _GAP_PERIOD_S:
+                gap = max(0, round((t - previous_t) / _GAP_PERIOD_S[topic]) - 1)
+                if gap:
+                    self.missing[topic] += gap
+                    run_missing = self._run_missing.setdefault(run, {})
+                    run_missing[topic] = run_missing.get(topic, 0) + gap
+            self._seen.add(topic)
             t_ns = time_to_ns(t)
             if topic == MEASUREMENT.name:
                 self._measurement_t_ns = t_ns
@@ -180,22 +222,46 @@ class RecorderNode(Node):
             run = self._topic_run[MEASUREMENT.name]
             t_ns = self._measurement_t_ns if t is None else time_to_ns(t)
         try:
-            self._bag(run).write(topic, msg_type, t_ns, msg)
+            self._bag(run, t_ns).write(topic, msg_type, t_ns, msg)
         except bagio.BagError as error:
             self._write_errors += 1
             self.get_logger().error(str(error), throttle_duration_sec=1.0)
             return
         self.written[topic] += 1
+        run_written = self._run_written.setdefault(run, {})
+        run_written[topic] = run_written.get(topic, 0) + 1
         self._close_finished_runs()
 
-    def _bag(self, run: int) -> bagio.BagWriter:
-        if run not in self._open:
+    def _bag(self, run: int, t_ns: int) -> bagio.BagWriter:
+        """The open part of ``run`` for a message at ``t_ns``; a new part once the open one
+        spans ``split_duration_s``."""
+        current = self._open.get(run)
+        if current is not None and self._split_ns and t_ns >= current[1] + self._split_ns:
+            self._close(run, finished=False)
+            current = None
+        if current is None:
             path = self.bag_dir / f'run_{run:03d}'
+            parts = self._parts.setdefault(run, [])
+            part = path / f'part_{len(parts):03d}'
             stack = ExitStack()
-            self._open[run] = (stack, stack.enter_context(bagio.BagWriter(path)))
+            self._open[run] = (len(parts), t_ns, stack, stack.enter_context(bagio.BagWriter(part)))
+            parts.append(part.name)
             self.bags[run] = path
-            self.get_logger().info(f'new bag {path}')
-        return self._open[run][1]
+            self._write_run_record(run, complete=False)
+            self.get_logger().info(f'new bag {part}')
+        return self._open[run][3]
+
+    def _write_run_record(self, run: int, complete: bool) -> None:
+        """The run's ``fall_predictor.json``: parts, messages written, samples missing."""
+        record = {'parts': self._parts.get(run, []), 'complete': complete,
+                  'written': self._run_written.get(run, {}),
+                  'missing_samples': self._run_missing.get(run, {}),
+                  'dds_messages_lost_so_far': self.messages_lost}
+        atomic_write_text(self.bag_dir / f'run_{run:03d}' / RUN_RECORD,
+                          json.dumps(record, indent=1, sort_keys=True) + '\n')
+
+    def _on_message_lost(self, info: object) -> None:
+        self.messages_lost += int(getattr(info, 'total_count_change', 1) or 1)
 
     def _close_finished_runs(self) -> None:
         """Close the bags of runs every stamped topic seen so far has left."""
@@ -205,13 +271,15 @@ class RecorderNode(Node):
         for run in [r for r in self._open if r < oldest_active]:
             self._close(run)
 
-    def _close(self, run: int) -> None:
-        stack, _ = self._open.pop(run)
+    def _close(self, run: int, finished: bool = True) -> None:
+        """Close the open part of ``run`` (and, when ``finished``, mark the run complete)."""
+        _, _, stack, _ = self._open.pop(run)
         try:
             stack.close()
         except bagio.BagError as error:
             self._write_errors += 1
             self.get_logger().error(str(error))
+        self._write_run_record(run, complete=finished)
 
     # -- health and shutdown ---------------------------------------------------------------
     def summary(self) -> dict[str, object]:
@@ -223,7 +291,8 @@ class RecorderNode(Node):
         return {'bag_dir': str(self.bag_dir), 'bags': [str(p) for p in self.bags.values()],
                 'received': dict(self.received), 'written': dict(self.written),
                 'rejected': dict(self.rejected), 'write_errors': self._write_errors,
-                'queued': queued, 'unaccounted': unaccounted}
+                'queued': queued, 'unaccounted': unaccounted,
+                'missing_samples': dict(self.missing), 'dds_messages_lost': self.messages_lost}
 
     def _report(self) -> Report:
         summary = self.summary()
@@ -233,10 +302,19 @@ class RecorderNode(Node):
         for topic in self.received:
             values[f'{topic} received/written/rejected'] = (
                 f'{self.received[topic]}/{self.written[topic]}/{self.rejected[topic]}')
+        values['missing_samples'] = sum(self.missing.values())
+        values['dds_messages_lost'] = self.messages_lost
+        for topic, count in self.missing.items():
+            values[f'{topic} missing'] = count
         rejected = self._invalid.new_since_last_call()
-        if self._write_errors or rejected or self._queue.qsize() > _BACKLOG_WARN:
-            message = (f'{rejected} rejected, {self._write_errors} write errors, '
-                       f'{self._queue.qsize()} queued')
+        missing = sum(self.missing.values()) - self._missing_at_report
+        self._missing_at_report += missing
+        lost = self.messages_lost - self._lost_at_report
+        self._lost_at_report += lost
+        if (self._write_errors or rejected or missing or lost
+                or self._queue.qsize() > _BACKLOG_WARN):
+            message = (f'{rejected} rejected, {missing} samples missing, {lost} lost by DDS, '
+                       f'{self._write_errors} write errors, {self._queue.qsize()} queued')
             return LEVEL_WARN, message, values
         return LEVEL_OK, 'recording', values
 
