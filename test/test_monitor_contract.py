@@ -31,6 +31,7 @@ from geometry_msgs.msg import Vector3Stamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import ReliabilityPolicy
 from std_msgs.msg import Bool, Float64MultiArray, String
 from std_srvs.srv import SetBool, Trigger
 
@@ -54,6 +55,10 @@ OVERRIDES = '''/**/predictor_node:
   ros__parameters:
     max_sample_age_s: 0.15
     stale_timeout_s: 5.0
+    qos_overrides:
+      /robot1/fall_predictor/features:
+        subscription:
+          reliability: reliable
 '''
 
 
@@ -205,6 +210,15 @@ def test_params_file_sections_match_under_the_namespace(robot: Robot) -> None:
     values = [v.double_value for v in future.result().values[:2]]
     assert values == [0.15, 42.1]          # the user's override, and config/monitor.yaml
     assert future.result().values[2].bool_value is False
+    # QoS by parameters (rclpy's QoSOverridingOptions): the override made the predictor read
+    # its features reliably; the feature node reads measurements best effort (REP 2003).
+    readers = {(info.node_name, info.topic_type): info.qos_profile.reliability
+               for topic in ('/robot1/fall_predictor/features', '/robot1/fall_predictor/measurement')
+               for info in robot.node.get_subscriptions_info_by_topic(topic)}
+    assert readers[('predictor_node', 'std_msgs/msg/Float64MultiArray')] == \
+        ReliabilityPolicy.RELIABLE
+    assert readers[('feature_node', 'std_msgs/msg/Float64MultiArray')] == \
+        ReliabilityPolicy.BEST_EFFORT
 
 
 def test_trigger_is_latched_for_late_subscribers_with_the_direction(robot: Robot) -> None:
