@@ -56,6 +56,7 @@ class FallConsumer(Node):
         self.falling = msg.data
         # This is where a robot switches to its fall controller.
         self.get_logger().info(f'falling: {msg.data}')
+        self.log_state()
         if msg.data and self.exit_on_fall:
             self.done = True
 

