@@ -122,3 +122,16 @@ def test_continuity_follows_real_fast_motion_and_resyncs_after_a_real_jump():
     assert check.check(0.015, (0.0, 1.0, 0.6), (0, 0, 0), (0, 0, 0)) is False
     with pytest.raises(ValueError):
         ContinuityCheck(resync_samples=0)
+
+
+def test_joint_states_and_pushes_have_bounds_too():
+    from fall_predictor.data.wire import JointStateSample, PushEvent
+    assert JointStateSample(0.1, ('a',), [1.0], [2.0], [3.0]).effort[0] == 3.0
+    for values, match in ((([200.0], [], []), 'position beyond 100'),
+                          (([0.0], [2e3], []), 'velocity beyond 1000'),
+                          (([0.0], [], [1e6]), 'effort beyond 100000')):
+        with pytest.raises(WireFormatError, match=match):
+            JointStateSample(0.1, ('a',), *values)
+    assert PushEvent(1.0, np.array([500.0, 0.0, 0.0])).force[0] == 500.0
+    with pytest.raises(WireFormatError, match='push force beyond'):
+        PushEvent(1.0, np.array([1e6, 0.0, 0.0]))

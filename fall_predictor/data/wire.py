@@ -31,12 +31,10 @@ Features layout v1 (17 float64): ``[0]`` t [s], ``[1:16]`` the 15 features in
 State layout v2 (11 float64, ``/fall_predictor/state``; read by slot, no strings): the
 ``I_STATE_*`` / ``S_STATE_*`` constants below, documented slot by slot in the README.
 
-Every field is also checked against the physical plausibility bounds of
-:mod:`fall_predictor.monitor.plausibility` (sample times within [0, 1e7] s, CoM height within
-[0, 2] m, ...): a finite value that no robot can produce is rejected like a malformed one.
-
-Header stamps and bag log times are simulation time, taken from the samples themselves (the
-nodes do not need ``use_sim_time``; ``/clock`` is published for tools that do). Every malformed input raises :class:`WireFormatError` naming the field.
+Every field is also checked against the plausibility bounds of
+:mod:`fall_predictor.monitor.plausibility`: a value no robot can produce is rejected like a
+malformed one. Header stamps and bag log times are the samples' own (simulation) time. Every
+malformed input raises :class:`WireFormatError` naming the field.
 """
 from __future__ import annotations
 
@@ -49,7 +47,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from fall_predictor.data.topics import WORLD_FRAME, WireFormatError, ns_to_time, time_to_ns
-from fall_predictor.monitor.plausibility import (ImplausibleSample, check_feature_bounds,
+from fall_predictor.monitor.plausibility import (JOINT_VALUE_BOUNDS, MAX_PUSH_FORCE_N,
+                                                 ImplausibleSample, check_feature_bounds,
                                                  check_measurement_bounds)
 from fall_predictor.monitor.plausibility import check_time as _check_time
 from fall_predictor.monitor.records import (
@@ -464,6 +463,9 @@ class JointStateSample:
                     f'joint state has {n} names but {arr.size} {what} values (need {allowed})')
             if not np.isfinite(arr).all():
                 raise WireFormatError(f'joint state {what} is not finite: {arr}')
+            if arr.size and not np.abs(arr).max() <= JOINT_VALUE_BOUNDS[what]:
+                raise WireFormatError(f'joint state {what} beyond {JOINT_VALUE_BOUNDS[what]:g}: '
+                                      f'{np.abs(arr).max():.6g}')
             object.__setattr__(self, what, arr)
         object.__setattr__(self, 'names', tuple(self.names))
 
@@ -483,6 +485,8 @@ class PushEvent:
         force = np.array(self.force, dtype=np.float64)
         if force.shape != (3,) or not np.isfinite(force).all():
             raise WireFormatError(f'push force must be 3 finite values [N], got {self.force!r}')
+        if not np.linalg.norm(force) <= MAX_PUSH_FORCE_N:
+            raise WireFormatError(f'push force beyond {MAX_PUSH_FORCE_N:g} N: {self.force!r}')
         object.__setattr__(self, 'force', force)
 
 

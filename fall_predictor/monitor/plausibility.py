@@ -25,6 +25,7 @@ angular momentum          norm <= 500 kg m^2/s
 push force                norm <= 1e5 N
 contact normal force      [0, 1e5] N
 heading                   within [-1e3, 1e3] rad (any yaw, unwrapped)
+joint states              |position| <= 100 rad, |velocity| <= 1e3 rad/s, |effort| <= 1e5 N m
 ========================  ===================================================================
 
 Continuity limits between consecutive accepted samples ``dt`` apart: CoM speed 20 m/s, rate of
@@ -60,6 +61,8 @@ MAX_ANGULAR_MOMENTUM_KG_M2_S = 500.0
 MAX_PUSH_FORCE_N = 1e5
 MAX_CONTACT_FORCE_N = 1e5
 MAX_ABS_HEADING_RAD = 1e3
+#: Joint state bounds: |position| [rad], |velocity| [rad/s], |effort| [N m].
+JOINT_VALUE_BOUNDS = {'position': 100.0, 'velocity': 1e3, 'effort': 1e5}
 #: Feature bounds: rates of linear [N] and angular [N m] momentum.
 MAX_LINEAR_MOMENTUM_RATE_N = 5e5
 MAX_ANGULAR_MOMENTUM_RATE_N_M = 2e5
