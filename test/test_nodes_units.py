@@ -64,6 +64,7 @@ def _request(fx: float = 100.0, fy: float = 0.0, fz: float = 0.0, torque=(0.0, 0
     (_request(torque=(5.0, 0.0, 0.0)), 'not (0, 0, h) x force'),
     (_request(torque=(0.0, 100.0 * (MAX_PUSH_HEIGHT_M + 0.5), 0.0)), 'exceeds'),
     (_request(fx=math.nan), 'finite'),
+    (_request(fx=1e300), 'beyond 100000 N'),
 ])
 def test_bad_push_requests_are_rejected_with_the_reason(msg: WrenchStamped, problem: str) -> None:
     with pytest.raises(ValueError, match=problem.replace('(', r'\(').replace(')', r'\)')):

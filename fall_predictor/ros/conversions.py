@@ -30,6 +30,7 @@ from fall_predictor.data.wire import (FeatureSample, JointStateSample, Predictor
                                       check_layout, pack_features, pack_measurement, pack_state,
                                       push_from_wire, unpack_features, unpack_measurement,
                                       unpack_state)
+from fall_predictor.monitor.plausibility import MAX_PUSH_FORCE_N
 from fall_predictor.monitor.records import PUSH_DURATION_S, Measurement, PushSpec
 
 _RELIABILITY = {'reliable': ReliabilityPolicy.RELIABLE,
@@ -198,6 +199,8 @@ def push_request_from_msg(msg: WrenchStamped, now_s: float, dt_s: float) -> Push
         raise ValueError(f'push request force/torque must be finite, got {values}')
     if abs(f.z) > _PUSH_TOLERANCE:
         raise ValueError(f'push force must be horizontal (force.z = 0), got {f.z} N')
+    if not math.hypot(f.x, f.y) <= MAX_PUSH_FORCE_N:
+        raise ValueError(f'push force {math.hypot(f.x, f.y):.6g} N beyond {MAX_PUSH_FORCE_N:g} N')
     force_sq = f.x * f.x + f.y * f.y
     height = (f.x * tau.y - f.y * tau.x) / force_sq if force_sq > 0.0 else 0.0
     expected = np.array([-height * f.y, height * f.x, 0.0])
