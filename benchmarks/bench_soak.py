@@ -257,8 +257,10 @@ def soak(minutes: float, seed: int, domain_id: int, work: Path) -> dict[str, obj
         'state_status_counts': statuses,
         'feature_node_missing_samples': int(feature.get('missing_samples', -1)),
         'valid_samples_unaccounted': n_valid - got - int(feature.get('missing_samples', 0)),
-        # States the predictor published but this process never received (lost on the way to
-        # the consumer: only a consumer can count those).
+        # With the feature node's count: a valid sample that got features but whose state
+        # never reached this process was lost on the way to the consumer (only it sees that).
+        # The predictor's count also holds its staleness reports (timer, no new sample).
+        'features_published_by_feature_node': int(feature.get('features', -1)),
         'states_published_by_predictor': int(predictor.get('states', -1)),
         'states_received_in_all': len(states),
         'recorder_measurements_received_written_rejected': [received, written, rejected],
