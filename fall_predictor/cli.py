@@ -14,7 +14,7 @@ from fall_predictor.cli_args import emit as _emit, fail as _fail
 
 # Sub-commands that live in their own front-end module (``fall_predictor/cli_<area>.py``), each
 # exposing ``register(subparsers)``. Keeps this file short and each area's options with its code.
-COMMAND_MODULES: tuple[str, ...] = ('cli_robot',)
+COMMAND_MODULES: tuple[str, ...] = ('cli_robot', 'cli_bag')
 
 
 # -- simulate --------------------------------------------------------------------------------

@@ -52,7 +52,7 @@ def test_stats_json_and_exit_code_on_a_damaged_dataset(small_dataset, tmp_path, 
 
 
 SUBCOMMANDS = ('simulate', 'generate', 'stats', 'train', 'rules', 'evaluate', 'sweep',
-               'import-bags', 'bringup', 'robustness')
+               'import-bags', 'bringup', 'robustness', 'repair-bag')
 
 #: Makes every ROS 2 Python package unimportable (rclpy, message packages, ament, launch), as
 #: on a machine without ROS; then runs the command line given as JSON on argv[1], one
@@ -114,8 +114,9 @@ def test_every_offline_subcommand_runs_without_ros(small_dataset, tmp_path):
         ['import-bags', str(data / 'bags' / 'traj_00000'), '--out', str(tmp_path / 'imported')],
         ['bringup', '--pushes', '1'],
         ['robustness', '--impulses', '5', '--phases', '1', '--horizon', '0.2', '--json'],
+        ['repair-bag', str(data / 'bags'), '--json'],           # intact bags: nothing to do
     ])
-    assert result['codes'] == [0, 0, 0, 0, 0, 0, 0, 0, 2, 0], result['stderr'][-3000:]
+    assert result['codes'] == [0, 0, 0, 0, 0, 0, 0, 0, 2, 0, 0], result['stderr'][-3000:]
     assert result['ros_modules'] == []
     assert 'bringup needs ROS 2' in result['stderr']
     assert (tmp_path / 'generated' / 'index' / 'traj_00000.json').exists()

@@ -16,7 +16,7 @@ import heapq
 import os
 import sys
 import warnings
-from collections.abc import Collection, Iterator, Sequence
+from collections.abc import Callable, Collection, Iterator, Sequence
 from contextlib import ExitStack, contextmanager, suppress
 from dataclasses import dataclass
 from functools import lru_cache, partial
@@ -107,7 +107,7 @@ class BagWriter:
     chunk may go unnoticed.
     Topics are registered on first use, with the QoS of their :data:`~fall_predictor.data.wire.TOPICS`
     row (so ``ros2 bag play`` offers the same QoS). If the ``with`` block raises, the bag is
-    left without ``metadata.yaml`` (``ros2 bag reindex`` can recover it).
+    left without ``metadata.yaml`` (``fall-predictor repair-bag`` recovers it).
     """
 
     def __init__(self, path: str | os.PathLike[str], *, compress: bool = True) -> None:
@@ -147,6 +147,13 @@ class BagWriter:
 
     def write(self, topic: str, msg_type: str, t_ns: int, msg: object) -> None:
         """Write a rosbags message object ``msg`` of ``msg_type`` at log time ``t_ns`` [ns]."""
+        self._write(topic, msg_type, t_ns, lambda: typestore().serialize_cdr(msg, msg_type))
+
+    def write_raw(self, topic: str, msg_type: str, t_ns: int, data: bytes) -> None:
+        """Write the CDR-serialized message ``data`` of ``msg_type`` at log time ``t_ns`` [ns]."""
+        self._write(topic, msg_type, t_ns, lambda: data)
+
+    def _write(self, topic: str, msg_type: str, t_ns: int, serialized: Callable[[], bytes]) -> None:
         if self._writer is None:
             raise BagError(f'{self.path}: bag is not open (use BagWriter as a context manager)')
         spec = TOPICS_BY_NAME.get(topic)
@@ -164,7 +171,7 @@ class BagWriter:
                 connection = self._writer.add_connection(
                     topic, msg_type, typestore=typestore(), offered_qos_profiles=qos)
                 self._connections[topic] = connection
-            self._writer.write(connection, t_ns, typestore().serialize_cdr(msg, msg_type))
+            self._writer.write(connection, t_ns, serialized())
         except Exception as exc:
             raise BagError(f'{self.path}: cannot write {topic}: {_describe(exc)}') from exc
 
