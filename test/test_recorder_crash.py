@@ -1,7 +1,7 @@
 """The recorder over DDS: gaps are counted and reported, and a SIGKILL loses at most one part.
 
 A recorder process (parts of 0.5 s of sample time) receives 1 kHz measurements with 5 sample
-times left out, and is killed with SIGKILL mid-run: the package's reader still opens the run
+times left out and one stray stamp 0.5 s old, and is killed with SIGKILL mid-run: the package's reader still opens the run
 (the finished parts), the run's record names the parts and the missing samples, and
 ``/diagnostics`` said WARN with the count before the kill.
 """
@@ -31,6 +31,7 @@ from test_nodes_support import ros_context, test_domain_id
 
 SKIPPED = {round(0.200 + 0.001 * k, 3) for k in range(5)}      # never published
 SECONDS = 1.8
+STRAY_AT, STRAY_T = 1.4, 1.05      # published when t = 1.4 s, stamped 1.05 s (in part_002)
 
 
 def measurement(t: float) -> Measurement:
@@ -69,12 +70,18 @@ def test_killed_recorder_leaves_readable_parts_and_reports_gaps(tmp_path: Path) 
                 t = round(k * 0.001, 3)
                 while time.monotonic() < start + t:
                     executor.spin_once(timeout_sec=0.0005)
+                if t == STRAY_AT:               # one stray stamp, 0.35 s old: not a gap after it
+                    publisher.publish(ros_qos.measurement_to_msg(measurement(STRAY_T)))
                 if t not in SKIPPED:
                     publisher.publish(ros_qos.measurement_to_msg(measurement(t)))
                     sent.append(t)
-            # Wait for a report that says the 5 samples are missing, then kill.
-            deadline = time.monotonic() + 5.0
-            while not any('5 samples missing' in message for _, message in statuses):
+            # Wait until the recorder writes the 4th part (it may lag on a loaded machine) and
+            # a report said samples are missing, then kill.
+            record_file = bags / 'run_000' / 'fall_predictor.json'
+            deadline = time.monotonic() + 30.0
+            while not (any('samples missing' in message for _, message in statuses)
+                       and record_file.exists()
+                       and len(json.loads(record_file.read_text())['parts']) >= 4):
                 assert time.monotonic() < deadline, statuses
                 executor.spin_once(timeout_sec=0.05)
             os.kill(recorder.process.pid, signal.SIGKILL)
@@ -89,8 +96,7 @@ def test_killed_recorder_leaves_readable_parts_and_reports_gaps(tmp_path: Path) 
     run = bags / 'run_000'
     record = json.loads((run / 'fall_predictor.json').read_text())
     assert record['complete'] is False                     # killed: never closed
-    assert record['missing_samples'] == {'/fall_predictor/measurement': 5}
-    assert len(record['parts']) >= 3                       # 1.8 s in parts of 0.5 s
+    assert len(record['parts']) == 4                       # 1.8 s in parts of 0.5 s
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter('always')
         parts = bag_parts(run)
@@ -99,6 +105,13 @@ def test_killed_recorder_leaves_readable_parts_and_reports_gaps(tmp_path: Path) 
     assert [p.name for p in parts] == record['parts'][:-1]
     assert any('unfinished part' in str(w.message) for w in caught)
     times = [m.t for m in recorded.measurements]
-    assert times == [t for t in sent if t <= times[-1]]    # nothing lost, nothing reordered
-    assert times[-1] >= 0.5 * (len(record['parts']) - 1) - 0.01
-    assert not SKIPPED & set(times)
+    assert times.count(STRAY_T) == 2                       # the stray is recorded, not dropped
+    in_bag = set(times)
+    assert in_bag <= set(sent) and not SKIPPED & in_bag
+    assert max(times) >= 0.5 * (len(record['parts']) - 1) - 0.01
+    # No silent loss: the 5 skipped samples and any sample lost on the way (a loaded machine)
+    # are counted in the run's record (written when the last part began, ~1 sample later
+    # than the finished parts end); the stray stamp adds nothing to the count.
+    lost = len([t for t in sent if t <= max(times) and t not in in_bag])
+    missing = record['missing_samples']['/fall_predictor/measurement']
+    assert 5 + lost <= missing <= 5 + lost + 2

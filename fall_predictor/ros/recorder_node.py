@@ -156,6 +156,7 @@ class RecorderNode(Node):
         #: Samples missing on the 1 ms grid: per topic in total, and per run and topic.
         self.missing = dict.fromkeys(_GAP_PERIOD_S, 0)
         self._run_missing: dict[int, dict[str, int]] = {}
+        self._latest_t: dict[str, float] = {}   # latest sample time per topic in its run
         self._run_written: dict[int, dict[str, int]] = {}
         self.messages_lost = 0              # DDS message-lost events (count of messages)
         self._lost_at_report = 0
@@ -202,14 +203,18 @@ class RecorderNode(Node):
             return
         if topic in self._trackers:
             assert t is not None
-            tracker = self._trackers[topic]
-            previous_t = tracker.last_t
-            kind = tracker.classify(t)
+            kind = self._trackers[topic].classify(t)
             if kind is Sample.NEW_RUN:
                 self._topic_run[topic] += 1
+                self._latest_t.pop(topic, None)
             run = self._topic_run[topic]
-            if kind is Sample.NEXT and previous_t is not None and topic in _GAP_PERIOD_S:
-                gap = max(0, round((t - previous_t) / _GAP_PERIOD_S[topic]) - 1)
+            latest = self._latest_t.get(topic)
+            if topic in _GAP_PERIOD_S and (latest is None or t > latest):
+                # Gaps against the latest sample time of the run, so that a stray old stamp
+                # (written, but out of order) does not count the samples after it as missing.
+                period = _GAP_PERIOD_S[topic]
+                gap = 0 if latest is None else max(0, round((t - latest) / period) - 1)
+                self._latest_t[topic] = t
                 if gap:
                     self.missing[topic] += gap
                     run_missing = self._run_missing.setdefault(run, {})
