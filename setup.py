@@ -29,6 +29,8 @@ setup(
         'pybullet>=3.2.5',
         'rosbags>=0.10',
         'pyyaml>=6',
+        # Pinocchio (the state estimator's rigid-body dynamics); imported as `pinocchio`.
+        'pin>=3.0',
     ],
     extras_require={'test': ['pytest>=7']},
     zip_safe=True,
