@@ -8,10 +8,11 @@ estimates, at 1 kHz:
   with gain ``attitude_gain`` per sample (a complementary filter: the attitude output's
   white noise is averaged out, its bias is not); yaw relative to the first sample plus
   ``initial_yaw_rad`` (the world frame is the frame the robot started in);
-* **floating-base position and velocity**: each loaded sole is anchored where it touched
-  down (on the ground, z = 0); leg kinematics from an anchored sole gives the base position,
-  and the sole's velocity with the base held still gives the base velocity (a still sole
-  moves the base by minus that). A complementary filter integrates the accelerometer and
+* **floating-base position and velocity**: the part of each loaded sole on the ground (its
+  corners within ``tilt_tolerance_m`` of the lowest: the whole sole, an edge or a corner) is
+  anchored where it touched down (z = 0), re-anchored when that part changes; leg kinematics
+  from the anchor gives the base position, and the contact point's velocity with the base
+  held still gives the base velocity (a still contact moves the base by minus that). A complementary filter integrates the accelerometer and
   corrects with the force-weighted kinematic position and velocity (gains ``position_gain``,
   ``velocity_gain``); with no loaded sole it integrates the IMU alone;
 * **CoM and centroidal momentum**: ``pinocchio.centerOfMass`` and
@@ -147,7 +148,8 @@ class StateEstimator:
         self.p = np.zeros(3)
         self.v = np.zeros(3)
         self._yaw_offset = 0.0
-        self.anchors: dict[str, Optional[np.ndarray]] = {'l': None, 'r': None}
+        #: Per sole: (which corners touch, world position of their centre), or None.
+        self.anchors: dict[str, Optional[tuple]] = {'l': None, 'r': None}
         self.last_issue: Optional[str] = None
         self.degraded: tuple[str, ...] = ()
         self.n_rejected = 0
@@ -234,9 +236,18 @@ class StateEstimator:
         poses = {side: self.data.oMf[self.sole_ids[side]] for side in ('l', 'r')}
         rel = {side: poses[side].translation.copy() for side in ('l', 'r')}
         rot_sole = {side: poses[side].rotation.copy() for side in ('l', 'r')}
+        # The part of each loaded sole on the ground: the corners within the tolerance of the
+        # lowest one (all four on a flat sole, an edge or a corner on a tilted one), and its
+        # centre (sole frame) and position relative to the base.
+        touch, point_local, point_rel = {}, {}, {}
+        for side in loaded:
+            corners = (rot_sole[side] @ self.sole_corners.T).T
+            touch[side] = corners[:, 2] <= corners[:, 2].min() + cfg.tilt_tolerance_m
+            point_local[side] = self.sole_corners[touch[side]].mean(axis=0)
+            point_rel[side] = rel[side] + rot_sole[side] @ point_local[side]
         if first:
             if loaded:
-                mid = np.mean([rel[side] for side in loaded], axis=0)
+                mid = np.mean([point_rel[side] for side in loaded], axis=0)
                 self.p = np.array([cfg.initial_xy_m[0] - mid[0], cfg.initial_xy_m[1] - mid[1], -mid[2]])
             self.v = np.zeros(3)
         else:
@@ -246,14 +257,17 @@ class StateEstimator:
         if loaded:
             weights, p_meas, v_meas = 0.0, np.zeros(3), np.zeros(3)
             for side, w in loaded.items():
-                if self.anchors[side] is None:
-                    anchor = self.p + rel[side]
+                # A sole's ground contact stays where it touched down (z = 0); when the part on
+                # the ground changes (flat -> edge on tilting), it is re-anchored there.
+                key = tuple(touch[side])
+                if self.anchors[side] is None or self.anchors[side][0] != key:
+                    anchor = self.p + point_rel[side]
                     anchor[2] = 0.0
-                    self.anchors[side] = anchor
-                v_sole = pin.getFrameVelocity(self.model, self.data, self.sole_ids[side],
-                                              pin.LOCAL_WORLD_ALIGNED).linear
-                p_meas += w[2] * (self.anchors[side] - rel[side])
-                v_meas += -w[2] * v_sole
+                    self.anchors[side] = (key, anchor)
+                vel = pin.getFrameVelocity(self.model, self.data, self.sole_ids[side], pin.LOCAL_WORLD_ALIGNED)
+                v_point = vel.linear + np.cross(vel.angular, point_rel[side] - rel[side])
+                p_meas += w[2] * (self.anchors[side][1] - point_rel[side])
+                v_meas += -w[2] * v_point
                 weights += w[2]
             p_meas /= weights
             v_meas /= weights
@@ -267,10 +281,10 @@ class StateEstimator:
         if not self._have_fix:
             self.last_issue = 'no loaded sole yet: the base position is unknown'
             return None
-        return self._measurement(s.t, qp, vp, rot, rel, rot_sole, loaded)
+        return self._measurement(s.t, qp, vp, rot, rel, rot_sole, loaded, touch)
 
     def _measurement(self, t: float, qp: np.ndarray, vp: np.ndarray, rot: np.ndarray,
-                     rel: dict, rot_sole: dict, loaded: dict) -> Measurement:
+                     rel: dict, rot_sole: dict, loaded: dict, touch: dict) -> Measurement:
         qp[0:3] = self.p
         vp[0:3] = rot.T @ self.v
         # Forward kinematics, CoM (data.com[0]) and the centroidal momentum h_G in one pass.
@@ -286,7 +300,7 @@ class StateEstimator:
             w = loaded[side]
             cop_local = np.array([-w[4] / w[2], w[3] / w[2]])
             world = (r_s @ self.sole_corners.T).T + o_s
-            touching = world[:, 2] <= world[:, 2].min() + self.config.tilt_tolerance_m
+            touching = touch[side]
             f = split_force_to_corners(self.sole_corners[touching, :2], cop_local, float(w[2]))
             contacts[side] = np.column_stack([world[touching, 0], world[touching, 1], f])
             cop_w = r_s @ np.array([cop_local[0], cop_local[1], 0.0]) + o_s

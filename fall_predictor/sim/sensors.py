@@ -52,6 +52,11 @@ _G = 9.81
 IMU_POSITION_IN_TORSO_M = (0.0, 0.0, 0.0)
 
 
+def robot_description() -> str:
+    """The simulated robot's URDF with its sole frames (what ``/robot_description`` carries)."""
+    return rm.URDF_PATH.read_text()
+
+
 @dataclass(frozen=True)
 class EncoderParams:
     """Joint encoders and drive telemetry (all 26 joints)."""
