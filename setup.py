@@ -46,6 +46,7 @@ setup(
             'feature_node = fall_predictor.ros.feature_node:main',
             'predictor_node = fall_predictor.ros.predictor_node:main',
             'recorder_node = fall_predictor.ros.recorder_node:main',
+            'state_estimator_node = fall_predictor.ros.state_estimator_node:main',
         ],
     },
 )

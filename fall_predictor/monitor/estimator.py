@@ -94,6 +94,11 @@ def quat_xyzw_to_matrix(q: np.ndarray) -> np.ndarray:
                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b for 3-vectors (numpy's cross costs ~25 us a call; this ~2 us)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
 def _rot_z(a: float) -> np.ndarray:
     c, s = math.cos(a), math.sin(a)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
@@ -187,9 +192,10 @@ class StateEstimator:
         iq, iv = self._indices(s.joint_names)
         q_j, dq_j = np.asarray(s.q, dtype=float), np.asarray(s.dq, dtype=float)
         imu = [np.asarray(a, dtype=float) for a in (s.imu_quat_xyzw, s.gyro_rad_s, s.accel_m_s2)]
-        if (q_j.shape != (len(iq),) or dq_j.shape != (len(iq),) or
-                not all(np.all(np.isfinite(a)) for a in [q_j, dq_j, *imu]) or not math.isfinite(s.t)
-                or imu[0].shape != (4,) or np.linalg.norm(imu[0]) < 1e-6):
+        if (q_j.shape != (len(iq),) or dq_j.shape != (len(iq),) or imu[0].shape != (4,)
+                or imu[1].shape != (3,) or imu[2].shape != (3,) or not math.isfinite(s.t)
+                or not np.isfinite(np.concatenate([q_j, dq_j, *imu])).all()
+                or float(imu[0] @ imu[0]) < 1e-12):
             self._reject('non-finite or malformed joint or IMU data')
             return None
         if self.t is not None and s.t <= self.t:
@@ -265,7 +271,7 @@ class StateEstimator:
                     anchor[2] = 0.0
                     self.anchors[side] = (key, anchor)
                 vel = pin.getFrameVelocity(self.model, self.data, self.sole_ids[side], pin.LOCAL_WORLD_ALIGNED)
-                v_point = vel.linear + np.cross(vel.angular, point_rel[side] - rel[side])
+                v_point = vel.linear + _cross(vel.angular, point_rel[side] - rel[side])
                 p_meas += w[2] * (self.anchors[side][1] - point_rel[side])
                 v_meas += -w[2] * v_point
                 weights += w[2]
@@ -307,8 +313,9 @@ class StateEstimator:
             cops.append(cop_w[:2])
             forces.append(float(w[2]))
         if forces:
-            xy = np.average(np.array(cops), axis=0, weights=forces)
-            cop = np.array([xy[0], xy[1], 0.0])
+            total = sum(forces)
+            cop = np.array([sum(f * c[0] for f, c in zip(forces, cops)) / total,
+                            sum(f * c[1] for f, c in zip(forces, cops)) / total, 0.0])
         else:
             cop = np.full(3, np.nan)
         return Measurement(t=t, com=com, lin_mom=np.array(h.linear), ang_mom=np.array(h.angular),
