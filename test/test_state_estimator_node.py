@@ -77,3 +77,40 @@ def test_the_node_publishes_what_the_offline_estimator_computes(readings):
 def test_a_description_without_sole_frames_is_logged_not_fatal(readings):
     got, counts, estimator = _drive(readings[:20], rm.urdf_xml(sole_frames=False))
     assert estimator is None and got == [] and counts['samples'] == 0
+
+
+def test_simulator_sensor_topics_through_the_estimator_track_the_ground_truth():
+    from rclpy.parameter import Parameter
+
+    from fall_predictor.data.topics import GROUND_TRUTH
+    from fall_predictor.ros.simulator_node import SimulatorNode
+
+    with ros_context(DOMAIN) as context:
+        sim = SimulatorNode(context=context, parameter_overrides=[
+            Parameter('publish_sensors', value=True), Parameter('lockstep', value=False),
+            Parameter('real_time_factor', value=1.0)])
+        est = StateEstimatorNode(context=context)
+        io = Node('estimator_test_truth', context=context)
+        truth, estimated = {}, {}
+        create_subscription(io, Float64MultiArray, GROUND_TRUTH,
+                            lambda m: truth.setdefault(round(ros_qos.measurement_from_msg(m).t * 1000),
+                                                       ros_qos.measurement_from_msg(m)))
+        create_subscription(io, Float64MultiArray, MEASUREMENT,
+                            lambda m: estimated.setdefault(round(ros_qos.measurement_from_msg(m).t * 1000),
+                                                           ros_qos.measurement_from_msg(m)))
+        executor = SingleThreadedExecutor(context=context)
+        for n in (sim, est, io):
+            executor.add_node(n)
+        try:
+            assert spin_until(executor, lambda: len(estimated) >= 300, 30.0)
+        finally:
+            executor.shutdown()
+            for n in (sim, est, io):
+                n.destroy_node()
+    common = sorted(set(truth) & set(estimated))
+    assert len(common) >= 250
+    # The simulator publishes the ground truth on its own topic; the estimate of the standing
+    # robot from its sensors alone is within millimetres of it.
+    errors = [np.linalg.norm(estimated[k].com - truth[k].com) for k in common]
+    assert np.percentile(errors, 99) < 0.01
+    assert all(len(estimated[k].left_contacts) and len(estimated[k].right_contacts) for k in common[-50:])
