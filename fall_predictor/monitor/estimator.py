@@ -14,7 +14,9 @@ estimates, at 1 kHz:
   from the anchor gives the base position, and the contact point's velocity with the base
   held still gives the base velocity (a still contact moves the base by minus that). A complementary filter integrates the accelerometer and
   corrects with the force-weighted kinematic position and velocity (gains ``position_gain``,
-  ``velocity_gain``); with no loaded sole it integrates the IMU alone;
+  ``velocity_gain``); with no loaded sole it integrates the IMU alone. A sole whose kinematic
+  velocity is more than ``slip_velocity_m_s`` from the IMU prediction is taken as slipping:
+  left out and re-anchored (if all slip for ``max_slip_samples``, the closest is used);
 * **CoM and centroidal momentum**: ``pinocchio.centerOfMass`` and
   ``pinocchio.computeCentroidalMomentum`` (linear momentum, angular momentum about the CoM);
 * **contacts and CoP**: a sole with normal force above ``contact_force_n`` is loaded; its
@@ -59,6 +61,10 @@ class EstimatorConfig:
     position_gain: float = 0.05
     velocity_gain: float = 0.05
     tilt_tolerance_m: float = 0.002
+    #: A sole whose kinematic base velocity is this far from the IMU prediction slips [m/s].
+    slip_velocity_m_s: float = 0.25
+    #: After this many samples with every loaded sole slipping, the closest one is trusted.
+    max_slip_samples: int = 20
     max_gap_s: float = 0.05
     sole_length_m: float = DEFAULT_SOLE_LENGTH_M
     sole_width_m: float = DEFAULT_SOLE_WIDTH_M
@@ -159,6 +165,7 @@ class StateEstimator:
         self.degraded: tuple[str, ...] = ()
         self.n_rejected = 0
         self._have_fix = False      # a sole has anchored the base position
+        self._slipping = 0          # consecutive samples with every loaded sole slipping
 
     # -- helpers ---------------------------------------------------------------------
     def _indices(self, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
@@ -261,7 +268,7 @@ class StateEstimator:
             self.v = self.v + a_world * dt
             self.p = self.p + self.v * dt
         if loaded:
-            weights, p_meas, v_meas = 0.0, np.zeros(3), np.zeros(3)
+            per_side = {}
             for side, w in loaded.items():
                 # A sole's ground contact stays where it touched down (z = 0); when the part on
                 # the ground changes (flat -> edge on tilting), it is re-anchored there.
@@ -272,17 +279,29 @@ class StateEstimator:
                     self.anchors[side] = (key, anchor)
                 vel = pin.getFrameVelocity(self.model, self.data, self.sole_ids[side], pin.LOCAL_WORLD_ALIGNED)
                 v_point = vel.linear + _cross(vel.angular, point_rel[side] - rel[side])
-                p_meas += w[2] * (self.anchors[side][1] - point_rel[side])
-                v_meas += -w[2] * v_point
-                weights += w[2]
-            p_meas /= weights
-            v_meas /= weights
-            if first or not self._have_fix:
-                self.p, self.v = p_meas, v_meas
-                self._have_fix = True
-            else:
-                self.p = self.p + cfg.position_gain * (p_meas - self.p)
-                self.v = self.v + cfg.velocity_gain * (v_meas - self.v)
+                per_side[side] = (w[2], self.anchors[side][1] - point_rel[side], -v_point)
+            if self._have_fix and not first:
+                # Slip: a sole whose kinematic base velocity disagrees with the IMU prediction
+                # by more than slip_velocity_m_s is sliding; it is left out and re-anchored.
+                # If every sole slips for max_slip_samples samples, the closest one is trusted.
+                residual = {side: float(np.linalg.norm(v - self.v)) for side, (_, _, v) in per_side.items()}
+                keep = {side for side, r in residual.items() if r <= cfg.slip_velocity_m_s}
+                self._slipping = 0 if keep else self._slipping + 1
+                if not keep and self._slipping > cfg.max_slip_samples:
+                    keep = {min(residual, key=residual.get)}
+                for side in set(per_side) - keep:
+                    self.anchors[side] = None
+                per_side = {side: per_side[side] for side in keep}
+            if per_side:
+                weights = sum(f for f, _, _ in per_side.values())
+                p_meas = sum(f * p for f, p, _ in per_side.values()) / weights
+                v_meas = sum(f * v for f, _, v in per_side.values()) / weights
+                if first or not self._have_fix:
+                    self.p, self.v = p_meas, v_meas
+                    self._have_fix = True
+                else:
+                    self.p = self.p + cfg.position_gain * (p_meas - self.p)
+                    self.v = self.v + cfg.velocity_gain * (v_meas - self.v)
         self.t = s.t
         if not self._have_fix:
             self.last_issue = 'no loaded sole yet: the base position is unknown'
