@@ -30,6 +30,8 @@ setup(
         'pybullet>=3.2.5',
         'rosbags>=0.10',
         'pyyaml>=6',
+        # Pinocchio (the state estimator's rigid-body dynamics); imported as `pinocchio`.
+        'pin>=3.0',
     ],
     extras_require={'test': ['pytest>=7']},
     zip_safe=True,
@@ -46,6 +48,7 @@ setup(
             'predictor_node = fall_predictor.ros.predictor_node:main',
             'recorder_node = fall_predictor.ros.recorder_node:main',
             'fall_monitor = fall_predictor.ros.fall_monitor:main',
+            'state_estimator_node = fall_predictor.ros.state_estimator_node:main',
         ],
     },
 )

@@ -14,7 +14,7 @@ from fall_predictor.cli_args import emit as _emit, fail as _fail
 
 # Sub-commands that live in their own front-end module (``fall_predictor/cli_<area>.py``), each
 # exposing ``register(subparsers)``. Keeps this file short and each area's options with its code.
-COMMAND_MODULES: tuple[str, ...] = ('cli_robot', 'cli_bag')
+COMMAND_MODULES: tuple[str, ...] = ('cli_robot', 'cli_bag', 'cli_estimation')
 
 
 # -- simulate --------------------------------------------------------------------------------
@@ -69,7 +69,7 @@ def cmd_generate(args) -> int:
     from fall_predictor.data.generation import GenerationConfig, generate_dataset
 
     config = GenerationConfig(seed=args.seed, horizon_after_push_s=args.horizon,
-                              gait_variety=not args.fixed_gait)
+                              gait_variety=not args.fixed_gait, sensor_noise_scale=args.sensor_noise)
     start = time.perf_counter()
     try:
         rows = generate_dataset(args.out, args.trajectories, args.seed, jobs=args.jobs, config=config,
@@ -358,6 +358,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--jobs', type=argtypes.positive_int, default=1, help='parallel processes')
     p.add_argument('--horizon', type=argtypes.positive, default=4.0,
                    help='simulated seconds after the push ends before a trajectory counts as balanced')
+    p.add_argument('--sensor-noise', type=float, default=None, metavar='SCALE', help='also record the sensor topics (noise x SCALE; 1 = default sensors)')
     p.add_argument('--fixed-gait', action='store_true',
                    help='every trajectory walks the default gait (faster: the walk is simulated once per '
                         'process) instead of drawing its gait (SPEC §3 amendment)')

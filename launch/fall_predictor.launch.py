@@ -6,6 +6,7 @@ Usage (full ROS 2 install, package built with colcon)::
     ros2 launch fall_predictor fall_predictor.launch.py
     ros2 launch fall_predictor fall_predictor.launch.py real_time_factor:=0.0 record:=true \
         bag_path:=/tmp/fall_bags model_path:=/path/to/model.json
+    ros2 launch fall_predictor fall_predictor.launch.py sensors:=true   # estimator in the loop
 
 Parameters come from ``config/fall_predictor.yaml`` (``params_file``); the launch arguments
 ``real_time_factor``, ``model_path`` and ``bag_path`` are applied on top of it, so they win
@@ -40,6 +41,9 @@ def generate_launch_description() -> LaunchDescription:
                               description='recorder output directory (one bag per run)'),
         DeclareLaunchArgument('namespace', default_value='',
                               description='namespace of every node and topic (e.g. robot1)'),
+        DeclareLaunchArgument('sensors', default_value='false',
+                              description='simulator publishes robot sensor topics; '
+                                          'state_estimator_node makes the measurement'),
     ]
 
     def node(executable: str, overrides: dict | None = None, **kwargs) -> Node:
@@ -49,7 +53,9 @@ def generate_launch_description() -> LaunchDescription:
 
     return LaunchDescription(arguments + [
         node('simulator_node', {'real_time_factor': ParameterValue(
-            LaunchConfiguration('real_time_factor'), value_type=float)}),
+            LaunchConfiguration('real_time_factor'), value_type=float),
+            'publish_sensors': ParameterValue(LaunchConfiguration('sensors'), value_type=bool)}),
+        node('state_estimator_node', condition=IfCondition(LaunchConfiguration('sensors'))),
         node('controller_node'),
         # Both read the model: the feature node for the feature settings it was trained with.
         node('feature_node', {'model_path': ParameterValue(

@@ -7,7 +7,9 @@ Usage (full ROS 2 install, package built with colcon)::
         params_file:=/path/to/my_monitor.yaml model_path:=/path/to/my_robot_model.json
 
 By default the feature and predictor nodes run in one process on one executor (the
-``fall_monitor`` executable); ``single_process:=false`` starts them as two processes. All
+``fall_monitor`` executable); ``single_process:=false`` starts them as separate processes.
+``estimator:=true`` adds the state estimator in front of them, for a robot that publishes its
+raw sensors (``joint_states``, ``imu/data``, the foot wrenches, ``robot_description``). All
 topics are relative, so ``namespace`` moves the whole interface (``/robot1/fall_predictor/...``);
 ``measurement_topic`` remaps the monitor's input. Parameters come from ``config/monitor.yaml``
 (``params_file``), whose ``/**/<node>`` sections match under any namespace; ``model_path`` is
@@ -16,7 +18,7 @@ applied on top of it.
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
 from launch.conditions import IfCondition, UnlessCondition
-from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
+from launch.substitutions import LaunchConfiguration, PathJoinSubstitution, PythonExpression
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackageShare
@@ -26,6 +28,7 @@ def generate_launch_description() -> LaunchDescription:
     params_file = LaunchConfiguration('params_file')
     namespace = LaunchConfiguration('namespace')
     single_process = LaunchConfiguration('single_process')
+    estimator = LaunchConfiguration('estimator')
     arguments = [
         DeclareLaunchArgument('namespace', default_value='',
                               description='namespace of the monitor (e.g. robot1)'),
@@ -39,18 +42,25 @@ def generate_launch_description() -> LaunchDescription:
         DeclareLaunchArgument('measurement_topic', default_value='fall_predictor/measurement',
                               description='the monitor\'s input topic (remapping)'),
         DeclareLaunchArgument('single_process', default_value='true',
-                              description='true: fall_monitor (one process); false: two'),
+                              description='true: fall_monitor (one process); false: one per node'),
+        DeclareLaunchArgument('estimator', default_value='false',
+                              description='true: also the state estimator (raw sensor input)'),
     ]
     model = {'model_path': ParameterValue(LaunchConfiguration('model_path'), value_type=str)}
     remappings = [('fall_predictor/measurement', LaunchConfiguration('measurement_topic'))]
 
-    def node(executable: str, condition, name: str | None = None) -> Node:
+    def node(executable: str, condition, name: str | None = None, **kwargs) -> Node:
         return Node(package='fall_predictor', executable=executable, name=name,
                     namespace=namespace, parameters=[params_file, model],
-                    remappings=remappings, output='screen', condition=condition)
+                    remappings=remappings, output='screen', condition=condition, **kwargs)
 
     return LaunchDescription(arguments + [
-        node('fall_monitor', IfCondition(single_process)),
+        node('fall_monitor', IfCondition(single_process),
+             arguments=[PythonExpression(["'--estimator' if '", estimator,
+                                          "' == 'true' else ''"])]),
+        node('state_estimator_node',
+             IfCondition(PythonExpression(["'", single_process, "' != 'true' and '", estimator,
+                                           "' == 'true'"])), 'state_estimator_node'),
         node('feature_node', UnlessCondition(single_process), 'feature_node'),
         node('predictor_node', UnlessCondition(single_process), 'predictor_node'),
     ])

@@ -13,5 +13,5 @@ if [ ! -x .venv/bin/python ] || ! .venv/bin/python -c 'import sys' 2>/dev/null; 
 fi
 .venv/bin/python -m pip install --quiet --upgrade pip
 .venv/bin/python -m pip install --quiet -r requirements.txt
-.venv/bin/python -c 'import rclpy, pybullet, rosbags, sklearn, fall_predictor' 2>/dev/null
+.venv/bin/python -c 'import rclpy, pybullet, rosbags, sklearn, pinocchio, fall_predictor' 2>/dev/null
 echo "setup: .venv ready ($(.venv/bin/python --version))"

@@ -65,7 +65,7 @@ def test_simulated_drives_carry_the_rotor_armature(standing):
     servo = servo_arrays()
     urdf_free = Simulator()           # a world with the URDF's own inertias, to compare with
     try:
-        robot = pb.loadURDF(str(rm.URDF_PATH), flags=pb.URDF_USE_INERTIA_FROM_FILE,
+        robot = pb.loadURDF(str(rm.SIM_URDF_PATH), flags=pb.URDF_USE_INERTIA_FROM_FILE,
                             physicsClientId=urdf_free.client)
         for joint in (KNEE, ELBOW):
             info = pb.getDynamicsInfo(sim.robot, joint, physicsClientId=sim.client)

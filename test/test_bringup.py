@@ -112,3 +112,16 @@ def test_recordings_where_c_fall_took_over_are_rejected(tmp_path: Path) -> None:
                 record_dir=tmp_path / 'bags', horizon_s=HORIZON_S, log_dir=tmp_path / 'logs')
     report = import_recordings(sorted((tmp_path / 'bags').glob('run_*')), tmp_path / 'data')
     assert report.rows == [] and 'C_fall took over' in next(iter(report.rejected.values()))
+
+
+def test_bringup_with_sensors_runs_the_estimator_in_the_loop(tmp_path: Path) -> None:
+    # The simulator publishes only sensor topics (and the truth on its own topic); the
+    # measurement every other node reads comes from state_estimator_node.
+    domain = test_domain_id(155)
+    results = run_bringup(1, SEED, None, domain_id=domain,
+                          model_path=write_momentum_model(tmp_path / 'model.json'),
+                          horizon_s=0.5, log_dir=tmp_path / 'logs', sensors=True)
+    assert _node_processes_on(domain) == []
+    assert len(results) == 1 and results[0]['outcome'] in ('fall_predicted', 'fall_missed', 'predicted_no_fall', 'no_fall')
+    log = (tmp_path / 'logs' / 'state_estimator_node.log').read_text()
+    assert 'robot description: 42.10 kg, 26 joints' in log

@@ -31,7 +31,7 @@ def test_unreachable_ankle_gives_a_straight_leg_towards_it():
 def test_fk_matches_pybullet():
     client = pb.connect(pb.DIRECT)
     try:
-        body = pb.loadURDF(str(rm.URDF_PATH), [0, 0, 1], useFixedBase=1,
+        body = pb.loadURDF(str(rm.SIM_URDF_PATH), [0, 0, 1], useFixedBase=1,
                            flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=client)
         rng = np.random.default_rng(3)
         for side in rm.SIDES:

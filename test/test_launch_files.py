@@ -36,6 +36,14 @@ class Condition(Recorded):
     pass
 
 
+class PythonExpression(Recorded):
+    def evaluate(self, values: dict[str, str]) -> object:
+        """The expression with the launch arguments substituted, evaluated as launch would."""
+        text = ''.join(values[part.name] if isinstance(part, LaunchConfiguration) else part
+                       for part in self.args[0])
+        return eval(text)  # noqa: S307 - the launch file's own expression
+
+
 class IfCondition(Condition):
     negate = False
 
@@ -50,7 +58,8 @@ def _stand_in_modules(monkeypatch: pytest.MonkeyPatch) -> None:
         'launch.actions': {'DeclareLaunchArgument': Recorded},
         'launch.conditions': {'IfCondition': IfCondition, 'UnlessCondition': UnlessCondition},
         'launch.substitutions': {'LaunchConfiguration': LaunchConfiguration,
-                                 'PathJoinSubstitution': Recorded},
+                                 'PathJoinSubstitution': Recorded,
+                                 'PythonExpression': PythonExpression},
         'launch_ros': {},
         'launch_ros.actions': {'Node': Recorded},
         'launch_ros.parameter_descriptions': {'ParameterValue': Recorded},
@@ -92,27 +101,47 @@ def test_simulation_launch_file(monkeypatch):
     assert _params_file(arguments) == 'fall_predictor.yaml'
     assert arguments['namespace'] == ''
     executables = [n.kwargs['executable'] for n in nodes]
-    assert executables == ['simulator_node', 'controller_node', 'feature_node',
-                           'predictor_node', 'recorder_node']
+    assert executables == ['simulator_node', 'state_estimator_node', 'controller_node',
+                           'feature_node', 'predictor_node', 'recorder_node']
     assert set(executables) <= _console_scripts()
     for n in nodes:
         assert n.kwargs['namespace'].name == 'namespace'
         assert n.kwargs['name'] == n.kwargs['executable']
-    recorder = nodes[-1]
+    recorder, estimator = nodes[-1], nodes[1]
     assert isinstance(recorder.kwargs['condition'], IfCondition)
+    assert recorder.kwargs['condition'].args[0].name == 'record'
+    assert estimator.kwargs['condition'].args[0].name == 'sensors'
 
 
 def test_monitor_launch_file(monkeypatch):
     arguments, nodes = _description(monkeypatch, 'monitor.launch.py')
     assert _params_file(arguments) == 'monitor.yaml'
-    assert set(arguments) >= {'namespace', 'model_path', 'measurement_topic', 'single_process'}
+    assert set(arguments) >= {'namespace', 'model_path', 'measurement_topic', 'single_process',
+                              'estimator'}
     executables = [n.kwargs['executable'] for n in nodes]
-    assert executables == ['fall_monitor', 'feature_node', 'predictor_node']
+    assert executables == ['fall_monitor', 'state_estimator_node', 'feature_node',
+                           'predictor_node']
     assert set(executables) <= _console_scripts()
-    # fall_monitor when single_process, the two nodes otherwise: never both.
-    conditions = [n.kwargs['condition'] for n in nodes]
-    assert [type(c) for c in conditions] == [IfCondition, UnlessCondition, UnlessCondition]
-    assert {c.args[0].name for c in conditions} == {'single_process'}
+    # Which nodes start, for each combination of the two switches: fall_monitor (with or
+    # without --estimator) in one process, or each node in its own; never both.
+    for single in ('true', 'false'):
+        for estimator in ('true', 'false'):
+            values = {'single_process': single, 'estimator': estimator}
+            started = []
+            for n in nodes:
+                condition = n.kwargs['condition']
+                switch = condition.args[0]
+                on = (switch.evaluate(values) if isinstance(switch, PythonExpression)
+                      else values[switch.name] == 'true')
+                if on != condition.negate:
+                    extra = [a.evaluate(values) for a in n.kwargs.get('arguments', [])]
+                    started.append(' '.join([n.kwargs['executable'], *filter(None, extra)]))
+            expected = ({('true', 'true'): ['fall_monitor --estimator'],
+                         ('true', 'false'): ['fall_monitor'],
+                         ('false', 'true'): ['state_estimator_node', 'feature_node',
+                                             'predictor_node'],
+                         ('false', 'false'): ['feature_node', 'predictor_node']})[single, estimator]
+            assert started == expected, values
     for n in nodes:
         assert n.kwargs['namespace'].name == 'namespace'
         (source, target), = n.kwargs['remappings']

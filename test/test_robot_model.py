@@ -9,7 +9,7 @@ from fall_predictor.robot.controllers import BalanceController
 @pytest.fixture
 def robot():
     client = pb.connect(pb.DIRECT)
-    body = pb.loadURDF(str(rm.URDF_PATH), [0, 0, 1], flags=pb.URDF_USE_INERTIA_FROM_FILE,
+    body = pb.loadURDF(str(rm.SIM_URDF_PATH), [0, 0, 1], flags=pb.URDF_USE_INERTIA_FROM_FILE,
                        physicsClientId=client)
     yield client, body
     pb.disconnect(client)
@@ -17,6 +17,22 @@ def robot():
 
 def test_urdf_file_is_generated_from_the_model_tables():
     assert rm.URDF_PATH.read_text() == rm.urdf_xml()
+    assert rm.SIM_URDF_PATH.read_text() == rm.urdf_xml(sole_frames=False)
+
+
+def test_the_description_has_massless_sole_frames_at_the_sole_centres():
+    import xml.etree.ElementTree as ET
+    root = ET.fromstring(rm.URDF_PATH.read_text())
+    joints = {j.get('name'): j for j in root.findall('joint')}
+    for side in rm.SIDES:
+        j = joints[f'{side}_sole_fixed']
+        assert j.get('type') == 'fixed' and j.find('parent').get('link') == f'{side}_foot'
+        xyz = [float(v) for v in j.find('origin').get('xyz').split()]
+        # The foot box's underside centre: its CoM half a sole thickness lower.
+        foot = next(lk for lk in rm.all_links_and_joints()[0] if lk.name == f'{side}_foot')
+        assert xyz == pytest.approx([foot.com_xyz[0], 0.0, foot.com_xyz[2] - foot.size_xyz[2] / 2])
+    assert [lk.find('inertial/mass').get('value') for lk in root.findall('link')
+            if lk.get('name') in rm.SOLE_FRAMES] == ['0', '0']
 
 
 def test_26_revolute_joints_with_the_spec_names(robot):

@@ -175,6 +175,12 @@ class BagWriter:
         except Exception as exc:
             raise BagError(f'{self.path}: cannot write {topic}: {_describe(exc)}') from exc
 
+    def set_custom_data(self, key: str, value: str) -> None:
+        """A key-value pair in the bag's ``metadata.yaml`` (``custom_data``)."""
+        if self._writer is None:
+            raise BagError(f'{self.path}: bag is not open (use BagWriter as a context manager)')
+        self._writer.set_custom_data(key, value)
+
     def _stamp(self, t: float) -> RosbagsMsg:
         sec, nanosec = time_to_stamp(t)
         return self._types['builtin_interfaces/msg/Time'](sec=sec, nanosec=nanosec)

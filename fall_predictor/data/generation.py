@@ -27,6 +27,7 @@ from fall_predictor.data.dataset import (FORMAT, DatasetError, IndexRow, read_in
 from fall_predictor.data.generation_cost import (COSTS_DIR, GENERATION_COST_KEY,
                                                  record_generation_cost, trajectory_cost)
 from fall_predictor.data.outcomes import height_drop_time
+from fall_predictor.data.sensorbag import write_robot_description, write_sensor_params, write_sensor_reading
 from fall_predictor.data.parallel import (PerThread, compute_backend, compute_parallel, machine,
                                           progress_bar)
 from fall_predictor.monitor.fileio import atomic_write_text
@@ -60,12 +61,19 @@ class GenerationConfig:
     #: Each trajectory draws its gait (SPEC §3 amendment); False walks the one default gait,
     #: simulated once per worker and shared through snapshots.
     gait_variety: bool = True
+    #: Record the robot's sensor topics (sim/sensors.py model at this noise scale; 1 kHz
+    #: /joint_states instead of the exact ones); None records none (data/sensorbag.py).
+    sensor_noise_scale: Optional[float] = None
 
     def manifest(self) -> dict:
-        return {'format': FORMAT, 'seed': self.seed, 'horizon_after_push_s': self.horizon_after_push_s,
-                'pre_push_s': self.pre_push_s, 'joint_state_rate_hz': self.joint_state_rate_hz,
-                'gait_variety': self.gait_variety,
-                'push_distribution': asdict(self.push_distribution), 'robot': simulated_robot()}
+        out = {'format': FORMAT, 'seed': self.seed, 'horizon_after_push_s': self.horizon_after_push_s,
+               'pre_push_s': self.pre_push_s, 'joint_state_rate_hz': self.joint_state_rate_hz,
+               'gait_variety': self.gait_variety,
+               'push_distribution': asdict(self.push_distribution), 'robot': simulated_robot()}
+        if self.sensor_noise_scale is not None:
+            from fall_predictor.sim.sensors import SensorParams
+            out['sensors'] = SensorParams(noise_scale=self.sensor_noise_scale).to_dict()
+        return out
 
 
 def _settings(manifest: dict) -> dict:
@@ -105,8 +113,10 @@ def _walk_prefix(config: GenerationConfig):
 
     dist = config.push_distribution
     until = dist.settle_s + dist.walk_cycle_s()
-    return _WORKER.get(('prefix', dist.settle_s, dist.walk_cycle_s()), lambda: WalkPrefix(
-        Simulator(), until_s=until, walk_duration_s=until + config.horizon_after_push_s + 5.0))
+    record = config.sensor_noise_scale is not None
+    return _WORKER.get(('prefix', dist.settle_s, dist.walk_cycle_s(), record), lambda: WalkPrefix(
+        Simulator(), until_s=until, walk_duration_s=until + config.horizon_after_push_s + 5.0,
+        record_sensors=record))
 
 
 def _worker_simulator():
@@ -146,11 +156,13 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
     if config.gait_variety:
         gait, push = config.push_distribution.sample_with_gait(rng)
         duration_s = push.t_force_end + config.horizon_after_push_s
-        result = run_trajectory(push, duration_s, gait=gait, simulator=_worker_simulator())
+        result = run_trajectory(push, duration_s, gait=gait, simulator=_worker_simulator(),
+                                record_sensors=config.sensor_noise_scale is not None)
     else:
         gait, push = None, config.push_distribution.sample(rng)
         duration_s = push.t_force_end + config.horizon_after_push_s
-        result = run_trajectory(push, duration_s, prefix=_walk_prefix(config))
+        result = run_trajectory(push, duration_s, prefix=_walk_prefix(config),
+                                record_sensors=config.sensor_noise_scale is not None)
     simulated_s = result.measurements[-1].t
     t_start = round(push.t_push - config.pre_push_s, 6)
     first = next(i for i, m in enumerate(result.measurements) if m.t >= t_start - 1e-9)
@@ -168,9 +180,12 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
         with BagWriter(partial) as bag:
             applied = next((m.push_force for m in measurements if m.push_force.any()), np.zeros(3))
             bag.write_push(push.t_push, applied)
+            readings = _sensor_readings(config, index, result, bag, first)
             for k, m in enumerate(measurements):
                 bag.write_measurement(m)
-                if k % joint_every == 0:
+                if readings is not None:
+                    write_sensor_reading(bag, readings[first + k])
+                elif k % joint_every == 0:
                     i = first + k
                     bag.write_joint_state(m.t, ROBOT_JOINT_NAMES, result.joint_positions[i],
                                           result.joint_velocities[i])
@@ -182,6 +197,20 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
                    samples=len(measurements), **_gait_fields(gait))
     cost = trajectory_cost(time.thread_time() - cpu0, time.perf_counter() - wall0, simulated_s)
     return SimulatedTrajectory(row, files, cost)
+
+
+def _sensor_readings(config: GenerationConfig, index: int, result, bag: BagWriter, first: int):
+    """The run's sensor readings (noise seeded by dataset seed and index), with the sensor
+    parameters and the robot description written into ``bag``; None without sensors."""
+    if config.sensor_noise_scale is None:
+        return None
+    from fall_predictor.sim.sensors import SensorParams, apply_sensors, robot_description
+
+    params = SensorParams(noise_scale=config.sensor_noise_scale)
+    write_sensor_params(bag, params.to_dict())
+    write_robot_description(bag, result.measurements[first].t, robot_description())
+    seed = int(np.random.SeedSequence([config.seed, index, 10]).generate_state(1)[0])
+    return apply_sensors(result.sensor_truths, params, seed=seed)
 
 
 def commit(out: Path, simulated: SimulatedTrajectory) -> IndexRow:

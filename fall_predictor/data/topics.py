@@ -227,7 +227,8 @@ RESET_SERVICE = 'simulator_node/reset'
 PAUSE_SERVICE = 'simulator_node/pause'
 #: ``std_srvs/srv/Trigger`` of the monitor and controller nodes: start a new run (clear the
 #: history and the latch; the controller goes back to C_bal). The only way to undo a fall.
-MONITOR_RESET_SERVICES = ('feature_node/reset', 'predictor_node/reset', 'controller_node/reset')
+MONITOR_RESET_SERVICES = ('state_estimator_node/reset', 'feature_node/reset',
+                          'predictor_node/reset', 'controller_node/reset')
 #: ``std_srvs/srv/SetBool``: enable (true) or disable (false) the fall trigger.
 ENABLE_SERVICE = 'predictor_node/enable'
 
@@ -237,3 +238,41 @@ def check_controller_mode(mode: str) -> str:
     if mode not in CONTROLLER_MODES:
         raise WireFormatError(f'controller mode {mode!r} is not one of {CONTROLLER_MODES}')
     return mode
+
+
+# --------------------------------------------------------------------------------------------
+# Robot sensor topics (issue 10): what a real robot publishes; the state estimator's input
+# --------------------------------------------------------------------------------------------
+#: Frame of the torso IMU (the torso link's origin and axes).
+IMU_FRAME = 'torso'
+#: Frames of the ankle F/T wrenches (URDF sole frames: the sole underside centres).
+SOLE_FRAME_IDS = {'l': 'l_sole', 'r': 'r_sole'}
+#: Joint encoders at the simulation rate, with efforts (the /joint_states of JOINT_STATES,
+#: published at 1 kHz when the simulator publishes its sensors).
+SENSOR_JOINT_STATES = TopicSpec(
+    '/joint_states', 'sensor_msgs/msg/JointState', STREAM_QOS, SIM_RATE_HZ,
+    '', None, 'joint encoders: positions, velocities, efforts of all 26 joints', SENSOR_SUB_QOS)
+IMU = TopicSpec(
+    '/imu/data', 'sensor_msgs/msg/Imu', STREAM_QOS, SIM_RATE_HZ,
+    IMU_FRAME, None, 'torso IMU: orientation, angular velocity, specific force', SENSOR_SUB_QOS)
+LEFT_FOOT_WRENCH = TopicSpec(
+    '/left_foot/wrench', 'geometry_msgs/msg/WrenchStamped', STREAM_QOS, SIM_RATE_HZ,
+    SOLE_FRAME_IDS['l'], None, 'left ankle F/T: ground reaction on the sole [N, N m]',
+    SENSOR_SUB_QOS)
+RIGHT_FOOT_WRENCH = TopicSpec(
+    '/right_foot/wrench', 'geometry_msgs/msg/WrenchStamped', STREAM_QOS, SIM_RATE_HZ,
+    SOLE_FRAME_IDS['r'], None, 'right ankle F/T: ground reaction on the sole [N, N m]',
+    SENSOR_SUB_QOS)
+ROBOT_DESCRIPTION = TopicSpec(
+    '/robot_description', 'std_msgs/msg/String', LATCHED_QOS, None,
+    None, None, 'URDF of the robot, with sole frames l_sole and r_sole')
+#: The estimator's output and the simulator's exact state: both carry the measurement layout.
+#: With sensors on, MEASUREMENT is the estimate and this topic the ground truth (evaluation only).
+GROUND_TRUTH = TopicSpec(
+    '/fall_predictor/ground_truth', 'std_msgs/msg/Float64MultiArray', STREAM_QOS, SIM_RATE_HZ,
+    None, MEASUREMENT_LABEL, 'simulator exact state (evaluation only), measurement layout v1')
+SENSOR_TOPICS: tuple[TopicSpec, ...] = (
+    SENSOR_JOINT_STATES, IMU, LEFT_FOOT_WRENCH, RIGHT_FOOT_WRENCH, ROBOT_DESCRIPTION, GROUND_TRUTH)
+TOPICS_BY_NAME.update({spec.name: spec for spec in SENSOR_TOPICS if spec.name not in TOPICS_BY_NAME})
+#: Bag metadata key (rosbag2 ``custom_data``) holding the sensor model's parameters (JSON).
+SENSOR_PARAMS_METADATA_KEY = 'fall_predictor.sensor_params'

@@ -55,8 +55,10 @@ if TYPE_CHECKING:
     from fall_predictor.sim.pushes import PushDistribution
 
 #: Shutdown order: the source of all samples first, the recorder last.
-SHUTDOWN_ORDER = ('simulator_node', 'controller_node', 'feature_node', 'predictor_node',
-                  RECORDER_NODE)
+SHUTDOWN_ORDER = ('simulator_node', 'state_estimator_node', 'controller_node', 'feature_node',
+                  'predictor_node', RECORDER_NODE)
+#: With ``sensors``: the node that turns the simulator's sensor topics into the measurement.
+ESTIMATOR_NODE = 'state_estimator_node'
 
 
 # --------------------------------------------------------------------------------------------
@@ -191,7 +193,7 @@ def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
                 record_dir: Optional[Path] = None, horizon_s: float = 3.0,
                 log_dir: Optional[Path] = None, startup_timeout_s: float = 60.0,
                 push_distribution: Optional[PushDistribution] = None,
-                fall_trigger: bool = True) -> list[dict]:
+                fall_trigger: bool = True, sensors: bool = False) -> list[dict]:
     """Start the nodes, push the robot ``pushes`` times, stop everything; see the module docs.
 
     ``real_time_factor`` 0 runs as fast as the lock-stepped pipeline allows (the outcome does
@@ -200,7 +202,9 @@ def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
     fall; node logs go to ``log_dir`` (default: a new temporary directory);
     ``push_distribution`` defaults to SPEC §3's. With ``fall_trigger`` false the predictor
     still runs and is reported, but C_bal stays in charge throughout (SPEC §4: the recording
-    then carries valid hindsight labels for training). Raises :class:`BringupError` if a node fails
+    then carries valid hindsight labels for training). With ``sensors`` the simulator
+    publishes the robot's sensor topics and its exact state on ``/fall_predictor/ground_truth``,
+    and the state_estimator_node makes the measurement the other nodes read. Raises :class:`BringupError` if a node fails
     to start or dies, or the simulation gets stuck.
     """
     if pushes < 0:
@@ -225,6 +229,10 @@ def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
         'controller_node': {} if fall_trigger else {'fall_trigger_enabled': 'false'},
     }
     names = list(PIPELINE_NODES)
+    if sensors:
+        overrides['simulator_node']['publish_sensors'] = 'true'
+        overrides[ESTIMATOR_NODE] = {}
+        names.insert(names.index('simulator_node'), ESTIMATOR_NODE)
     if record_dir is not None:
         names.insert(0, RECORDER_NODE)
         overrides[RECORDER_NODE] = {'bag_path': str(Path(record_dir).resolve())}
@@ -277,7 +285,8 @@ def cmd_bringup(args: argparse.Namespace) -> int:
                               domain_id=args.domain_id, real_time_factor=args.real_time_factor,
                               model_path=args.model, params_file=args.params_file,
                               record_dir=args.record, horizon_s=args.horizon,
-                              log_dir=args.log_dir, fall_trigger=args.fall_trigger)
+                              log_dir=args.log_dir, fall_trigger=args.fall_trigger,
+                              sensors=args.sensors)
     except BringupError as error:
         print(f'error: {error}', file=sys.stderr)
         return 1

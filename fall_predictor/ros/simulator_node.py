@@ -7,6 +7,13 @@ Publishes, all stamped with simulation time:
 * ``/fall_predictor/push`` once per applied push (onset stamp, world force);
 * ``/diagnostics`` once per wall second.
 
+With ``publish_sensors`` the node publishes what a robot publishes instead (issue 10): every
+step ``/joint_states`` (with efforts), ``/imu/data``, ``/left_foot/wrench`` and
+``/right_foot/wrench`` from the sensor model of :mod:`fall_predictor.sim.sensors` (noise x
+``sensor_noise_scale``, seeded by ``sensor_seed`` and the world count), ``/robot_description``
+once (transient local), and its exact state on ``/fall_predictor/ground_truth`` (evaluation
+only): ``/fall_predictor/measurement`` is then the state_estimator_node's.
+
 Subscribes to ``/fall_predictor/joint_commands`` (the controller node's joint targets) and to
 ``/fall_predictor/push_request`` (see :data:`~fall_predictor.ros.common.PUSH_REQUEST`).
 
@@ -65,6 +72,8 @@ from fall_predictor.ros.common import (Diagnostics,
 from fall_predictor.sim.pushes import PushDistribution
 from fall_predictor.monitor.records import Measurement, PushSpec
 from fall_predictor.sim.simulator import DT_S, Simulator
+from fall_predictor.ros.simulated_sensors import SimulatedSensors
+from fall_predictor.data.topics import GROUND_TRUTH
 from fall_predictor.data.topics import (CLOCK, JOINT_COMMANDS, JOINT_STATES, MEASUREMENT, PUSH, PUSH_REQUEST,
                                         SIM_RATE_HZ, WireFormatError, stamp_to_ns, time_to_ns)
 from fall_predictor.data.wire import LEVEL_OK, LEVEL_WARN
@@ -94,6 +103,12 @@ PARAMS = (
               read_only=True),
     ParamSpec('random_push_seed', 0, 'seed of the random pushes', 0, 2**31 - 1,
               read_only=True),
+    ParamSpec('publish_sensors', False, 'publish the robot sensor topics and the exact state on '
+              '/fall_predictor/ground_truth (the measurement comes from state_estimator_node)',
+              read_only=True),
+    ParamSpec('sensor_noise_scale', 1.0, 'multiplier of every sensor noise and bias (0 = ideal)',
+              0.0, 100.0, read_only=True),
+    ParamSpec('sensor_seed', 0, 'seed of the sensor noise', 0, 2**31 - 1, read_only=True),
 )
 
 
@@ -125,7 +140,10 @@ class SimulatorNode(Node):
         except RuntimeError as error:
             raise NodeStartupError(str(error)) from error
 
-        self._measurement_pub = create_publisher(self, Float64MultiArray, MEASUREMENT)
+        self._sensors = SimulatedSensors(self, float(p['sensor_noise_scale']), int(p['sensor_seed'])) \
+            if p['publish_sensors'] else None
+        self._measurement_pub = create_publisher(self, Float64MultiArray,
+                                                 MEASUREMENT if self._sensors is None else GROUND_TRUTH)
         self._clock_pub = create_publisher(self, Clock, CLOCK)
         self._joint_state_pub = create_publisher(self, JointState, JOINT_STATES)
         self._push_pub = create_publisher(self, WrenchStamped, PUSH)
@@ -194,13 +212,16 @@ class SimulatorNode(Node):
         self._next_random_push_s = self._random_push_period_s or math.inf
         self._t_fallen = None
         self.counts['worlds'] += 1
+        if self._sensors is not None:
+            self._sensors.new_world(self.counts['worlds'])
         if hold is None:
             self._try_start()
 
     def _try_start(self) -> None:
         """Publish the first sample of the run once someone listens (and, in lock-step,
         someone commands)."""
-        if self._measurement_pub.get_subscription_count() == 0:
+        consumer = self._measurement_pub if self._sensors is None else self._joint_state_pub
+        if consumer.get_subscription_count() == 0:
             return
         if self._lockstep and self._command_sub.get_publisher_count() == 0:
             return
@@ -328,7 +349,10 @@ class SimulatorNode(Node):
         self._measurement_pub.publish(ros_qos.measurement_to_msg(m))
         self._clock_pub.publish(Clock(clock=ros_qos.stamp(m.t)))
         self.counts['measurements'] += 1
-        if self._sim.tick % self._joint_state_every == 0:
+        if self._sensors is not None:
+            self._sensors.publish(self._sim, self._joint_state_pub)
+            self.counts['joint_states'] += 1
+        elif self._sim.tick % self._joint_state_every == 0:
             q, dq, effort = self._sim.joint_states()
             self._joint_state_pub.publish(
                 ros_qos.joint_state_to_msg(m.t, rm.JOINT_NAMES, q, dq, effort))

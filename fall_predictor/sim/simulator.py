@@ -97,7 +97,7 @@ class Simulator:
         self.plane = pb.createMultiBody(0, plane_shape, physicsClientId=c)
         pb.changeDynamics(self.plane, -1, lateralFriction=self.config.ground_friction, physicsClientId=c)
         orn = pb.getQuaternionFromEuler((0, 0, torso_yaw_rad))
-        self.robot = pb.loadURDF(str(rm.URDF_PATH), torso_position, orn,
+        self.robot = pb.loadURDF(str(rm.SIM_URDF_PATH), torso_position, orn,
                                  flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=c)
         self.n_joints = pb.getNumJoints(self.robot, physicsClientId=c)
         names = [pb.getJointInfo(self.robot, i, physicsClientId=c)[1].decode() for i in range(self.n_joints)]

@@ -19,6 +19,7 @@ from fall_predictor.robot.controllers import BalanceController, ControllerSwitch
 from fall_predictor.robot.stabilizer import StabilizerConfig
 from fall_predictor.monitor.records import Measurement, PushSpec
 from fall_predictor.robot import model as rm
+from fall_predictor.sim.sensors import sensor_truth
 from fall_predictor.sim.simulator import Simulator, SimulatorConfig
 
 #: The simulated robot, as datasets record it.
@@ -42,6 +43,8 @@ class TrajectoryResult:
     t_reflex: Optional[float]
     t_switch: Optional[float] = None     #: when C_fall took over, if it did
     extras: dict = field(default_factory=dict)
+    #: Exact sensor quantities per step (sim/sensors.py), when recorded; else empty.
+    sensor_truths: list = field(default_factory=list)
 
     @property
     def t(self) -> np.ndarray:
@@ -66,16 +69,18 @@ class _Run:
     joint_positions: list[np.ndarray]
     joint_velocities: list[np.ndarray]
     t_fallen: Optional[float] = None
+    sensor_truths: Optional[list] = None     #: None: not recorded
 
 
 def _new_run(sim: Simulator, gait: GaitConfig, reflex: ReflexConfig, walk_duration_s: float,
-             stabilizer: StabilizerConfig = StabilizerConfig()) -> _Run:
+             stabilizer: StabilizerConfig = StabilizerConfig(), record_sensors: bool = False) -> _Run:
     balance = BalanceController(gait, reflex, sim.config.dt_s, walk_duration_s=walk_duration_s,
                                 stabilizer=stabilizer)
     q0, torso0 = balance.initial_posture()
     m = sim.reset(q0, torso0)
     q, dq, _ = sim.joint_states()
-    return _Run(ControllerSwitch(balance), m, [m], [q], [dq])
+    return _Run(ControllerSwitch(balance), m, [m], [q], [dq],
+                sensor_truths=[sensor_truth(sim)] if record_sensors else None)
 
 
 def _advance(sim: Simulator, run: _Run, t_end: float, stop_when_fallen: bool,
@@ -92,6 +97,8 @@ def _advance(sim: Simulator, run: _Run, t_end: float, stop_when_fallen: bool,
         q, dq, _ = sim.joint_states()
         run.joint_positions.append(q)
         run.joint_velocities.append(dq)
+        if run.sensor_truths is not None:
+            run.sensor_truths.append(sensor_truth(sim))
         if run.t_fallen is None and m.fallen:
             run.t_fallen = m.t
             if stop_when_fallen:
@@ -107,11 +114,13 @@ class WalkPrefix:
 
     def __init__(self, sim: Simulator, until_s: float, walk_duration_s: float,
                  gait: GaitConfig = GaitConfig(), reflex: ReflexConfig = ReflexConfig(),
-                 snapshot_every_s: float = 0.1, stabilizer: StabilizerConfig = StabilizerConfig()):
+                 snapshot_every_s: float = 0.1, stabilizer: StabilizerConfig = StabilizerConfig(),
+                 record_sensors: bool = False):
         self.sim = sim
         self.gait, self.reflex, self.stabilizer = gait, reflex, stabilizer
         self.walk_duration_s = walk_duration_s
-        run = _new_run(sim, gait, reflex, walk_duration_s, stabilizer)
+        run = _new_run(sim, gait, reflex, walk_duration_s, stabilizer, record_sensors)
+        self.record_sensors = record_sensors
         self._snapshots: list[tuple[float, int, int, _Run]] = []
         every = max(1, int(round(snapshot_every_s / sim.config.dt_s)))
         while sim.t < until_s - 1e-9:
@@ -137,8 +146,9 @@ class WalkPrefix:
         pb.restoreState(state, physicsClientId=self.sim.client)
         self.sim.restore_clock(tick, frozen.measurement)
         n = tick + 1
+        truths = None if self.run.sensor_truths is None else self.run.sensor_truths[:n]
         return _Run(copy.deepcopy(frozen.switch), frozen.measurement, self.run.measurements[:n],
-                    self.run.joint_positions[:n], self.run.joint_velocities[:n])
+                    self.run.joint_positions[:n], self.run.joint_velocities[:n], sensor_truths=truths)
 
 
 def run_trajectory(push: Optional[PushSpec], duration_s: float,
@@ -148,13 +158,16 @@ def run_trajectory(push: Optional[PushSpec], duration_s: float,
                    fall_trigger: Optional[Callable[[Measurement], bool]] = None,
                    simulator: Optional[Simulator] = None,
                    prefix: Optional[WalkPrefix] = None,
-                   stabilizer: StabilizerConfig = StabilizerConfig()) -> TrajectoryResult:
+                   stabilizer: StabilizerConfig = StabilizerConfig(),
+                   record_sensors: bool = False) -> TrajectoryResult:
     """Simulate from the standing posture for up to ``duration_s`` seconds.
 
     Stops early when fallen (if ``stop_when_fallen``). ``fall_trigger`` (a predictor) is asked
     every step; when it says falling, C_bal hands over to C_fall for the
     rest of the run. With a ``prefix`` the walk before the push is taken from it (same result,
     less simulation); it must have been made with the same gait, reflex and simulator settings.
+    ``record_sensors`` keeps the exact sensor quantities of every step (the prefix must have
+    been made with it too).
     """
     if prefix is not None and push is not None and push.t_push <= prefix.until_s:
         sim = prefix.sim
@@ -163,7 +176,8 @@ def run_trajectory(push: Optional[PushSpec], duration_s: float,
     else:
         own = simulator is None and prefix is None
         sim = prefix.sim if prefix is not None else (simulator or Simulator(sim_config))
-        run = _new_run(sim, gait, reflex, walk_duration_s=duration_s + 5.0, stabilizer=stabilizer)
+        run = _new_run(sim, gait, reflex, walk_duration_s=duration_s + 5.0, stabilizer=stabilizer,
+                       record_sensors=record_sensors)
     try:
         if push is not None:
             sim.schedule_push(push)
@@ -175,7 +189,8 @@ def run_trajectory(push: Optional[PushSpec], duration_s: float,
                                 joint_velocities=np.array(run.joint_velocities),
                                 fallen=t_fallen is not None, t_fallen=t_fallen,
                                 t_reflex=None if event is None else event.t,
-                                t_switch=run.switch.t_switch)
+                                t_switch=run.switch.t_switch,
+                                sensor_truths=run.sensor_truths or [])
     finally:
         if own:
             sim.close()

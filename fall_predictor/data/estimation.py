@@ -1,0 +1,118 @@
+"""The state estimator over recorded bags, and its error against the recorded ground truth.
+
+A bag made with sensors (``generate --sensor-noise``, data/sensorbag.py) holds the robot's
+sensor topics and, on ``/fall_predictor/measurement``, the simulator's exact state. The
+estimator (:class:`~fall_predictor.monitor.estimator.StateEstimator`, the same class the live
+node runs) is started at the bag's first sample with its world frame aligned to the truth's
+there (the frame the robot starts in, as any
+comparison against motion capture aligns it: the truth's heading, and the horizontal offset
+of the first estimated CoM); it then runs on the sensors alone.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from fall_predictor.data.bagio import BagError, read_trajectory
+from fall_predictor.data.sensorbag import read_robot_description, read_sensor_samples
+from fall_predictor.monitor.contact_modes import classify_contact_mode
+from fall_predictor.monitor.estimator import EstimatorConfig, StateEstimator
+from fall_predictor.monitor.records import Measurement
+
+#: Window after the push onset of the post-push statistics [s].
+POST_PUSH_WINDOW_S = 0.5
+#: JSON names of the compared quantities and their Measurement fields.
+QUANTITIES = {'com_m': 'com', 'linear_momentum_kg_m_s': 'lin_mom',
+              'angular_momentum_kg_m2_s': 'ang_mom', 'cop_m': 'cop'}
+
+
+def aligned_config(urdf: str, samples: list, truth: dict, config: EstimatorConfig = EstimatorConfig()
+                   ) -> EstimatorConfig:
+    """``config`` with its world frame aligned to the truth's at the first estimate: the truth's
+    heading, and the horizontal offset that puts the first estimated CoM on the true one."""
+    first = truth.get(round(samples[0].t * 1000))
+    config = replace(config, initial_yaw_rad=float(first.heading) if first is not None else 0.0)
+    probe = StateEstimator(urdf, config)
+    for s in samples[:50]:
+        m = probe.update(s)
+        ref = truth.get(round(s.t * 1000))
+        if m is not None and ref is not None:
+            dx, dy = (ref.com - m.com)[:2]
+            return replace(config, initial_xy_m=(config.initial_xy_m[0] + float(dx),
+                                                 config.initial_xy_m[1] + float(dy)))
+    return config
+
+
+@dataclass
+class BagEstimate:
+    """Estimated and true measurements of one bag, paired by time (estimates may be None)."""
+
+    t: np.ndarray
+    estimated: list[Optional[Measurement]]
+    truth: list[Measurement]
+
+
+def estimate_bag(path: str | os.PathLike[str], config: EstimatorConfig = EstimatorConfig()) -> BagEstimate:
+    """Run the estimator over a bag's sensor topics; pair each estimate with the truth."""
+    bag = Path(path)
+    urdf = read_robot_description(bag)
+    if urdf is None:
+        raise BagError(f'{bag}: no /robot_description (was it generated with --sensor-noise?)')
+    truth = read_trajectory(bag).measurements or []
+    samples = read_sensor_samples(bag)
+    if not samples or not truth:
+        raise BagError(f'{bag}: no sensor samples or no ground truth')
+    by_ms = {round(m.t * 1000): m for m in truth}
+    estimator = StateEstimator(urdf, aligned_config(urdf, samples, by_ms, config))
+    t, est, tru = [], [], []
+    for s in samples:
+        m = estimator.update(s)
+        ref = by_ms.get(round(s.t * 1000))
+        if ref is not None:
+            t.append(s.t)
+            est.append(m)
+            tru.append(ref)
+    return BagEstimate(np.array(t), est, tru)
+
+
+def _mode(m: Measurement) -> int:
+    try:
+        return classify_contact_mode(m)
+    except ValueError:
+        return -1
+
+
+def error_samples(b: BagEstimate, t_push: float) -> dict[str, np.ndarray]:
+    """Per-sample errors of one bag (Euclidean norms), the post-push mask, mode agreement."""
+    ok = [i for i, m in enumerate(b.estimated) if m is not None]
+    out: dict[str, np.ndarray] = {}
+    for key, name in QUANTITIES.items():
+        out[key] = np.array([np.linalg.norm(getattr(b.estimated[i], name) - getattr(b.truth[i], name))
+                             for i in ok])
+    t = b.t[ok]
+    out['post_push'] = (t >= t_push - 1e-9) & (t <= t_push + POST_PUSH_WINDOW_S + 1e-9)
+    out['mode_agree'] = np.array([_mode(b.estimated[i]) == _mode(b.truth[i]) for i in ok])
+    return out
+
+
+def summarise(per_bag: list[dict[str, np.ndarray]]) -> dict:
+    """The ``estimation-error`` JSON: per quantity median and p99 over all samples and over the
+    post-push windows (NaN errors, e.g. a CoP with no contact on one side, are left out)."""
+    result: dict = {}
+    post = np.concatenate([b['post_push'] for b in per_bag])
+    for key in QUANTITIES:
+        e = np.concatenate([b[key] for b in per_bag])
+        finite = np.isfinite(e)
+        all_e, post_e = e[finite], e[finite & post]
+
+        def stat(x, q):
+            return float(np.percentile(x, q)) if len(x) else None
+        result[key] = {'median': stat(all_e, 50), 'p99': stat(all_e, 99),
+                       'post_push_median': stat(post_e, 50), 'post_push_p99': stat(post_e, 99)}
+    agree = np.concatenate([b['mode_agree'] for b in per_bag])
+    result['contact_mode_agreement'] = float(agree.mean()) if len(agree) else None
+    return result

@@ -1,0 +1,295 @@
+"""What the robot's own sensors report: joint encoders, a torso IMU and ankle F/T sensors.
+
+:func:`sensor_truth` reads the exact (noise-free) sensor quantities of the current PyBullet
+state; a :class:`SensorSuite` turns a stream of those into readings with white noise, a
+constant per-run bias, quantisation and latency, seeded and deterministic. The same suite
+object serves the live simulator node (one sample per step) and offline generation
+(:func:`apply_sensors` over a recorded run): one implementation.
+
+Default parameters, per 1 kHz sample (white noise standard deviation = density x sqrt(fs/2),
+the Nyquist bandwidth of a 1 kHz sampled signal):
+
+* **Joint encoders** (:class:`EncoderParams`): a 19-bit absolute output-side encoder
+  (e.g. Renishaw AksIM-2 19 bit: resolution 2 pi / 2^19 = 12 urad, noise about one count);
+  velocity as the drive reports it (differenced and filtered, noise 0.01 rad/s, about one
+  count per ms); effort from motor current (1 % of a 50 N m joint, 0.5 N m).
+  Latency one control cycle (1 ms).
+* **Torso IMU** (:class:`ImuParams`): Bosch BMI088 data sheet (BST-BMI088-DS001): gyroscope
+  noise density 0.014 deg/s/sqrt(Hz), 16 bit at +-2000 deg/s (0.061 deg/s LSB), residual
+  offset after start-up calibration 0.05 deg/s; accelerometer noise density 175 ug/sqrt(Hz),
+  16 bit at +-24 g (0.73 mg LSB), residual offset after calibration 5 mg. The orientation
+  is the IMU's on-board attitude filter output, with the accuracy of an industrial AHRS
+  (Xsens MTi-600 series data sheet: roll/pitch 0.2 deg RMS dynamic, heading 1 deg):
+  constant bias 0.2 deg roll/pitch and 1 deg yaw, white noise 0.02 deg. Latency 1 ms.
+* **Ankle F/T sensors** (:class:`ForceTorqueParams`): a 6-axis strain-gauge sensor of the
+  ATI Mini58 class (ATI F/T sensor catalogue, Mini58 SI-2800-120: force resolution
+  about 1/16 N; torque quantum taken as 1/256 N m), noise 0.3 N and 0.02 N m,
+  residual offset after zeroing 1 N and 0.05 N m (temperature drift over a run). Latency
+  1 ms. The wrench is the ground reaction on the sole, in the sole frame (origin at the
+  sole's underside centre): the foot below the sensor is taken as massless, as humanoid
+  ankle sensors are usually compensated for.
+
+``noise_scale`` multiplies every noise and bias term (0 = ideal sensors, still quantised
+and delayed), for the noise sweep.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import asdict, dataclass, field
+from typing import Optional
+
+import numpy as np
+import pybullet as pb
+
+from fall_predictor.robot import model as rm
+
+SAMPLE_RATE_HZ = 1000.0
+_NYQUIST_SQRT = math.sqrt(SAMPLE_RATE_HZ / 2.0)
+_DEG = math.pi / 180.0
+_G = 9.81
+#: IMU position in the torso link frame [m] (at the torso frame origin).
+IMU_POSITION_IN_TORSO_M = (0.0, 0.0, 0.0)
+
+
+def robot_description() -> str:
+    """The simulated robot's URDF with its sole frames (what ``/robot_description`` carries)."""
+    return rm.URDF_PATH.read_text()
+
+
+@dataclass(frozen=True)
+class EncoderParams:
+    """Joint encoders and drive telemetry (all 26 joints)."""
+
+    position_noise_rad: float = 1.2e-5
+    position_bias_rad: float = 0.0
+    position_quantum_rad: float = 2 * math.pi / 2 ** 19
+    velocity_noise_rad_s: float = 0.01
+    velocity_quantum_rad_s: float = 0.0
+    effort_noise_nm: float = 0.5
+    effort_quantum_nm: float = 0.01
+    latency_s: float = 0.001
+
+
+@dataclass(frozen=True)
+class ImuParams:
+    """Torso IMU: attitude output, gyroscope, accelerometer."""
+
+    gyro_noise_density_rad_s_sqrt_hz: float = 0.014 * _DEG
+    gyro_bias_rad_s: float = 0.05 * _DEG
+    gyro_quantum_rad_s: float = 0.061 * _DEG
+    accel_noise_density_m_s2_sqrt_hz: float = 175e-6 * _G
+    accel_bias_m_s2: float = 5e-3 * _G
+    accel_quantum_m_s2: float = 0.73e-3 * _G
+    tilt_bias_rad: float = 0.2 * _DEG
+    yaw_bias_rad: float = 1.0 * _DEG
+    orientation_noise_rad: float = 0.02 * _DEG
+    latency_s: float = 0.001
+
+
+@dataclass(frozen=True)
+class ForceTorqueParams:
+    """One 6-axis ankle force/torque sensor (both feet use the same parameters)."""
+
+    force_noise_n: float = 0.3
+    force_bias_n: float = 1.0
+    force_quantum_n: float = 1.0 / 16.0
+    torque_noise_nm: float = 0.02
+    torque_bias_nm: float = 0.05
+    torque_quantum_nm: float = 1.0 / 256.0
+    latency_s: float = 0.001
+
+
+@dataclass(frozen=True)
+class SensorParams:
+    """The robot's sensor model; ``noise_scale`` scales every noise and bias term."""
+
+    encoders: EncoderParams = field(default_factory=EncoderParams)
+    imu: ImuParams = field(default_factory=ImuParams)
+    force_torque: ForceTorqueParams = field(default_factory=ForceTorqueParams)
+    noise_scale: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.noise_scale) and self.noise_scale >= 0):
+            raise ValueError(f'noise_scale must be finite and >= 0, got {self.noise_scale}')
+
+    def to_dict(self) -> dict:
+        """JSON-ready parameters (recorded in bag and dataset metadata)."""
+        return asdict(self)
+
+
+@dataclass(slots=True)
+class SensorReading:
+    """One sample of every sensor, as the robot's drivers publish it.
+
+    ``imu_quat_xyzw`` is the torso orientation in the world (x, y, z, w); ``gyro_rad_s`` and
+    ``accel_m_s2`` (specific force: reads +9.81 m/s^2 up at rest) are in the torso frame.
+    Wrenches are (fx, fy, fz, tx, ty, tz) of the ground on the sole, in the sole frame;
+    ``None`` where a sensor is missing (the estimator then degrades).
+    """
+
+    t: float
+    joint_names: tuple[str, ...]
+    q: np.ndarray
+    dq: np.ndarray
+    tau: np.ndarray
+    imu_quat_xyzw: np.ndarray
+    gyro_rad_s: np.ndarray
+    accel_m_s2: np.ndarray
+    left_wrench: Optional[np.ndarray]
+    right_wrench: Optional[np.ndarray]
+
+
+@dataclass(slots=True)
+class SensorTruth:
+    """Exact sensor quantities of one simulation step (world frame unless said otherwise)."""
+
+    t: float
+    q: np.ndarray
+    dq: np.ndarray
+    tau: np.ndarray
+    imu_quat_xyzw: np.ndarray
+    imu_velocity_world: np.ndarray   #: velocity of the IMU point [m/s]
+    gyro_rad_s: np.ndarray           #: torso frame
+    left_wrench: np.ndarray
+    right_wrench: np.ndarray
+
+
+def _ground_wrench(sim, side: str, contacts) -> np.ndarray:
+    """Ground reaction on one sole, about the sole origin, in the sole frame."""
+    foot = sim.foot_links[side]
+    ls = pb.getLinkState(sim.robot, foot, computeForwardKinematics=1, physicsClientId=sim.client)
+    # The foot's link frame is at the ankle centre; the sole frame has the same axes.
+    rot = np.array(pb.getMatrixFromQuaternion(ls[5])).reshape(3, 3)
+    origin = np.asarray(ls[4]) + rot @ np.asarray(rm.SOLE_ORIGIN_IN_FOOT_M)
+    force = np.zeros(3)
+    torque = np.zeros(3)
+    for cp in contacts:
+        if cp[3] != foot:
+            continue
+        f = (np.asarray(cp[7]) * cp[9] + np.asarray(cp[11]) * cp[10] + np.asarray(cp[13]) * cp[12])
+        force += f
+        torque += np.cross(np.asarray(cp[6]) - origin, f)
+    return np.concatenate([rot.T @ force, rot.T @ torque])
+
+
+def sensor_truth(sim) -> SensorTruth:
+    """The exact sensor quantities of ``sim``'s current state (a :class:`Simulator`)."""
+    c = sim.client
+    pos, orn = pb.getBasePositionAndOrientation(sim.robot, physicsClientId=c)
+    lin, ang = pb.getBaseVelocity(sim.robot, physicsClientId=c)
+    rot = np.array(pb.getMatrixFromQuaternion(orn)).reshape(3, 3)
+    # PyBullet's base frame is the torso's inertial frame (same axes, origin at its CoM).
+    imu_from_com = rot @ (np.asarray(IMU_POSITION_IN_TORSO_M) - np.asarray(rm.TORSO.com_xyz))
+    omega = np.asarray(ang)
+    v_imu = np.asarray(lin) + np.cross(omega, imu_from_com)
+    contacts = pb.getContactPoints(bodyA=sim.robot, bodyB=sim.plane, physicsClientId=c)
+    q, dq, tau = sim.joint_states()
+    return SensorTruth(t=sim.t, q=q, dq=dq, tau=tau, imu_quat_xyzw=np.asarray(orn, dtype=float),
+                       imu_velocity_world=v_imu, gyro_rad_s=rot.T @ omega,
+                       left_wrench=_ground_wrench(sim, 'l', contacts),
+                       right_wrench=_ground_wrench(sim, 'r', contacts))
+
+
+def _quantise(x: np.ndarray, quantum: float) -> np.ndarray:
+    return x if quantum <= 0 else np.round(x / quantum) * quantum
+
+
+def _quat_to_matrix(q: np.ndarray) -> np.ndarray:
+    x, y, z, w = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def _small_rotation_quat(v: np.ndarray) -> np.ndarray:
+    """Quaternion (x, y, z, w) of the rotation vector ``v``."""
+    a = float(np.linalg.norm(v))
+    if a < 1e-12:
+        return np.array([0.0, 0.0, 0.0, 1.0])
+    s = math.sin(a / 2) / a
+    return np.array([v[0] * s, v[1] * s, v[2] * s, math.cos(a / 2)])
+
+
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return np.array([aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx,
+                     aw * bz + ax * by - ay * bx + az * bw,
+                     aw * bw - ax * bx - ay * by - az * bz])
+
+
+class SensorSuite:
+    """Applies :class:`SensorParams` to a stream of :class:`SensorTruth`, one step at a time.
+
+    Seeded: the same seed and the same truth stream give identical readings. Biases are
+    drawn once per suite (one run); latency is a delay line of whole samples.
+    """
+
+    def __init__(self, params: SensorParams = SensorParams(), seed: int = 0,
+                 dt_s: float = 1.0 / SAMPLE_RATE_HZ):
+        self.params = params
+        self.dt_s = dt_s
+        self.rng = np.random.default_rng(seed)
+        k = params.noise_scale
+        e, i, f = params.encoders, params.imu, params.force_torque
+        n = len(rm.JOINT_NAMES)
+        self._q_bias = k * e.position_bias_rad * self.rng.standard_normal(n)
+        self._gyro_bias = k * i.gyro_bias_rad_s * self.rng.standard_normal(3)
+        self._accel_bias = k * i.accel_bias_m_s2 * self.rng.standard_normal(3)
+        self._att_bias = k * np.array([i.tilt_bias_rad, i.tilt_bias_rad, i.yaw_bias_rad]) * self.rng.standard_normal(3)
+        self._ft_bias = {s: k * np.concatenate([f.force_bias_n * self.rng.standard_normal(3),
+                                                f.torque_bias_nm * self.rng.standard_normal(3)])
+                         for s in rm.SIDES}
+        self._delays = {name: max(0, int(round(lat / dt_s)))
+                        for name, lat in (('enc', e.latency_s), ('imu', i.latency_s), ('ft', f.latency_s))}
+        self._buffers = {name: deque(maxlen=d + 1) for name, d in self._delays.items()}
+        self._prev_v: Optional[np.ndarray] = None
+
+    def _delayed(self, name: str, value):
+        buf = self._buffers[name]
+        buf.append(value)
+        return buf[0]
+
+    def read(self, truth: SensorTruth) -> SensorReading:
+        """The readings published at ``truth.t`` (the delayed, noisy sensor values)."""
+        p, rng, k = self.params, self.rng, self.params.noise_scale
+        e, i, f = p.encoders, p.imu, p.force_torque
+        n = len(truth.q)
+        q = _quantise(truth.q + self._q_bias + k * e.position_noise_rad * rng.standard_normal(n),
+                      e.position_quantum_rad)
+        dq = _quantise(truth.dq + k * e.velocity_noise_rad_s * rng.standard_normal(n), e.velocity_quantum_rad_s)
+        tau = _quantise(truth.tau + k * e.effort_noise_nm * rng.standard_normal(n), e.effort_quantum_nm)
+        rot = _quat_to_matrix(truth.imu_quat_xyzw)
+        # Specific force from the finite difference of the IMU point's velocity.
+        acc_world = np.zeros(3) if self._prev_v is None else (truth.imu_velocity_world - self._prev_v) / self.dt_s
+        self._prev_v = truth.imu_velocity_world.copy()
+        specific = rot.T @ (acc_world + np.array([0.0, 0.0, _G]))
+        sig_g = k * i.gyro_noise_density_rad_s_sqrt_hz * _NYQUIST_SQRT
+        sig_a = k * i.accel_noise_density_m_s2_sqrt_hz * _NYQUIST_SQRT
+        gyro = _quantise(truth.gyro_rad_s + self._gyro_bias + sig_g * rng.standard_normal(3), i.gyro_quantum_rad_s)
+        accel = _quantise(specific + self._accel_bias + sig_a * rng.standard_normal(3), i.accel_quantum_m_s2)
+        # Attitude error: a world-frame rotation (bias + white) applied to the true attitude.
+        err = self._att_bias + k * i.orientation_noise_rad * rng.standard_normal(3)
+        quat = _quat_mul(_small_rotation_quat(err), truth.imu_quat_xyzw)
+        wrenches = {}
+        for side, w in (('l', truth.left_wrench), ('r', truth.right_wrench)):
+            noise = k * np.concatenate([f.force_noise_n * rng.standard_normal(3),
+                                        f.torque_noise_nm * rng.standard_normal(3)])
+            raw = w + self._ft_bias[side] + noise
+            wrenches[side] = np.concatenate([_quantise(raw[:3], f.force_quantum_n),
+                                             _quantise(raw[3:], f.torque_quantum_nm)])
+        enc = self._delayed('enc', (q, dq, tau))
+        imu = self._delayed('imu', (quat, gyro, accel))
+        ft = self._delayed('ft', (wrenches['l'], wrenches['r']))
+        return SensorReading(t=truth.t, joint_names=rm.JOINT_NAMES, q=enc[0], dq=enc[1], tau=enc[2],
+                             imu_quat_xyzw=imu[0], gyro_rad_s=imu[1], accel_m_s2=imu[2],
+                             left_wrench=ft[0], right_wrench=ft[1])
+
+
+def apply_sensors(truths: list[SensorTruth], params: SensorParams = SensorParams(),
+                  seed: int = 0) -> list[SensorReading]:
+    """Readings of a whole recorded run (the same :class:`SensorSuite` a live node steps)."""
+    suite = SensorSuite(params, seed)
+    return [suite.read(t) for t in truths]

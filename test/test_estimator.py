@@ -1,0 +1,117 @@
+"""The state estimator against the simulator's ground truth, and on bad input."""
+import numpy as np
+import pinocchio as pin
+import pybullet as pb
+import pytest
+
+from fall_predictor.monitor.contact_modes import classify_contact_mode
+from fall_predictor.monitor.estimator import (EstimatorConfig, SensorSample, StateEstimator,
+                                              split_force_to_corners)
+from fall_predictor.monitor.records import PushSpec
+from fall_predictor.robot import model as rm
+from fall_predictor.sim.sensors import SensorParams, apply_sensors
+from fall_predictor.sim.simulator import Simulator
+from fall_predictor.sim.trajectory import run_trajectory
+
+
+@pytest.fixture(scope='module')
+def run():
+    return run_trajectory(PushSpec(60.0, 0.0, 0.1, 0.8), 1.3, record_sensors=True)
+
+
+@pytest.fixture(scope='module')
+def readings(run):
+    return apply_sensors(run.sensor_truths, SensorParams(), seed=7)
+
+
+def _errors(est, truth, name):
+    e = np.array([np.linalg.norm(getattr(a, name) - getattr(b, name)) for a, b in zip(est, truth) if a is not None])
+    return e[np.isfinite(e)]
+
+
+def test_pinocchio_com_equals_the_simulators_urdf_com():
+    # An independent check of the URDF model: Pinocchio on the description's URDF at the
+    # simulator's exact base pose and joint angles gives PyBullet's mass-weighted link CoM.
+    model = pin.buildModelFromXML(rm.URDF_PATH.read_text(), pin.JointModelFreeFlyer())
+    data = model.createData()
+    with Simulator() as sim:
+        q0 = np.linspace(-0.3, 0.3, 26)
+        m = sim.reset(q0, [0.1, 0.2, 1.0], torso_yaw_rad=0.4)
+        pos, orn = pb.getBasePositionAndOrientation(sim.robot, physicsClientId=sim.client)
+        rot = np.array(pb.getMatrixFromQuaternion(orn)).reshape(3, 3)
+        q = np.zeros(model.nq)
+        q[0:3] = np.asarray(pos) - rot @ np.asarray(rm.TORSO.com_xyz)   # torso origin, not its CoM
+        q[3:7] = orn
+        for i, name in enumerate(rm.JOINT_NAMES):
+            q[model.joints[model.getJointId(name)].idx_q] = sim.joint_states()[0][i]
+        assert pin.centerOfMass(model, data, q) == pytest.approx(m.com, abs=1e-6)
+        assert sum(i.mass for i in model.inertias) == pytest.approx(sim.total_mass)
+
+
+def test_estimates_meet_the_aims_against_ground_truth(run, readings):
+    est = StateEstimator(rm.URDF_PATH.read_text()).run(readings)
+    truth = run.measurements
+    assert sum(m is None for m in est) <= 5        # only until a sole anchors the base
+    com, lin = _errors(est, truth, 'com'), _errors(est, truth, 'lin_mom')
+    assert np.percentile(com, 99) <= 0.010
+    assert np.median(lin) <= 0.3 and np.percentile(lin, 99) <= 1.5
+    assert np.median(_errors(est, truth, 'ang_mom')) <= 0.2
+    assert np.median(_errors(est, truth, 'cop')) <= 0.01
+    agree = [classify_contact_mode(a) == classify_contact_mode(b) for a, b in zip(est, truth) if a is not None]
+    assert np.mean(agree) >= 0.97
+
+
+def test_batch_equals_stream(readings):
+    batch = StateEstimator(rm.URDF_PATH.read_text()).run(readings[:400])
+    live = StateEstimator(rm.URDF_PATH.read_text())
+    for r, b in zip(readings[:400], batch):
+        m = live.update(r)
+        assert (m is None) == (b is None)
+        if m is not None:
+            assert np.array_equal(m.com, b.com) and np.array_equal(m.lin_mom, b.lin_mom)
+            assert np.array_equal(m.left_contacts, b.left_contacts)
+
+
+def test_force_split_reproduces_the_cop():
+    corners = np.array([[0.1, 0.05], [0.1, -0.05], [-0.1, -0.05], [-0.1, 0.05]])
+    f = split_force_to_corners(corners, np.array([0.04, -0.01]), 300.0)
+    assert f.sum() == pytest.approx(300.0)
+    assert f @ corners / f.sum() == pytest.approx([0.04, -0.01])
+    edge = split_force_to_corners(corners[:2], np.array([0.1, 0.03]), 100.0)
+    assert edge == pytest.approx([80.0, 20.0])
+    # A CoP outside the sole is clipped to it.
+    assert split_force_to_corners(corners[:2], np.array([0.1, 0.5]), 10.0) == pytest.approx([10.0, 0.0])
+
+
+def _sample(r, **changes):
+    fields = dict(t=r.t, joint_names=r.joint_names, q=r.q, dq=r.dq, imu_quat_xyzw=r.imu_quat_xyzw,
+                  gyro_rad_s=r.gyro_rad_s, accel_m_s2=r.accel_m_s2, left_wrench=r.left_wrench,
+                  right_wrench=r.right_wrench)
+    fields.update(changes)
+    return SensorSample(**fields)
+
+
+def test_bad_input_is_rejected_or_degrades_never_crashes(readings):
+    est = StateEstimator(rm.URDF_PATH.read_text())
+    est.run(readings[:100])
+    q = readings[100].q.copy()
+    q[3] = np.nan
+    assert est.update(_sample(readings[100], q=q)) is None and 'non-finite' in est.last_issue
+    assert est.update(_sample(readings[99])) is None and 'not after' in est.last_issue   # out of order
+    m = est.update(_sample(readings[100], left_wrench=None))
+    assert m is not None and est.degraded == ('l_foot_sensor',) and len(m.left_contacts) == 0
+    nan_wrench = np.full(6, np.nan)
+    m = est.update(_sample(readings[101], right_wrench=nan_wrench))
+    assert m is not None and est.degraded == ('r_foot_sensor',) and len(m.right_contacts) == 0
+    m = est.update(_sample(readings[101], t=readings[101].t + 1.0))    # stale: a 1 s gap
+    assert m is not None and 're-anchored' in est.last_issue
+    with pytest.raises(ValueError, match='not in the URDF'):
+        est.update(_sample(readings[102], joint_names=('nope',) + tuple(readings[102].joint_names[1:])))
+
+
+def test_a_urdf_without_sole_frames_is_a_clear_error():
+    with pytest.raises(ValueError, match='sole frames'):
+        StateEstimator(rm.urdf_xml(sole_frames=False))
+    with pytest.raises(ValueError, match='cannot build'):
+        StateEstimator('<robot name="x"><link')
+    assert EstimatorConfig().contact_force_n > 0
