@@ -48,26 +48,20 @@ class SimulatorConfig:
             raise ValueError(f"actuation must be 'position' or 'pd_torque', got {self.actuation!r}")
 
 
-# quaternions_to_matrices as index tables over (x, y, z, w): the nine products
-# yy zz xx xy zw xz yw yz xw, and each matrix entry (row-major) as 2 (first + sign * second)
-# (diagonal: 1 - that). Same operations on the same operands as the written-out formula, so the
-# same bits, in three numpy calls instead of twenty (issue 13: measure() runs every physics step).
-_QUAT_I = np.array([1, 2, 0, 0, 2, 0, 1, 1, 0])
-_QUAT_J = np.array([1, 2, 0, 1, 3, 2, 3, 2, 3])
-_ENTRY_A = np.array([0, 3, 5, 3, 2, 7, 5, 7, 2])
-_ENTRY_B = np.array([1, 4, 6, 4, 1, 8, 6, 8, 0])
-_ENTRY_SIGN = np.array([1.0, -1.0, 1.0, 1.0, 1.0, -1.0, -1.0, 1.0, 1.0])
-_DIAGONAL = np.array([0, 4, 8])
-
-
 def quaternions_to_matrices(q: np.ndarray) -> np.ndarray:
-    """Rotation matrices (n, 3, 3) from PyBullet quaternions (n, 4) in (x, y, z, w) order:
-    R = [[1 - 2(yy + zz), 2(xy - zw), 2(xz + yw)], [2(xy + zw), 1 - 2(xx + zz), 2(yz - xw)],
-    [2(xz - yw), 2(yz + xw), 1 - 2(xx + yy)]]."""
-    products = q[:, _QUAT_I] * q[:, _QUAT_J]
-    out = 2 * (products[:, _ENTRY_A] + _ENTRY_SIGN * products[:, _ENTRY_B])
-    out[:, _DIAGONAL] = 1 - out[:, _DIAGONAL]
-    return out.reshape(-1, 3, 3)
+    """Rotation matrices (n, 3, 3) from PyBullet quaternions (n, 4) in (x, y, z, w) order."""
+    x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    out = np.empty((len(q), 3, 3))
+    out[:, 0, 0] = 1 - 2 * (y * y + z * z)
+    out[:, 0, 1] = 2 * (x * y - z * w)
+    out[:, 0, 2] = 2 * (x * z + y * w)
+    out[:, 1, 0] = 2 * (x * y + z * w)
+    out[:, 1, 1] = 1 - 2 * (x * x + z * z)
+    out[:, 1, 2] = 2 * (y * z - x * w)
+    out[:, 2, 0] = 2 * (x * z - y * w)
+    out[:, 2, 1] = 2 * (y * z + x * w)
+    out[:, 2, 2] = 1 - 2 * (x * x + y * y)
+    return out
 
 
 class Simulator:
