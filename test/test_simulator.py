@@ -105,3 +105,17 @@ def test_a_trajectory_from_a_walk_prefix_equals_one_from_a_fresh_world(sim):
         assert np.array_equal(warm.com, fresh.com)
         assert np.array_equal(warm.joint_positions, fresh.joint_positions)
         assert warm.t_reflex == fresh.t_reflex and warm.fallen == fresh.fallen
+
+
+def test_quaternions_to_matrices_matches_pybullet():
+    """The measurement's quaternion conversion against PyBullet's own, and orthonormal."""
+    import pybullet
+
+    from fall_predictor.sim.simulator import quaternions_to_matrices
+    q = np.random.default_rng(13).normal(size=(500, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    rots = quaternions_to_matrices(q)
+    for quaternion, rot in zip(q[:50], rots[:50]):
+        assert np.allclose(np.array(pybullet.getMatrixFromQuaternion(quaternion)).reshape(3, 3), rot, atol=1e-12)
+    assert np.allclose(rots @ rots.transpose(0, 2, 1), np.eye(3), atol=1e-12)
+    assert np.allclose(np.linalg.det(rots), 1.0, atol=1e-12)
