@@ -209,7 +209,7 @@ def test_params_file_sections_match_under_the_namespace(robot: Robot) -> None:
     future = client.get_parameters(['max_sample_age_s', 'robot_mass_kg', 'use_sim_time'])
     assert robot.spin_until(future.done, 10.0)
     values = [v.double_value for v in future.result().values[:2]]
-    assert values == [0.15, 42.1]          # the user's override, and config/monitor.yaml
+    assert values == [0.15, 42.1]          # the user's override; the robot's mass (default)
     assert future.result().values[2].bool_value is False
     # QoS by parameters (rclpy's QoSOverridingOptions): the override made the predictor read
     # its features reliably; the feature node reads measurements best effort (REP 2003).

@@ -29,7 +29,8 @@ counters and reasons go to ``/diagnostics``.
 
 Parameters: ``model_path`` (default: the shipped model), ``tau_his_s`` (settable at run time;
 default: the model's recommended window), ``stale_timeout_s``, ``max_sample_age_s``,
-``robot_mass_kg`` (for the fall direction). A missing or invalid model file makes the node
+``robot_mass_kg`` (for the fall direction; default: the model's). With each falling state the
+time left until fallen comes from the model's regressor when the model has one (NaN otherwise). A missing or invalid model file makes the node
 refuse to start with one FATAL line (exit code 1).
 """
 from __future__ import annotations
@@ -67,9 +68,11 @@ _WATCHDOG_PERIOD_S = 0.05
 STALE_TIMEOUT = ParamSpec(
     'stale_timeout_s', 0.5, 'wall time [s] without valid features after which a degraded '
     'STALE state is published (and repeated every stale_timeout_s)', 0.01, 60.0)
-ROBOT_MASS = ParamSpec(
-    'robot_mass_kg', float(TOTAL_MASS_KG), 'total robot mass [kg]: turns the momentum feature '
-    'into a CoM velocity for the fall direction', 1.0, 1000.0, read_only=True)
+def robot_mass_param(default_kg: float) -> ParamSpec:
+    """The robot mass parameter, defaulting to the model's (else the simulated robot's)."""
+    return ParamSpec('robot_mass_kg', default_kg, 'total robot mass [kg]: turns the momentum '
+                     'feature into a CoM velocity for the fall direction; default: the model\'s',
+                     1.0, 1000.0, read_only=True)
 #: Feature settings this node uses, checked against the model's.
 SETTINGS = ('sample_period_s', 'guard_com_height_m')
 
@@ -87,16 +90,20 @@ class PredictorNode(Node):
     def __init__(self, **kwargs: object) -> None:
         super().__init__(NODE_NAME, **kwargs)
         p = declare_parameters(self, (MODEL_PATH, MAX_MODEL_BYTES, STALE_TIMEOUT, MAX_SAMPLE_AGE,
-                                      ROBOT_MASS, *feature_setting_params(SETTINGS)))
+                                      *feature_setting_params(SETTINGS)))
         lists, metadata, settings = load_model_for(self, str(p['model_path']),
                                                    {k: p[k] for k in SETTINGS},
                                                    int(p['max_model_bytes']))
         # Declared once the model is known: its recommended window is the default.
         recommended_s = min(metadata.recommended_tau_his_s or 0.0, MAX_TAU_HIS_S)
-        tau_his_s = float(declare_parameters(self, (tau_his_param(recommended_s),))['tau_his_s'])
+        model_mass_kg = getattr(metadata, 'robot_mass_kg', None) or float(TOTAL_MASS_KG)
+        q = declare_parameters(self, (tau_his_param(recommended_s), robot_mass_param(model_mass_kg)))
+        tau_his_s = float(q['tau_his_s'])
         self._stale_timeout_s = float(p['stale_timeout_s'])
         self._max_sample_age_s = float(p['max_sample_age_s'])
-        self._mass_kg = float(p['robot_mass_kg'])
+        self._mass_kg = float(q['robot_mass_kg'])
+        #: Time left until fallen, from the model when it has a regressor (None otherwise).
+        self._time_to_fall = getattr(metadata, 'time_to_fall', None)
         self._predictor = OnlinePredictor(lists, tau_his_s, settings.sample_period_s,
                                           settings.guard_com_height_m)
         self.add_post_set_parameters_callback(self._apply_parameters)
@@ -201,10 +208,14 @@ class PredictorNode(Node):
         was_latched = self._predictor.latched or self._trigger
         out = self._predictor.step(sample.t, sample.x, sample.mode)
         direction = (math.nan, math.nan)
+        time_to_fall_s = math.nan
         if out.falling:
             self.counts['falling_states'] += 1
             d = capture_point_direction(sample.x, self._mass_kg)
             direction = (float(d[0]), float(d[1]))
+            if self._time_to_fall is not None:
+                time_to_fall_s = min(max(float(self._time_to_fall.predict_one(
+                    sample.x.tolist(), sample.mode)), 0.0), 1e3)
             if not was_latched:
                 self.counts['falling_events'] += 1
                 if math.isfinite(direction[0]):
@@ -217,7 +228,7 @@ class PredictorNode(Node):
                                      guard=out.guard, latched=out.latched or self._trigger,
                                      contact_mode=sample.mode,
                                      tau_his_s=self._predictor.tau_his_s,
-                                     fall_direction=direction))
+                                     time_to_fall_s=time_to_fall_s, fall_direction=direction))
 
     def _publish_trigger(self, falling: bool) -> None:
         if falling != self._trigger or falling is False:
