@@ -163,12 +163,17 @@ def train_model(data_dir: PathLike, tau_plus_s: float, learner_name: str = 'tree
     report = load_dataset(data_dir, jobs, skip_unreadable, progress)
     require_outcomes(report.trajectories, data_dir, need_balanced=False)
     lists = fit_strided(report.trajectories, tau_plus_s, learner, sample_stride)
+    # Issue 12: the time-to-fall trees and the robot mass (fall direction) ship in the model.
+    from fall_predictor.data.dataset import robot_total_mass_kg
+    from fall_predictor.learning.time_to_fall_training import fit_time_to_fall
+    time_to_fall = fit_time_to_fall(report.trajectories, sample_stride)
     metadata = ModelMetadata(
         tau_plus_s=float(tau_plus_s), balanced_weight=BALANCED_WEIGHT,
         falling_weight=FALLING_WEIGHT, learner_name=type(learner).__name__,
         learner_params=learner.get_params(), dataset_fingerprint=report.fingerprint,
         recommended_tau_his_s=recommended_tau_his_s, sample_stride=sample_stride,
-        feature_settings=report.settings)
+        feature_settings=report.settings, robot_mass_kg=robot_total_mass_kg(data_dir),
+        time_to_fall=time_to_fall)
     return lists, metadata
 
 
