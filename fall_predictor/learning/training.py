@@ -98,14 +98,19 @@ def subsample(traj: TrajectoryFeatures, sample_stride: int) -> TrajectoryFeature
 def fit_strided(trajectories: Sequence[TrajectoryFeatures], tau_plus_s: float,
                 learner: RuleListLearner, sample_stride: int = DEFAULT_SAMPLE_STRIDE,
                 balanced_weight: float = BALANCED_WEIGHT,
-                falling_weight: float = FALLING_WEIGHT) -> PerModeDecisionLists:
-    """:func:`~fall_predictor.learning.learners.fit_predictor` on every ``sample_stride``-th sample.
+                falling_weight: float = FALLING_WEIGHT, mirror: bool = False) -> PerModeDecisionLists:
+    """:func:`~fall_predictor.learning.learners.fit_predictor` on every ``sample_stride``-th sample;
+    with ``mirror``, on the trajectories and their left-right mirror images
+    (:mod:`fall_predictor.learning.mirror`, issue 12).
 
     The class weights (per 1 kHz sample) are multiplied by ``sample_stride`` so that the
     weight per second of trajectory, and so the 4:1 ratio per unit time, is unchanged.
     ``tau_plus_s`` [s] as in SPEC §8.
     """
     sample_stride = check_sample_stride(sample_stride)
+    if mirror:
+        from fall_predictor.learning.mirror import with_mirror_images
+        trajectories = with_mirror_images(trajectories)
     return fit_predictor([subsample(traj, sample_stride) for traj in trajectories], tau_plus_s,
                          learner, balanced_weight * sample_stride, falling_weight * sample_stride)
 
