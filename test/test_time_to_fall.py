@@ -120,3 +120,14 @@ def test_summary():
     s = summary([3.0, 1.0, math.nan, 2.0])
     assert s == {'median': 2.0, 'p90': pytest.approx(2.8), 'max': 3.0, 'n': 3}
     assert summary([])['median'] is None
+
+
+def test_momentum_direction_is_the_horizontal_momentum():
+    from fall_predictor.monitor.fall_direction import momentum_direction
+    x = [0.0] * N_FEATURES
+    x[3], x[4], x[5] = 3.0, -4.0, 7.0
+    np.testing.assert_allclose(momentum_direction(x, 42.0), [0.6, -0.8, 0.0])
+    x[3] = x[4] = 0.0
+    assert np.isnan(momentum_direction(x, 42.0)).all()
+    with pytest.raises(ValueError):
+        momentum_direction(x, 0.0)

@@ -178,6 +178,8 @@ class ModelEvaluation:
     time_to_fall_error_s: Optional[dict[str, Any]] = None
     #: capture-point fall direction's angular error [deg] at the triggers: {median, p90, max, n}
     direction_error_deg: Optional[dict[str, Any]] = None
+    #: the same for the capture-point direction (the physical default, less accurate here)
+    direction_error_deg_capture_point: Optional[dict[str, Any]] = None
 
 
 def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: float,
@@ -201,7 +203,7 @@ def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: f
     if baselines:
         distances = capture_point_distances_cached(data_dir, trajectories, jobs, progress)
         curves = baseline_curves(trajectories, distances)
-    ttf_error = direction_error = None
+    ttf_error = direction_error = cp_error = None
     if time_to_fall is not None or robot_mass_kg is not None:
         from fall_predictor.learning import when_where
         triggers = when_where.trigger_indices(trajectories, lists, tau_his_s)
@@ -209,10 +211,11 @@ def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: f
             ttf_error = when_where.summary(
                 when_where.time_to_fall_errors(trajectories, triggers, time_to_fall))
         if robot_mass_kg is not None:
-            direction_error = when_where.summary(
-                when_where.direction_errors_deg(data_dir, trajectories, triggers, robot_mass_kg))
+            direction_error, cp_error = (when_where.summary(when_where.direction_errors_deg(
+                data_dir, trajectories, triggers, robot_mass_kg, name))
+                for name in ('momentum', 'capture_point'))
     return ModelEvaluation(result, float(tau_his_s), report.fingerprint, dict(report.errors),
-                           curves, ttf_error, direction_error)
+                           curves, ttf_error, direction_error, cp_error)
 
 
 def evaluation_json(evaluation: ModelEvaluation) -> dict[str, Any]:
@@ -223,7 +226,8 @@ def evaluation_json(evaluation: ModelEvaluation) -> dict[str, Any]:
         'dataset_fingerprint': evaluation.dataset_fingerprint,
         'unreadable': evaluation.unreadable,
         'time_to_fall_error_s': evaluation.time_to_fall_error_s,
-        'direction_error_deg': evaluation.direction_error_deg}
+        'direction_error_deg': evaluation.direction_error_deg,
+        'direction_error_deg_capture_point': evaluation.direction_error_deg_capture_point}
     if evaluation.baselines is not None:
         payload['baselines'] = {name: [curve_point_json(p) for p in pareto_front(curve)]
                                 for name, curve in evaluation.baselines.named().items()}

@@ -5,9 +5,10 @@ at or after the push and before ``t_fallen``), at the trigger sample ``k``:
 
 * **time to fall**: ``|predicted - (t_fallen - t_k)|`` [s], the prediction from the model's
   :class:`~fall_predictor.monitor.time_to_fall.TimeToFallRegressor`;
-* **direction**: the angle [deg] between
-  :func:`~fall_predictor.monitor.fall_direction.capture_point_direction` of the trigger sample
-  and the direction the CoM actually left in: its horizontal displacement (world frame) from
+* **direction**: the angle [deg] between the predicted direction of the trigger sample
+  (:func:`~fall_predictor.monitor.fall_direction.momentum_direction`, reported as
+  ``direction_error_deg``; :func:`~fall_predictor.monitor.fall_direction.capture_point_direction`
+  as ``direction_error_deg_capture_point``) and the direction the CoM actually left in: its horizontal displacement (world frame) from
   ``t_k`` to ``t_fallen``, turned into the heading frame of ``t_k``. The CoM and heading come
   from the bags (the features are CoP-relative), cached as ``DATA/cache/com_<id>.npz``.
 
@@ -25,7 +26,8 @@ import numpy as np
 from fall_predictor.data.cache import cached_arrays
 from fall_predictor.data.dataset import DatasetError, read_index
 from fall_predictor.monitor.decision_list import PerModeDecisionLists
-from fall_predictor.monitor.fall_direction import angular_error_rad, capture_point_direction
+from fall_predictor.monitor.fall_direction import (angular_error_rad, capture_point_direction,
+                                                   momentum_direction)
 from fall_predictor.monitor.predictor import predict_trajectory
 from fall_predictor.monitor.records import TrajectoryFeatures
 from fall_predictor.monitor.time_to_fall import TimeToFallRegressor
@@ -102,9 +104,15 @@ def actual_direction(com_xy: np.ndarray, heading: np.ndarray, t: np.ndarray, k: 
     return np.array([hx / norm, hy / norm]) if norm > 0.0 else np.full(2, np.nan)
 
 
+DIRECTIONS = {'momentum': momentum_direction, 'capture_point': capture_point_direction}
+
+
 def direction_errors_deg(data_dir: PathLike, trajectories: Sequence[TrajectoryFeatures],
-                         triggers: Sequence[Optional[int]], mass_kg: float) -> list[float]:
-    """Angular error [deg] of the capture-point direction at each trigger."""
+                         triggers: Sequence[Optional[int]], mass_kg: float,
+                         direction: str = 'momentum') -> list[float]:
+    """Angular error [deg] of a predicted fall direction (a name of :data:`DIRECTIONS`) at
+    each trigger."""
+    predict = DIRECTIONS[direction]
     data_dir = Path(data_dir)
     bags = {row.trajectory_id: row.bag for row in read_index(data_dir)}
     errors = []
@@ -115,7 +123,7 @@ def direction_errors_deg(data_dir: PathLike, trajectories: Sequence[TrajectoryFe
         if com['com_xy'].shape[0] != traj.t.size:
             raise DatasetError(f'{traj.trajectory_id}: CoM samples do not match the features')
         actual = actual_direction(com['com_xy'], com['heading'], traj.t, k, traj.t_fallen)
-        predicted = capture_point_direction(traj.X[k].tolist(), mass_kg)
+        predicted = predict(traj.X[k].tolist(), mass_kg)
         if np.all(np.isfinite(actual)) and np.all(np.isfinite(predicted)):
             errors.append(math.degrees(angular_error_rad(predicted, actual)))
     return errors
