@@ -198,6 +198,7 @@ def cmd_rules(args) -> int:
 def cmd_evaluate(args) -> int:
     from fall_predictor.data.dataset import DatasetError
     from fall_predictor.learning.evaluation import evaluate_model, evaluation_json
+    from fall_predictor.learning.when_where import when_where_lines
     from fall_predictor.monitor.model_file import ModelFileError, load_model
 
     try:
@@ -207,7 +208,8 @@ def cmd_evaluate(args) -> int:
             return _fail('evaluate', f'{args.model} recommends no tau_his: give --tau-his')
         evaluation = evaluate_model(args.data, lists, tau_his, baselines=args.baselines,
                                     jobs=args.jobs, skip_unreadable=args.skip_unreadable,
-                                    progress=not args.json)
+                                    progress=not args.json, time_to_fall=metadata.time_to_fall,
+                                    robot_mass_kg=metadata.robot_mass_kg)
     except (DatasetError, ModelFileError) as error:
         return _fail('evaluate', error)
     payload = {'model': str(args.model), 'data': str(args.data), **evaluation_json(evaluation),
@@ -225,6 +227,7 @@ def cmd_evaluate(args) -> int:
              f'pre-push false alarms: {r.n_pre_push_alarms_balanced} balanced, '
              f'{r.n_pre_push_alarms_fallen} fallen trajectories',
              f'mean rule size {r.mean_rule_size:.2f}']
+    lines += when_where_lines(payload)
     if payload['trained_on_this_dataset']:
         lines.append('warning: the model was trained on this dataset; these numbers are not a '
                      'held-out estimate (use `fall-predictor sweep` for cross-validation)')
@@ -311,8 +314,7 @@ def cmd_import_bags(args) -> int:
     try:
         report = import_recordings(args.bags, args.out)
     except DatasetError as error:
-        print(f'fall-predictor import-bags: error: {error}', file=sys.stderr)
-        return 2
+        return _fail('import-bags', error)
     payload = {'out': str(args.out), 'imported': len(report.rows),
                'fallen': sum(r.fallen for r in report.rows), 'rejected': report.rejected}
     lines = [f'{len(report.rows)} recordings imported into {args.out} ({payload["fallen"]} fallen)']

@@ -174,13 +174,22 @@ class ModelEvaluation:
     dataset_fingerprint: str
     unreadable: dict[str, str]             #: trajectories left out (unreadable bags)
     baselines: Optional[BaselineCurves] = None
+    #: |predicted - true| time to fall [s] at the triggers: {median, p90, max, n} (issue 12)
+    time_to_fall_error_s: Optional[dict[str, Any]] = None
+    #: capture-point fall direction's angular error [deg] at the triggers: {median, p90, max, n}
+    direction_error_deg: Optional[dict[str, Any]] = None
+    #: the same for the capture-point direction (the physical default, less accurate here)
+    direction_error_deg_capture_point: Optional[dict[str, Any]] = None
 
 
 def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: float,
                    baselines: bool = False, jobs: int = 1, skip_unreadable: bool = False,
-                   progress: bool = False) -> ModelEvaluation:
+                   progress: bool = False, time_to_fall: Optional[Any] = None,
+                   robot_mass_kg: Optional[float] = None) -> ModelEvaluation:
     """SPEC §5 metrics of the predictor ``lists`` with history window ``tau_his_s`` [s] over
     every trajectory of ``data_dir``; with ``baselines``, the hand-coded baselines too.
+    With a ``time_to_fall`` regressor and/or ``robot_mass_kg`` [kg], the time-to-fall and
+    fall-direction errors at the triggers (:mod:`fall_predictor.learning.when_where`).
 
     No cross-validation: use a dataset the model was not trained on (or
     :func:`~fall_predictor.learning.sweep.run_sweep`).
@@ -194,8 +203,19 @@ def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: f
     if baselines:
         distances = capture_point_distances_cached(data_dir, trajectories, jobs, progress)
         curves = baseline_curves(trajectories, distances)
+    ttf_error = direction_error = cp_error = None
+    if time_to_fall is not None or robot_mass_kg is not None:
+        from fall_predictor.learning import when_where
+        triggers = when_where.trigger_indices(trajectories, lists, tau_his_s)
+        if time_to_fall is not None:
+            ttf_error = when_where.summary(
+                when_where.time_to_fall_errors(trajectories, triggers, time_to_fall))
+        if robot_mass_kg is not None:
+            direction_error, cp_error = (when_where.summary(when_where.direction_errors_deg(
+                data_dir, trajectories, triggers, robot_mass_kg, name))
+                for name in ('momentum', 'capture_point'))
     return ModelEvaluation(result, float(tau_his_s), report.fingerprint, dict(report.errors),
-                           curves)
+                           curves, ttf_error, direction_error, cp_error)
 
 
 def evaluation_json(evaluation: ModelEvaluation) -> dict[str, Any]:
@@ -204,7 +224,10 @@ def evaluation_json(evaluation: ModelEvaluation) -> dict[str, Any]:
         'tau_his_s': evaluation.tau_his_s, **evaluation_result_json(evaluation.result),
         'n_pre_push_alarms': evaluation.result.n_pre_push_alarms,
         'dataset_fingerprint': evaluation.dataset_fingerprint,
-        'unreadable': evaluation.unreadable}
+        'unreadable': evaluation.unreadable,
+        'time_to_fall_error_s': evaluation.time_to_fall_error_s,
+        'direction_error_deg': evaluation.direction_error_deg,
+        'direction_error_deg_capture_point': evaluation.direction_error_deg_capture_point}
     if evaluation.baselines is not None:
         payload['baselines'] = {name: [curve_point_json(p) for p in pareto_front(curve)]
                                 for name, curve in evaluation.baselines.named().items()}

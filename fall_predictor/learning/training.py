@@ -98,14 +98,19 @@ def subsample(traj: TrajectoryFeatures, sample_stride: int) -> TrajectoryFeature
 def fit_strided(trajectories: Sequence[TrajectoryFeatures], tau_plus_s: float,
                 learner: RuleListLearner, sample_stride: int = DEFAULT_SAMPLE_STRIDE,
                 balanced_weight: float = BALANCED_WEIGHT,
-                falling_weight: float = FALLING_WEIGHT) -> PerModeDecisionLists:
-    """:func:`~fall_predictor.learning.learners.fit_predictor` on every ``sample_stride``-th sample.
+                falling_weight: float = FALLING_WEIGHT, mirror: bool = False) -> PerModeDecisionLists:
+    """:func:`~fall_predictor.learning.learners.fit_predictor` on every ``sample_stride``-th sample;
+    with ``mirror``, on the trajectories and their left-right mirror images
+    (:mod:`fall_predictor.learning.mirror`, issue 12).
 
     The class weights (per 1 kHz sample) are multiplied by ``sample_stride`` so that the
     weight per second of trajectory, and so the 4:1 ratio per unit time, is unchanged.
     ``tau_plus_s`` [s] as in SPEC §8.
     """
     sample_stride = check_sample_stride(sample_stride)
+    if mirror:
+        from fall_predictor.learning.mirror import with_mirror_images
+        trajectories = with_mirror_images(trajectories)
     return fit_predictor([subsample(traj, sample_stride) for traj in trajectories], tau_plus_s,
                          learner, balanced_weight * sample_stride, falling_weight * sample_stride)
 
@@ -163,12 +168,17 @@ def train_model(data_dir: PathLike, tau_plus_s: float, learner_name: str = 'tree
     report = load_dataset(data_dir, jobs, skip_unreadable, progress)
     require_outcomes(report.trajectories, data_dir, need_balanced=False)
     lists = fit_strided(report.trajectories, tau_plus_s, learner, sample_stride)
+    # Issue 12: the time-to-fall trees and the robot mass (fall direction) ship in the model.
+    from fall_predictor.data.dataset import robot_total_mass_kg
+    from fall_predictor.learning.time_to_fall_training import fit_time_to_fall
+    time_to_fall = fit_time_to_fall(report.trajectories, sample_stride)
     metadata = ModelMetadata(
         tau_plus_s=float(tau_plus_s), balanced_weight=BALANCED_WEIGHT,
         falling_weight=FALLING_WEIGHT, learner_name=type(learner).__name__,
         learner_params=learner.get_params(), dataset_fingerprint=report.fingerprint,
         recommended_tau_his_s=recommended_tau_his_s, sample_stride=sample_stride,
-        feature_settings=report.settings)
+        feature_settings=report.settings, robot_mass_kg=robot_total_mass_kg(data_dir),
+        time_to_fall=time_to_fall)
     return lists, metadata
 
 

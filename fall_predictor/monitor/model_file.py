@@ -1,10 +1,10 @@
 """The model file: a learned predictor's decision lists and provenance as plain JSON.
 
-Layout (schema ``fall_predictor.decision_lists``, version 2)::
+Layout (schema ``fall_predictor.decision_lists``, version 3)::
 
     {
       "schema": "fall_predictor.decision_lists",
-      "schema_version": 2,
+      "schema_version": 3,
       "feature_names": ["com_x", ..., "d_ang_mom_z"],          # must equal FEATURE_NAMES
       "contact_mode_names": ["LR-INSIDE", ..., "OUTSIDE"],    # must equal CONTACT_MODE_NAMES
       "lists": [                                              # one per contact mode, in order
@@ -19,8 +19,17 @@ Layout (schema ``fall_predictor.decision_lists``, version 2)::
                    "sample_stride": 10, "learner": {"name": "TreeListLearner", "params": {...}}},
       "recommended_tau_his_s": 0.06,                          # or null
       "dataset_fingerprint": "...",
-      "created": {"utc": "2025-01-01T00:00:00Z", "package_version": "0.1.0"}
+      "created": {"utc": "2025-01-01T00:00:00Z", "package_version": "0.1.0"},
+      "robot_mass_kg": 42.1,                                  # or null (version 3)
+      "time_to_fall": {"trees": [...16, tree or null], "fallback": tree}   # or null (version 3)
     }
+
+Version 3 added ``robot_mass_kg`` (for the capture-point fall direction,
+:mod:`fall_predictor.monitor.fall_direction`) and ``time_to_fall`` (the per-mode regression
+trees of :mod:`fall_predictor.monitor.time_to_fall`); version 2 files still load, with both
+None. :func:`load_model` returns them as ``metadata.robot_mass_kg`` and
+``metadata.time_to_fall`` (a :class:`~fall_predictor.monitor.time_to_fall.TimeToFallRegressor`:
+``metadata.time_to_fall.predict_one(x, mode)`` is the seconds left until fallen).
 
 ``feature`` is a column index into ``feature_names``; ``op`` is ``"<="`` or ``">"``.
 Loading only parses JSON (never executes anything) and validates every field: a malformed or
@@ -43,11 +52,14 @@ from fall_predictor.monitor.features import FeatureSettings
 from fall_predictor.monitor.fileio import atomic_output, read_regular_file
 from fall_predictor.monitor.decision_list import (COMPARISON_OPS, Condition, DecisionList,
                                           PerModeDecisionLists, Rule)
+from fall_predictor.monitor.time_to_fall import TimeToFallError, TimeToFallRegressor
 from fall_predictor.monitor.records import (BALANCED, CLASS_NAMES, CONTACT_MODE_NAMES, FALLING,
                                     FEATURE_NAMES, N_CONTACT_MODES, N_FEATURES)
 
 SCHEMA_NAME = 'fall_predictor.decision_lists'
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
+#: Older versions this reader still accepts (version 2: no robot mass, no time to fall).
+SUPPORTED_SCHEMA_VERSIONS = (2, 3)
 _CLASS_BY_NAME = {CLASS_NAMES[BALANCED]: BALANCED, CLASS_NAMES[FALLING]: FALLING}
 
 PathLike = Union[str, 'os.PathLike[str]']
@@ -83,6 +95,10 @@ class ModelMetadata:
     feature_settings: FeatureSettings = field(default_factory=FeatureSettings)
     created_utc: str = field(default_factory=_utc_now)
     package_version: str = __version__
+    #: Total robot mass [kg] of the training data (None in version-2 files).
+    robot_mass_kg: Optional[float] = None
+    #: Seconds left until fallen, per contact mode (None: the model has none).
+    time_to_fall: Optional[TimeToFallRegressor] = field(default=None, compare=False)
 
 
 def _model_document(lists: PerModeDecisionLists, metadata: ModelMetadata) -> dict[str, Any]:
@@ -109,6 +125,8 @@ def _model_document(lists: PerModeDecisionLists, metadata: ModelMetadata) -> dic
         'recommended_tau_his_s': metadata.recommended_tau_his_s,
         'dataset_fingerprint': metadata.dataset_fingerprint,
         'created': {'utc': metadata.created_utc, 'package_version': metadata.package_version},
+        'robot_mass_kg': metadata.robot_mass_kg,
+        'time_to_fall': None if metadata.time_to_fall is None else metadata.time_to_fall.to_json(),
     }
 
 
@@ -209,11 +227,24 @@ def _parse_model(text: str, path: Path) -> tuple[PerModeDecisionLists, ModelMeta
     if schema != SCHEMA_NAME:
         raise read.fail('schema', f'expected {SCHEMA_NAME!r}, got {schema!r}')
     version = document.get('schema_version')
-    if version != SCHEMA_VERSION or isinstance(version, bool):
-        raise read.fail('schema_version', f'unsupported version {version!r}; this reader supports {SCHEMA_VERSION}')
+    if version not in SUPPORTED_SCHEMA_VERSIONS or isinstance(version, bool):
+        raise read.fail('schema_version', f'unsupported version {version!r}; this reader supports '
+                                          f'{list(SUPPORTED_SCHEMA_VERSIONS)}')
     read.object(document, 'top level', ('schema', 'schema_version', 'feature_names',
                                          'contact_mode_names', 'lists', 'features', 'training',
-                                         'recommended_tau_his_s', 'dataset_fingerprint', 'created'))
+                                         'recommended_tau_his_s', 'dataset_fingerprint', 'created')
+                + (('robot_mass_kg', 'time_to_fall') if version >= 3 else ()))
+    mass = document.get('robot_mass_kg')
+    if mass is not None:
+        mass = read.number(mass, 'robot_mass_kg')
+        if mass <= 0.0:
+            raise read.fail('robot_mass_kg', f'must be > 0, got {mass!r}')
+    time_to_fall = document.get('time_to_fall')
+    if time_to_fall is not None:
+        try:
+            time_to_fall = TimeToFallRegressor.from_json(time_to_fall)
+        except TimeToFallError as error:
+            raise read.fail('time_to_fall', str(error)) from error
     if document['feature_names'] != list(FEATURE_NAMES):
         raise read.fail('feature_names', f'expected {list(FEATURE_NAMES)}, got {document["feature_names"]!r}')
     if document['contact_mode_names'] != list(CONTACT_MODE_NAMES):
@@ -285,5 +316,6 @@ def _parse_model(text: str, path: Path) -> tuple[PerModeDecisionLists, ModelMeta
         dataset_fingerprint=read.string(document['dataset_fingerprint'], 'dataset_fingerprint'),
         recommended_tau_his_s=tau_his, sample_stride=stride, feature_settings=feature_settings,
         created_utc=read.string(created['utc'], 'created.utc'),
-        package_version=read.string(created['package_version'], 'created.package_version'))
+        package_version=read.string(created['package_version'], 'created.package_version'),
+        robot_mass_kg=mass, time_to_fall=time_to_fall)
     return PerModeDecisionLists(tuple(lists)), metadata

@@ -1,0 +1,53 @@
+"""Mirror augmentation (issue 12 item 8): every trajectory also as its left-right mirror image.
+
+Reflecting the world in the robot's sagittal plane (y -> -y in the heading frame) maps a
+trajectory of the robot onto one of a mirrored robot, which for a left-right symmetric robot
+is as plausible as the original. Under the reflection
+
+* polar vectors flip their y component: ``com_y``, ``lin_mom_y``, ``d_lin_mom_y``;
+* axial vectors (angular momentum and its rate) flip their x and z components;
+* the contact modes swap feet and sides: ``L-FRONT-LEFT <-> R-FRONT-RIGHT``,
+  ``L-INSIDE <-> R-INSIDE``; the LR modes and OUTSIDE map to themselves;
+* the left and right foot forces swap.
+
+Training on the union gives the sparse single-support modes (e.g. L-INSIDE, which had no rule
+while R-INSIDE had one) the other foot's examples.
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Sequence
+
+import numpy as np
+
+from fall_predictor.monitor.records import CONTACT_MODE_NAMES, FEATURE_NAMES, TrajectoryFeatures
+
+_FLIPPED = ('com_y', 'lin_mom_y', 'd_lin_mom_y', 'ang_mom_x', 'ang_mom_z', 'd_ang_mom_x',
+            'd_ang_mom_z')
+#: Per feature, +1 or -1 under the left-right reflection.
+MIRROR_SIGNS = np.array([-1.0 if name in _FLIPPED else 1.0 for name in FEATURE_NAMES])
+
+
+def _mirror_mode_name(name: str) -> str:
+    parts = name.split('-')
+    swap = {'L': 'R', 'R': 'L', 'LEFT': 'RIGHT', 'RIGHT': 'LEFT'}
+    return '-'.join(swap.get(p, p) for p in parts)
+
+
+#: ``MIRROR_MODES[m]`` is the index of mode ``m``'s mirror image (an involution).
+MIRROR_MODES = np.array([CONTACT_MODE_NAMES.index(_mirror_mode_name(n)) for n in CONTACT_MODE_NAMES])
+
+
+def mirror_trajectory(traj: TrajectoryFeatures) -> TrajectoryFeatures:
+    """The left-right mirror image of ``traj`` (id suffixed ``'-mirror'``)."""
+    foot_force = traj.foot_force_n
+    if foot_force is not None:
+        foot_force = np.asarray(foot_force)[:, ::-1].copy()
+    return dataclasses.replace(traj, trajectory_id=f'{traj.trajectory_id}-mirror',
+                               X=np.asarray(traj.X) * MIRROR_SIGNS,
+                               mode=MIRROR_MODES[np.asarray(traj.mode)], foot_force_n=foot_force)
+
+
+def with_mirror_images(trajectories: Sequence[TrajectoryFeatures]) -> list[TrajectoryFeatures]:
+    """The trajectories followed by their mirror images (for training only)."""
+    return list(trajectories) + [mirror_trajectory(traj) for traj in trajectories]

@@ -1,0 +1,140 @@
+"""When and where the robot falls, judged at trigger time (issue 12, items 6 and 7).
+
+For every fallen trajectory on which the predictor triggers in time (its first falling output
+at or after the push and before ``t_fallen``), at the trigger sample ``k``:
+
+* **time to fall**: ``|predicted - (t_fallen - t_k)|`` [s], the prediction from the model's
+  :class:`~fall_predictor.monitor.time_to_fall.TimeToFallRegressor`;
+* **direction**: the angle [deg] between the predicted direction of the trigger sample
+  (:func:`~fall_predictor.monitor.fall_direction.momentum_direction`, reported as
+  ``direction_error_deg``; :func:`~fall_predictor.monitor.fall_direction.capture_point_direction`
+  as ``direction_error_deg_capture_point``) and the direction the CoM actually left in: its horizontal displacement (world frame) from
+  ``t_k`` to ``t_fallen``, turned into the heading frame of ``t_k``. The CoM and heading come
+  from the bags (the features are CoP-relative), cached as ``DATA/cache/com_<id>.npz``.
+
+Each is summarised as ``{median, p90, max, n}`` (NaN/None when no trajectory qualifies).
+"""
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+from typing import Any, Optional, Sequence, Union
+
+import numpy as np
+
+from fall_predictor.data.cache import cached_arrays
+from fall_predictor.data.dataset import DatasetError, read_index
+from fall_predictor.monitor.decision_list import PerModeDecisionLists
+from fall_predictor.monitor.fall_direction import (angular_error_rad, capture_point_direction,
+                                                   momentum_direction)
+from fall_predictor.monitor.predictor import predict_trajectory
+from fall_predictor.monitor.records import TrajectoryFeatures
+from fall_predictor.monitor.time_to_fall import TimeToFallRegressor
+
+PathLike = Union[str, 'os.PathLike[str]']
+COM_CACHE_FORMAT = 'fall_predictor/com-heading-cache/v1'
+
+
+def trigger_indices(trajectories: Sequence[TrajectoryFeatures], lists: PerModeDecisionLists,
+                    tau_his_s: float) -> list[Optional[int]]:
+    """Per trajectory, the sample index of the in-time trigger on a fallen trajectory (first
+    falling output in ``[t_push, t_fallen)``, CoM guard on), else None."""
+    out: list[Optional[int]] = []
+    for traj in trajectories:
+        if not traj.fallen:
+            out.append(None)
+            continue
+        falling = predict_trajectory(lists, traj.X, traj.mode, traj.t, tau_his_s).falling
+        hits = np.flatnonzero(falling & (traj.t >= traj.t_push) & (traj.t < traj.t_fallen))
+        out.append(int(hits[0]) if hits.size else None)
+    return out
+
+
+def summary(values: Sequence[float]) -> dict[str, Any]:
+    """``{median, p90, max, n}`` of the finite values (None when there are none)."""
+    v = np.asarray([x for x in values if math.isfinite(x)], dtype=float)
+    if v.size == 0:
+        return {'median': None, 'p90': None, 'max': None, 'n': 0}
+    return {'median': float(np.median(v)), 'p90': float(np.percentile(v, 90)),
+            'max': float(v.max()), 'n': int(v.size)}
+
+
+def time_to_fall_errors(trajectories: Sequence[TrajectoryFeatures], triggers: Sequence[Optional[int]],
+                        regressor: TimeToFallRegressor) -> list[float]:
+    """Absolute time-to-fall error [s] at each trigger."""
+    errors = []
+    for traj, k in zip(trajectories, triggers):
+        if k is None:
+            continue
+        predicted = regressor.predict_one(traj.X[k].tolist(), int(traj.mode[k]))
+        errors.append(abs(predicted - (traj.t_fallen - traj.t[k])))
+    return errors
+
+
+def _com_entry(data_dir: Path, bag: str, trajectory_id: str) -> dict[str, np.ndarray]:
+    from fall_predictor.data.bagio import BagError, read_trajectory
+
+    bag_dir = data_dir / bag
+
+    def from_bag() -> dict[str, np.ndarray]:
+        ms = read_trajectory(bag_dir).measurements
+        return {'com_xy': np.array([m.com[:2] for m in ms]).reshape(len(ms), 2),
+                'heading': np.array([m.heading for m in ms])}
+
+    try:
+        arrays, _ = cached_arrays(data_dir / 'cache' / f'com_{trajectory_id}.npz', bag_dir,
+                                  COM_CACHE_FORMAT, from_bag)
+    except OSError as error:
+        raise DatasetError(f'{bag_dir}: {error}') from error
+    except BagError as error:
+        raise DatasetError(str(error)) from error
+    return arrays
+
+
+def actual_direction(com_xy: np.ndarray, heading: np.ndarray, t: np.ndarray, k: int,
+                     t_fallen: float) -> np.ndarray:
+    """Unit (2,) heading-frame direction of the CoM's displacement from sample ``k`` to
+    ``t_fallen`` (heading of sample ``k``)."""
+    j = min(int(np.searchsorted(t, t_fallen)), t.size - 1)
+    dx, dy = com_xy[j] - com_xy[k]
+    c, s = math.cos(heading[k]), math.sin(heading[k])
+    hx, hy = c * dx + s * dy, -s * dx + c * dy
+    norm = math.hypot(hx, hy)
+    return np.array([hx / norm, hy / norm]) if norm > 0.0 else np.full(2, np.nan)
+
+
+DIRECTIONS = {'momentum': momentum_direction, 'capture_point': capture_point_direction}
+
+
+def direction_errors_deg(data_dir: PathLike, trajectories: Sequence[TrajectoryFeatures],
+                         triggers: Sequence[Optional[int]], mass_kg: float,
+                         direction: str = 'momentum') -> list[float]:
+    """Angular error [deg] of a predicted fall direction (a name of :data:`DIRECTIONS`) at
+    each trigger."""
+    predict = DIRECTIONS[direction]
+    data_dir = Path(data_dir)
+    bags = {row.trajectory_id: row.bag for row in read_index(data_dir)}
+    errors = []
+    for traj, k in zip(trajectories, triggers):
+        if k is None:
+            continue
+        com = _com_entry(data_dir, bags[traj.trajectory_id], traj.trajectory_id)
+        if com['com_xy'].shape[0] != traj.t.size:
+            raise DatasetError(f'{traj.trajectory_id}: CoM samples do not match the features')
+        actual = actual_direction(com['com_xy'], com['heading'], traj.t, k, traj.t_fallen)
+        predicted = predict(traj.X[k].tolist(), mass_kg)
+        if np.all(np.isfinite(actual)) and np.all(np.isfinite(predicted)):
+            errors.append(math.degrees(angular_error_rad(predicted, actual)))
+    return errors
+
+
+def when_where_lines(payload: dict[str, Any]) -> list[str]:
+    """Text lines for the ``time_to_fall_error_s`` / ``direction_error_deg`` of an evaluation."""
+    lines = []
+    for key, unit in (('time_to_fall_error_s', 's'), ('direction_error_deg', 'deg')):
+        e = payload.get(key)
+        if e is not None and e['n']:
+            lines.append(f'{key}: median {e["median"]:.3f} {unit}, p90 {e["p90"]:.3f}, max '
+                         f'{e["max"]:.3f} over {e["n"]} triggers')
+    return lines

@@ -1,0 +1,50 @@
+"""Mirror augmentation (issue 12 item 8) against the reflection y -> -y."""
+import numpy as np
+
+from fall_predictor.learning.learners import TreeListLearner
+from fall_predictor.learning.mirror import MIRROR_MODES, MIRROR_SIGNS, mirror_trajectory
+from fall_predictor.learning.training import fit_strided
+from fall_predictor.monitor.contact_modes import ContactMode as M
+from fall_predictor.monitor.records import FALLING, BALANCED, FEATURE_NAMES, N_FEATURES
+from synthetic_trajectories import FALLING_MODE, LIN_MOM_Y, make_dataset
+
+
+def test_mode_map_is_the_reflection():
+    pairs = {M.L_FRONT_LEFT: M.R_FRONT_RIGHT, M.L_INSIDE: M.R_INSIDE, M.L_BACK: M.R_BACK,
+             M.L_LEFT: M.R_RIGHT, M.LR_FRONT: M.LR_FRONT, M.OUTSIDE: M.OUTSIDE}
+    for a, b in pairs.items():
+        assert MIRROR_MODES[a] == b and MIRROR_MODES[b] == a
+    np.testing.assert_array_equal(MIRROR_MODES[MIRROR_MODES], np.arange(16))
+
+
+def test_feature_signs_follow_polar_and_axial_vectors():
+    # r x p with y reflected: polar y flips; axial x and z flip.
+    r, p = np.array([0.1, 0.2, 0.6]), np.array([3.0, -2.0, 0.5])
+    reflect = np.diag([1.0, -1.0, 1.0])
+    L = np.cross(r, p)
+    L_mirror = np.cross(reflect @ r, reflect @ p)
+    signs = dict(zip(FEATURE_NAMES, MIRROR_SIGNS))
+    np.testing.assert_allclose(L_mirror, L * [signs['ang_mom_x'], signs['ang_mom_y'], signs['ang_mom_z']])
+    np.testing.assert_allclose(reflect @ r, r * [signs['com_x'], signs['com_y'], signs['com_z']])
+    assert MIRROR_SIGNS.shape == (N_FEATURES,)
+
+
+def test_mirrored_data_teaches_the_mirrored_rule():
+    trajectories = make_dataset(4, 4, seed=5)
+    mirrored = [mirror_trajectory(t) for t in trajectories]
+    assert mirrored[0].trajectory_id.endswith('-mirror')
+    np.testing.assert_array_equal(mirror_trajectory(mirrored[0]).X, trajectories[0].X)
+    learner = TreeListLearner(max_depth=2)
+    lists = fit_strided(mirrored, 0.0, learner, sample_stride=10)
+    # The L-LEFT rule "lin_mom_y > ~4.5" becomes the R-RIGHT rule "lin_mom_y < ~-4.5".
+    x = np.zeros((2, N_FEATURES))
+    x[:, 2] = 0.59
+    x[0, LIN_MOM_Y], x[1, LIN_MOM_Y] = -6.5, 6.5
+    right = np.full(2, MIRROR_MODES[FALLING_MODE])
+    np.testing.assert_array_equal(lists.predict(x, right), [FALLING, BALANCED])
+    assert not lists.lists[FALLING_MODE].rules
+    # With the augmentation both feet get the rule.
+    both = fit_strided(trajectories, 0.0, learner, sample_stride=10, mirror=True)
+    np.testing.assert_array_equal(both.predict(x, right), [FALLING, BALANCED])
+    x[:, LIN_MOM_Y] *= -1
+    np.testing.assert_array_equal(both.predict(x, np.full(2, FALLING_MODE)), [FALLING, BALANCED])
