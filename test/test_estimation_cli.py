@@ -72,3 +72,16 @@ def test_summary_of_known_errors():
     assert s['com_m']['post_push_median'] == pytest.approx(0.015)
     assert s['cop_m']['median'] is None
     assert s['contact_mode_agreement'] == 0.75
+
+
+def test_the_sensor_topic_table_is_consistent():
+    from fall_predictor.data.topics import (LATCHED_QOS, SENSOR_TOPICS, SENSOR_TOPICS_BY_NAME, SIM_RATE_HZ,
+                                            STREAM_QOS, TOPICS_BY_NAME)
+    assert len(SENSOR_TOPICS_BY_NAME) == len(SENSOR_TOPICS) == 6
+    for spec in SENSOR_TOPICS:
+        assert spec.qos == (STREAM_QOS if spec.rate_hz == SIM_RATE_HZ else LATCHED_QOS), spec.name
+        # /joint_states is the same topic and type as the base table's, at 1 kHz.
+        if spec.name in TOPICS_BY_NAME:
+            assert TOPICS_BY_NAME[spec.name].msg_type == spec.msg_type
+    assert SENSOR_TOPICS_BY_NAME['/left_foot/wrench'].frame_id == 'l_sole'
+    assert SENSOR_TOPICS_BY_NAME['/robot_description'].qos.durability == 'transient_local'

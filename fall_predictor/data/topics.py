@@ -273,6 +273,6 @@ GROUND_TRUTH = TopicSpec(
     None, MEASUREMENT_LABEL, 'simulator exact state (evaluation only), measurement layout v1')
 SENSOR_TOPICS: tuple[TopicSpec, ...] = (
     SENSOR_JOINT_STATES, IMU, LEFT_FOOT_WRENCH, RIGHT_FOOT_WRENCH, ROBOT_DESCRIPTION, GROUND_TRUTH)
-TOPICS_BY_NAME.update({spec.name: spec for spec in SENSOR_TOPICS if spec.name not in TOPICS_BY_NAME})
+SENSOR_TOPICS_BY_NAME: dict[str, TopicSpec] = {spec.name: spec for spec in SENSOR_TOPICS}
 #: Bag metadata key (rosbag2 ``custom_data``) holding the sensor model's parameters (JSON).
 SENSOR_PARAMS_METADATA_KEY = 'fall_predictor.sensor_params'
