@@ -12,7 +12,8 @@ sample. Outputs (the contract is in :mod:`fall_predictor.data.topics` and the RE
   (or until the monitor is disabled). A node that starts late still gets the current value.
 * ``fall_predictor/fall_direction`` (``geometry_msgs/Vector3Stamped``, frame
   ``base_footprint``, latched): with each falling event, the predicted direction of the fall
-  (the capture point's bearing from the CoP, :mod:`fall_predictor.monitor.fall_direction`).
+  (the horizontal linear momentum's direction, :mod:`fall_predictor.monitor.fall_direction`:
+  10 deg median error against 34 for the capture point at development scale).
 
 Services: ``~/reset`` (std_srvs/Trigger) clears the history, the latch and the trigger;
 ``~/enable`` (std_srvs/SetBool) switches the trigger off (false: no trigger, the states say
@@ -48,7 +49,7 @@ from std_srvs.srv import SetBool, Trigger
 from fall_predictor.data.sample_order import Sample, SampleIntake
 from fall_predictor.data.topics import FALL_DIRECTION, FALLING, FEATURES, STATE
 from fall_predictor.data.wire import LEVEL_OK, LEVEL_STALE, LEVEL_WARN, FeatureSample, PredictorState
-from fall_predictor.monitor.fall_direction import capture_point_direction
+from fall_predictor.monitor.fall_direction import momentum_direction
 from fall_predictor.monitor.predictor import OnlinePredictor
 from fall_predictor.robot.model import TOTAL_MASS_KG
 from fall_predictor.ros import conversions as ros_qos
@@ -211,7 +212,7 @@ class PredictorNode(Node):
         time_to_fall_s = math.nan
         if out.falling:
             self.counts['falling_states'] += 1
-            d = capture_point_direction(sample.x, self._mass_kg)
+            d = momentum_direction(sample.x, self._mass_kg)
             direction = (float(d[0]), float(d[1]))
             if self._time_to_fall is not None:
                 time_to_fall_s = min(max(float(self._time_to_fall.predict_one(
