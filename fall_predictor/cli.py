@@ -14,7 +14,7 @@ from fall_predictor.cli_args import emit as _emit, fail as _fail
 
 # Sub-commands that live in their own front-end module (``fall_predictor/cli_<area>.py``), each
 # exposing ``register(subparsers)``. Keeps this file short and each area's options with its code.
-COMMAND_MODULES: tuple[str, ...] = ('cli_robot', 'cli_bag', 'cli_estimation')
+COMMAND_MODULES: tuple[str, ...] = ('cli_sweep', 'cli_robot', 'cli_bag', 'cli_estimation')
 
 
 # -- simulate --------------------------------------------------------------------------------
@@ -131,17 +131,6 @@ def cmd_stats(args) -> int:
 # -- train, rules, evaluate, sweep --------------------------------------------------------
 
 
-def _add_learner_arguments(p: argparse.ArgumentParser) -> None:
-    from fall_predictor.learning.training import DEFAULT_SAMPLE_STRIDE, LEARNER_CLASSES
-    p.add_argument('--learner', choices=sorted(LEARNER_CLASSES), default='tree',
-                   help='tree: CART tree rewritten as a list; covering: RIPPER-like sequential '
-                        'covering (default tree)')
-    p.add_argument('--param', type=argtypes.learner_param, action='append', default=[], metavar='KEY=VALUE',
-                   help='learner hyper-parameter, repeatable (e.g. --param max_depth=10); VALUE is JSON')
-    p.add_argument('--stride', type=argtypes.positive_int, default=DEFAULT_SAMPLE_STRIDE,
-                   help=f'train on every K-th 1 kHz sample, weights x K (default {DEFAULT_SAMPLE_STRIDE})')
-
-
 def cmd_train(args) -> int:
     from fall_predictor.data.dataset import DatasetError
     from fall_predictor.learning.training import make_learner, train_model
@@ -153,10 +142,12 @@ def cmd_train(args) -> int:
         return _fail('train', error)
     start = time.perf_counter()
     try:
+        state = argtypes.resolved_state(args)
         lists, metadata = train_model(args.data, args.tau_plus, args.learner, dict(args.param),
                                       args.stride, jobs=args.jobs,
                                       recommended_tau_his_s=args.tau_his_recommended,
-                                      skip_unreadable=args.skip_unreadable, progress=not args.json)
+                                      skip_unreadable=args.skip_unreadable, progress=not args.json,
+                                      state=state)
         save_model(args.out, lists, metadata)
     except (DatasetError, ModelFileError) as error:
         return _fail('train', error)
@@ -164,10 +155,11 @@ def cmd_train(args) -> int:
     payload = {'model': str(args.out), 'tau_plus_s': metadata.tau_plus_s,
                'recommended_tau_his_s': metadata.recommended_tau_his_s,
                'learner': {'name': metadata.learner_name, 'params': metadata.learner_params},
-               'sample_stride': args.stride, 'dataset_fingerprint': metadata.dataset_fingerprint,
+               'sample_stride': args.stride, 'state': metadata.state,
+               'dataset_fingerprint': metadata.dataset_fingerprint,
                'mean_rule_size': lists.mean_rule_size, 'rule_sizes': list(lists.rule_sizes),
                'depths': list(lists.depths), 'wall_s': wall}
-    _emit(args, payload, [f'wrote {args.out}: {metadata.learner_name}, tau_plus '
+    _emit(args, payload, [f'wrote {args.out}: {metadata.learner_name} on the {metadata.state} state, tau_plus '
                           f'{metadata.tau_plus_s:+.3f} s, stride {args.stride}, mean rule size '
                           f'{lists.mean_rule_size:.1f}, depths {list(lists.depths)} ({wall:.1f} s)'])
     return 0
@@ -206,16 +198,19 @@ def cmd_evaluate(args) -> int:
         tau_his = args.tau_his if args.tau_his is not None else metadata.recommended_tau_his_s
         if tau_his is None:
             return _fail('evaluate', f'{args.model} recommends no tau_his: give --tau-his')
+        state = argtypes.resolved_state(args)
         evaluation = evaluate_model(args.data, lists, tau_his, baselines=args.baselines,
                                     jobs=args.jobs, skip_unreadable=args.skip_unreadable,
                                     progress=not args.json, time_to_fall=metadata.time_to_fall,
-                                    robot_mass_kg=metadata.robot_mass_kg)
+                                    robot_mass_kg=metadata.robot_mass_kg, state=state)
     except (DatasetError, ModelFileError) as error:
         return _fail('evaluate', error)
-    payload = {'model': str(args.model), 'data': str(args.data), **evaluation_json(evaluation),
+    payload = {'model': str(args.model), 'data': str(args.data), 'state': state,
+               'model_state': metadata.state, **evaluation_json(evaluation),
                'trained_on_this_dataset': metadata.dataset_fingerprint == evaluation.dataset_fingerprint}
     r = evaluation.result
-    lines = [f'{r.n_trajectories} trajectories ({r.n_fallen} fallen), tau_his {tau_his:.3f} s',
+    lines = [f'{r.n_trajectories} trajectories ({r.n_fallen} fallen), {state} state (model trained on '
+             f'the {metadata.state} state), tau_his {tau_his:.3f} s',
              f'FPR {r.fpr:.3f} ({r.n_false_positives}/{r.n_balanced} balanced trajectories), '
              f'Wilson 95 % [{r.fpr_ci95[0]:.3f}, {r.fpr_ci95[1]:.3f}]',
              f'tau_lead {r.tau_lead_s:.3f} s (bootstrap 95 % [{r.tau_lead_ci95[0]:.3f}, '
@@ -237,72 +232,6 @@ def cmd_evaluate(args) -> int:
             if p['fpr'] is not None and p['tau_lead_s'] is not None))
     for tid, error in evaluation.unreadable.items():
         lines.append(f'SKIPPED {tid}: {error}')
-    _emit(args, payload, lines)
-    return 0
-
-
-def cmd_sweep(args) -> int:
-    import shlex
-
-    from fall_predictor.data.dataset import DatasetError
-    from fall_predictor.learning.selection import pareto_mean_lead
-    from fall_predictor.learning.sweep import SweepConfig, run_sweep
-
-    settings = {'folds': args.folds, 'seed': args.seed, 'learner_name': args.learner,
-                'learner_params': dict(args.param), 'sample_stride': args.stride,
-                'capture_point': not args.no_capture_point}
-    if args.tau_plus is not None:
-        settings['tau_plus_values_s'] = args.tau_plus
-    if args.tau_his is not None:
-        settings['tau_his_values_s'] = args.tau_his
-    if args.learning_curve is not None:
-        settings['learning_curve_sizes'] = args.learning_curve
-    if args.no_learning_curve:
-        settings['learning_curve_sizes'] = ()
-    command = shlex.join(['fall-predictor', *args.argv])
-    try:
-        config = SweepConfig.quick(**settings) if args.quick else SweepConfig(**settings)
-    except ValueError as error:
-        return _fail('sweep', error)
-    try:
-        result = run_sweep(args.data, args.out, config, jobs=args.jobs,
-                           skip_unreadable=args.skip_unreadable, progress=not args.json,
-                           command=command)
-        test_set = None
-        if args.test_data is not None:
-            import json
-
-            from fall_predictor.monitor.fileio import atomic_write_text
-            from fall_predictor.learning.heldout import evaluate_on_test_set
-            from fall_predictor.learning.report import sweep_json
-            test_set = evaluate_on_test_set(result, sweep_json(result)['nested_selection'],
-                                            args.test_data, args.jobs, args.skip_unreadable,
-                                            progress=not args.json)
-            atomic_write_text(args.out / 'test_set.json', json.dumps(test_set, indent=1) + '\n')
-    except DatasetError as error:
-        return _fail('sweep', error)
-    t = result.timing
-    payload = {'out': str(args.out), 'files': list(result.files),
-               'n_trajectories': result.n_trajectories, 'n_fallen': result.n_fallen,
-               'n_predictors': len(result.points), 'n_pareto': len(result.pareto),
-               'pareto_mean_lead_s': pareto_mean_lead(result.points),
-               'selected': [{'name': paper.name, 'tau_plus_s': p.tau_plus_s, 'tau_his_s': p.tau_his_s,
-                             'fpr': p.fpr, 'tau_lead_s': p.tau_lead_s, 'mean_rule_size': p.mean_rule_size}
-                            for paper, p in result.selected],
-               'timing': {'total_s': t.total_s, 'n_fits': t.n_fits, 'fit_s_mean_full': t.fit_s_mean_full,
-                          'jobs': t.jobs}}
-    if test_set is not None:
-        payload['test_set'] = test_set
-    lines = [f'{len(result.points)} predictors ({result.config.folds}-fold CV over '
-             f'{result.n_trajectories} trajectories, {result.n_fallen} fallen) in {t.total_s:.0f} s '
-             f'with {t.jobs} job(s): {t.n_fits} trainings, mean full-size fit {t.fit_s_mean_full:.2f} s']
-    for paper, p in result.selected:
-        lines.append(f'{paper.name} analogue: tau_plus {p.tau_plus_s:+.2f} s, tau_his {p.tau_his_s:.3f} s: '
-                     f'FPR {p.fpr:.3f}, tau_lead {p.tau_lead_s:.2f} s, mean rule size {p.mean_rule_size:.1f} '
-                     f'(paper: FPR {paper.fpr}, tau_lead {paper.tau_lead_s} s, '
-                     f'rule size {paper.mean_rule_size})')
-    lines.append(f'mean best lead over FPR budgets 0-0.5: {payload["pareto_mean_lead_s"]:.3f} s')
-    lines.append('wrote ' + ', '.join(result.files))
     _emit(args, payload, lines)
     return 0
 
@@ -406,7 +335,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help='tau_plus [s]: falling states are trained on from t_height_drop + tau_plus '
                         '(may be < 0; write --tau-plus=-0.25)')
     p.add_argument('--out', type=Path, required=True, help='model file to write (JSON)')
-    _add_learner_arguments(p)
+    argtypes.add_learner_arguments(p)
+    argtypes.add_state_argument(p)
     p.add_argument('--tau-his-recommended', type=argtypes.nonnegative, default=None,
                    help='history window [s] to store as the model\'s run-time default')
     p.add_argument('--jobs', type=argtypes.positive_int, default=1, help='processes loading features')
@@ -437,48 +367,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help='history window [s] (default: the model\'s recommended value)')
     p.add_argument('--baselines', action='store_true',
                    help='also evaluate the CoM-height, momentum and capture-point baselines')
+    argtypes.add_state_argument(p)
     p.add_argument('--jobs', type=argtypes.positive_int, default=1)
     p.add_argument('--skip-unreadable', action='store_true',
                    help='leave out unreadable bags instead of failing')
     p.add_argument('--json', action='store_true', help='print one JSON object')
     p.set_defaults(func=cmd_evaluate)
 
-    p = sub.add_parser('sweep', help='cross-validated tau_plus x tau_his sweep, figures and tables',
-                       description='k-fold cross-validation by trajectory over a grid of tau_plus '
-                                   '(training) and tau_his (run time): one training per fold and tau_plus, '
-                                   'every tau_his evaluated from it. Also a learning curve at FP-L2\'s '
-                                   'settings and the hand-coded baselines on the same trajectories. Writes '
-                                   'sweep.json, table.md (with the paper\'s Table 2 next to the analogues) and '
-                                   'PNGs (Fig. 10 and Fig. 11 analogues) to --out. Exit code 2 if the dataset '
-                                   'or a setting cannot be used.')
-    p.add_argument('--data', type=Path, required=True, help='dataset directory')
-    p.add_argument('--out', type=Path, required=True, help='output directory')
-    p.add_argument('--folds', type=argtypes.at_least_two, default=10, help='cross-validation folds (default 10)')
-    p.add_argument('--seed', type=int, default=0, help='fold assignment and learning-curve subsets')
-    _add_learner_arguments(p)
-    p.add_argument('--tau-plus', type=argtypes.list_of(argtypes.finite(float)), default=None, metavar='LIST',
-                   help='comma-separated tau_plus values [s]; write --tau-plus=-1.5,-0.25 (a leading '
-                        'minus needs the =); default -1.5,-1.25,...,0.5')
-    p.add_argument('--tau-his', type=argtypes.list_of(argtypes.nonnegative), default=None, metavar='LIST',
-                   help='comma-separated tau_his values [s] '
-                        '(default 0,0.004,0.008,0.016,0.03,0.044,0.06,0.08,0.1)')
-    p.add_argument('--learning-curve', type=argtypes.list_of(argtypes.positive_int), default=None, metavar='LIST',
-                   help='training-set sizes of the learning curve (default 50,100,250,500,900)')
-    p.add_argument('--no-learning-curve', action='store_true', help='skip the learning curve')
-    p.add_argument('--test-data', type=Path, default=None, metavar='DIR',
-                   help='held-out test dataset (another seed): the chosen predictors are trained on '
-                        'all of --data and evaluated on DIR, written to test_set.json')
-    p.add_argument('--no-capture-point', action='store_true',
-                   help='skip the capture-point baseline (it reads every bag once to fill its cache)')
-    p.add_argument('--quick', action='store_true',
-                   help='reduced grid: 5 tau_plus, 5 tau_his, learning curve 10,25,50, coarse baselines '
-                        '(explicit --tau-plus/--tau-his/--learning-curve still apply)')
-    p.add_argument('--jobs', type=argtypes.positive_int, default=1, help='parallel trainings')
-    argtypes.add_scheduler_argument(p, 'the trainings (features are read here and sent to the workers)')
-    p.add_argument('--skip-unreadable', action='store_true',
-                   help='leave out unreadable bags instead of failing')
-    p.add_argument('--json', action='store_true', help='print one JSON summary object')
-    p.set_defaults(func=cmd_sweep)
     for name in COMMAND_MODULES:
         importlib.import_module(f'fall_predictor.{name}').register(sub)
     return parser

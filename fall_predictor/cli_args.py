@@ -137,3 +137,33 @@ def add_bringup_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--sensors', action='store_true',
                         help='the simulator publishes robot sensor topics; state_estimator_node makes '
                              'the measurement (exact state on /fall_predictor/ground_truth)')
+
+
+def add_learner_arguments(p: argparse.ArgumentParser) -> None:
+    from fall_predictor.learning.training import DEFAULT_SAMPLE_STRIDE, LEARNER_CLASSES
+    p.add_argument('--learner', choices=sorted(LEARNER_CLASSES), default='tree',
+                   help='tree: CART tree rewritten as a list; covering: RIPPER-like sequential '
+                        'covering (default tree)')
+    p.add_argument('--param', type=learner_param, action='append', default=[], metavar='KEY=VALUE',
+                   help='learner hyper-parameter, repeatable (e.g. --param max_depth=10); VALUE is JSON')
+    p.add_argument('--stride', type=positive_int, default=DEFAULT_SAMPLE_STRIDE,
+                   help=f'train on every K-th 1 kHz sample, weights x K (default {DEFAULT_SAMPLE_STRIDE})')
+
+
+def add_state_argument(p: argparse.ArgumentParser) -> None:
+    """``--state``: features from the estimated (default) or the true state (data/dataset.py)."""
+    p.add_argument('--state', choices=('estimated', 'true'), default='estimated',
+                   help='features from the state estimated from the sensor topics (default; a dataset '
+                        'recorded without them falls back to the true state, with a note) or from '
+                        'the simulator\'s true state')
+
+
+def resolved_state(args: argparse.Namespace) -> str:
+    """The state ``args.data`` gives features from for ``args.state``; a note on stderr when it
+    differs (a dataset without sensor topics). Raises DatasetError for a non-dataset."""
+    from fall_predictor.data.dataset import resolve_state
+
+    state, note = resolve_state(args.data, args.state)
+    if note:
+        print(f'note: {note}', file=sys.stderr)
+    return state

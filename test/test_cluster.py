@@ -151,8 +151,11 @@ def test_sweep_on_a_cluster_equals_the_local_sweep(cluster, small_dataset, tmp_p
     arguments = ['sweep', '--data', str(data), '--quick', '--folds', '2', '--tau-plus=-0.25,0.25',
                  '--tau-his', '0,0.06', '--no-learning-curve', '--no-capture-point', '--json']
     assert main(arguments + ['--out', str(tmp_path / 'local')]) == 0
+    transitions = cluster.scheduler.transition_counter
     assert main(arguments + ['--out', str(tmp_path / 'cluster'),
                              '--scheduler', cluster.scheduler_address]) == 0
+    # The trainings went through the cluster's scheduler (not a silent local run).
+    assert cluster.scheduler.transition_counter > transitions
     local, remote = _sweep_results(tmp_path / 'local'), _sweep_results(tmp_path / 'cluster')
     assert local['points'] and local == remote
 

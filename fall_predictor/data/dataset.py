@@ -7,7 +7,14 @@ Layout of a dataset directory (made by :mod:`fall_predictor.data.generation`)::
     index/traj_00042.json     its index row, written only once the bag is complete
     index.csv                 all rows in one table (rewritten after each run)
     costs/traj_00042.json     what simulating it cost, and where (:mod:`fall_predictor.data.generation_cost`)
-    cache/traj_00042.npz      features derived from the bag (:mod:`fall_predictor.data.cache`)
+    cache/traj_00042.npz      features derived from the bag's true state (:mod:`fall_predictor.data.cache`)
+    cache/traj_00042.estimated.npz   features of the state estimated from its sensor topics
+
+Features come from one of two states (``state``): ``'true'``, the simulator's exact state on
+``/fall_predictor/measurement``; or ``'estimated'``, the state the
+:class:`~fall_predictor.monitor.estimator.StateEstimator` (the class the live
+``state_estimator_node`` runs, with the same default configuration) estimates from the bag's
+sensor topics. Labels (pushes, falls) always come from the true state.
 
 A bag that cannot be read is reported with its file named and skipped; the rest of the dataset
 stays usable.
@@ -32,6 +39,8 @@ from fall_predictor.monitor.records import PushSpec, TrajectoryFeatures
 
 FORMAT = 'fall_predictor/dataset/v1'
 CACHE_FORMAT = 'fall_predictor/features-cache/v2'
+#: Where features can come from (module docs); the CLI default is ``'estimated'``.
+STATES = ('estimated', 'true')
 
 
 class DatasetError(Exception):
@@ -86,6 +95,25 @@ def read_manifest(out: str | os.PathLike) -> dict[str, Any]:
     return manifest
 
 
+def has_sensor_topics(out: str | os.PathLike) -> bool:
+    """Whether the dataset was recorded with the robot's sensor topics (``generate --sensor-noise``)."""
+    return 'sensors' in read_manifest(out)
+
+
+def resolve_state(out: str | os.PathLike, requested: str) -> tuple[str, Optional[str]]:
+    """The state features of ``out`` are computed from, and a note when it is not ``requested``.
+
+    ``'estimated'`` on a dataset recorded without sensor topics falls back to ``'true'`` (there
+    is nothing to estimate from) and says so; an unknown state raises ``ValueError``.
+    """
+    if requested not in STATES:
+        raise ValueError(f'state must be one of {STATES}, got {requested!r}')
+    if requested == 'estimated' and not has_sensor_topics(out):
+        return 'true', (f'{out} was recorded without sensor topics: features from the true state '
+                        '(record them with `generate --sensor-noise 1` to train on estimated state)')
+    return requested, None
+
+
 def robot_total_mass_kg(out: str | os.PathLike) -> float:
     """The total mass [kg] of the robot a dataset was recorded with (from its manifest)."""
     try:
@@ -134,26 +162,38 @@ class LoadReport:
     rebuilt: int                     #: cache entries (re)computed from bags
     fingerprint: str                 #: of the whole dataset as loaded
     settings: FeatureSettings        #: how the features were computed
+    state: str = 'true'              #: 'true' or 'estimated' (module docs)
+    note: Optional[str] = None       #: why ``state`` differs from the one asked for
 
 
-def _load_or_build(out: Path, row: IndexRow, settings: FeatureSettings
+def _measurements(bag: Path, state: str) -> list:
+    if state == 'true':
+        return read_trajectory(bag).measurements
+    # Imported here: Pinocchio is loaded only by those who estimate.
+    from fall_predictor.data.estimation import estimated_measurements
+    return estimated_measurements(bag)
+
+
+def _load_or_build(out: Path, row: IndexRow, settings: FeatureSettings, state: str = 'true'
                    ) -> tuple[Optional[TrajectoryFeatures], Optional[str], bool]:
     """Features of one trajectory (cached), or the error that kept them from being read."""
     bag = out / row.bag
 
     def from_bag() -> dict[str, np.ndarray]:
-        recorded = read_trajectory(bag)
-        X, mode = extract_features(recorded.measurements, settings.rate_window_s,
+        ms = _measurements(bag, state)
+        if not ms:
+            raise BagError(f'{bag}: no {state} state to compute features from')
+        X, mode = extract_features(ms, settings.rate_window_s,
                                    settings.sample_period_s, settings.edge_tolerance_m)
-        ms = recorded.measurements
         foot_force = np.array([[m.left_contacts[:, 2].sum(), m.right_contacts[:, 2].sum()] for m in ms])
         return {'t': np.array([m.t for m in ms]), 'X': X, 'mode': mode,
                 'foot_force_n': foot_force.reshape(len(ms), 2)}
 
     try:
         # Features computed with other settings are another kind of derived data.
-        kind = f'{CACHE_FORMAT}?{json.dumps(asdict(settings), sort_keys=True)}'
-        arrays, built = cached_arrays(out / 'cache' / f'{row.trajectory_id}.npz', bag, kind, from_bag)
+        kind = f'{CACHE_FORMAT}?{json.dumps(asdict(settings), sort_keys=True)}&state={state}'
+        name = row.trajectory_id + ('' if state == 'true' else f'.{state}')
+        arrays, built = cached_arrays(out / 'cache' / f'{name}.npz', bag, kind, from_bag)
     except OSError as exc:
         return None, f'{bag}: {exc}', False
     except BagError as exc:
@@ -164,11 +204,12 @@ def _load_or_build(out: Path, row: IndexRow, settings: FeatureSettings
 
 
 def load_features(data_dir: str | os.PathLike, jobs: int = 1, progress: bool = True,
-                  settings: FeatureSettings = FeatureSettings()) -> LoadReport:
+                  settings: FeatureSettings = FeatureSettings(), state: str = 'true') -> LoadReport:
     """Features of every trajectory of a dataset, from the cache where it is up to date.
 
-    A bag that cannot be read is reported in ``errors`` (with its file named) and skipped;
-    the rest of the dataset stays usable.
+    ``state`` is ``'true'`` or ``'estimated'`` (module docs; see :func:`resolve_state` for a
+    dataset without sensor topics). A bag that cannot be read is reported in ``errors`` (with
+    its file named) and skipped; the rest of the dataset stays usable.
     """
     from joblib import delayed
     from tqdm import tqdm
@@ -179,8 +220,10 @@ def load_features(data_dir: str | os.PathLike, jobs: int = 1, progress: bool = T
     rows = read_index(out)
     if not rows:
         raise DatasetError(f'{out}: the dataset has no finished trajectories')
-    results = local_parallel(jobs)(delayed(_load_or_build)(out, row, settings)
-                                   for row in tqdm(rows, desc='features', unit='traj', disable=not progress))
+    state, note = resolve_state(out, state)
+    desc = 'features' if state == 'true' else 'estimation + features'
+    results = local_parallel(jobs)(delayed(_load_or_build)(out, row, settings, state)
+                                   for row in tqdm(rows, desc=desc, unit='traj', disable=not progress))
     trajectories, errors, rebuilt = [], {}, 0
     h = hashlib.sha256()
     for row, (traj, error, built) in zip(rows, results):
@@ -190,4 +233,4 @@ def load_features(data_dir: str | os.PathLike, jobs: int = 1, progress: bool = T
         trajectories.append(traj)
         rebuilt += int(built)
         h.update(f'{row.trajectory_id}:{bag_fingerprint(out / row.bag)};'.encode())
-    return LoadReport(trajectories, errors, rebuilt, h.hexdigest()[:16], settings)
+    return LoadReport(trajectories, errors, rebuilt, h.hexdigest()[:16], settings, state, note)

@@ -47,6 +47,23 @@ def aligned_config(urdf: str, samples: list, truth: dict, config: EstimatorConfi
     return config
 
 
+def estimated_measurements(path: str | os.PathLike[str], config: EstimatorConfig = EstimatorConfig()
+                           ) -> list[Measurement]:
+    """The state the estimator gives from a bag's sensor topics alone, as the live node runs it:
+    default configuration, the world frame the robot starts in, no ground truth (samples the
+    estimator refuses are left out, as the node publishes nothing for them)."""
+    bag = Path(path)
+    urdf = read_robot_description(bag)
+    if urdf is None:
+        raise BagError(f'{bag}: no /robot_description (was it generated with --sensor-noise?)')
+    try:
+        estimator = StateEstimator(urdf, config)
+    except ValueError as error:
+        raise BagError(f'{bag}: /robot_description: {error}') from error
+    estimates = (estimator.update(s) for s in read_sensor_samples(bag))
+    return [m for m in estimates if m is not None]
+
+
 @dataclass
 class BagEstimate:
     """Estimated and true measurements of one bag, paired by time (estimates may be None)."""

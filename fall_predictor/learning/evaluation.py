@@ -185,18 +185,19 @@ class ModelEvaluation:
 def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: float,
                    baselines: bool = False, jobs: int = 1, skip_unreadable: bool = False,
                    progress: bool = False, time_to_fall: Optional[Any] = None,
-                   robot_mass_kg: Optional[float] = None) -> ModelEvaluation:
+                   robot_mass_kg: Optional[float] = None, state: str = 'true') -> ModelEvaluation:
     """SPEC §5 metrics of the predictor ``lists`` with history window ``tau_his_s`` [s] over
     every trajectory of ``data_dir``; with ``baselines``, the hand-coded baselines too.
     With a ``time_to_fall`` regressor and/or ``robot_mass_kg`` [kg], the time-to-fall and
     fall-direction errors at the triggers (:mod:`fall_predictor.learning.when_where`).
+    ``state``: the features come from the true or the estimated state (data/dataset.py).
 
     No cross-validation: use a dataset the model was not trained on (or
     :func:`~fall_predictor.learning.sweep.run_sweep`).
     """
     if not (math.isfinite(tau_his_s) and tau_his_s >= 0.0):
         raise ValueError(f'tau_his_s must be a finite number >= 0, got {tau_his_s!r}')
-    report = load_dataset(data_dir, jobs, skip_unreadable, progress)
+    report = load_dataset(data_dir, jobs, skip_unreadable, progress, state)
     trajectories = report.trajectories
     result = evaluate_lists(trajectories, lists, (tau_his_s,))[float(tau_his_s)]
     curves = None

@@ -41,10 +41,10 @@ def evaluate_on_test_set(result: SweepResult, nested_document: Optional[dict[str
     """
     from fall_predictor.data.dataset import DatasetError
 
-    test = load_dataset(test_dir, jobs, skip_unreadable, progress)
+    test = load_dataset(test_dir, jobs, skip_unreadable, progress, result.config.state)
     if test.fingerprint == result.dataset_fingerprint:
         raise DatasetError(f'{test_dir}: the test dataset is the sweep dataset itself')
-    train = load_dataset(result.data_dir, jobs, skip_unreadable, progress)
+    train = load_dataset(result.data_dir, jobs, skip_unreadable, progress, result.config.state)
     config = result.config
     learner = make_learner(config.learner_name, config.learner_params)
     settings = chosen_settings(nested_document)
@@ -58,6 +58,7 @@ def evaluate_on_test_set(result: SweepResult, nested_document: Optional[dict[str
     return {'format': 'fall_predictor/test-set/v1', 'test_data': str(test_dir),
             'test_fingerprint': test.fingerprint, 'train_data': result.data_dir,
             'train_fingerprint': result.dataset_fingerprint,
+            'state': {'train': train.state, 'test': test.state},
             'n_test_trajectories': len(test.trajectories),
             'n_test_fallen': sum(t.fallen for t in test.trajectories),
             'unreadable': dict(test.errors), 'predictors': predictors}

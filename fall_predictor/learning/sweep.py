@@ -24,7 +24,7 @@ from typing import Any, Optional, Sequence
 
 import numpy as np
 
-from fall_predictor.data.dataset import DatasetError
+from fall_predictor.data.dataset import STATES, DatasetError
 from fall_predictor.data.parallel import compute_backend
 from fall_predictor.learning.baselines import pareto_front
 from fall_predictor.learning.crossval import (FoldFit, SweepPoint, aggregate_folds,
@@ -71,6 +71,9 @@ class SweepConfig:
     learning_curve_tau_his_s: float = LEARNING_CURVE_TAU_HIS_S
     baseline_grids: BaselineGrids = BaselineGrids()
     capture_point: bool = True
+    #: Features from the 'true' or the 'estimated' state (data/dataset.py); the sweep records
+    #: the state actually used (a dataset without sensor topics has only the true one).
+    state: str = 'true'
 
     def __post_init__(self) -> None:
         object.__setattr__(self, 'tau_plus_values_s', tuple(float(v) for v in self.tau_plus_values_s))
@@ -93,6 +96,8 @@ class SweepConfig:
             raise ValueError('the learning curve needs a finite tau_plus and a tau_his >= 0')
         check_sample_stride(self.sample_stride)
         make_learner(self.learner_name, self.learner_params)
+        if self.state not in STATES:
+            raise ValueError(f'state must be one of {STATES}, got {self.state!r}')
 
     @classmethod
     def quick(cls, **overrides: Any) -> SweepConfig:
@@ -119,7 +124,7 @@ class SweepConfig:
                 'learning_curve_tau_his_s': self.learning_curve_tau_his_s,
                 'baseline_grids': {k: [json_float(v) for v in values] for k, values
                                    in dataclasses.asdict(self.baseline_grids).items()},
-                'capture_point': self.capture_point}
+                'capture_point': self.capture_point, 'state': self.state}
 
 
 @dataclass(frozen=True)
@@ -175,7 +180,8 @@ def run_sweep(data_dir: PathLike, out_dir: PathLike, config: SweepConfig = Sweep
     """
     started = time.perf_counter()
     out_dir = Path(out_dir)
-    report = load_dataset(data_dir, jobs, skip_unreadable, progress)
+    report = load_dataset(data_dir, jobs, skip_unreadable, progress, config.state)
+    config = dataclasses.replace(config, state=report.state)     # the state actually used
     trajectories = report.trajectories
     require_outcomes(trajectories, data_dir, need_balanced=True)
     if len(trajectories) < config.folds:

@@ -117,14 +117,15 @@ def fit_strided(trajectories: Sequence[TrajectoryFeatures], tau_plus_s: float,
 
 # -- datasets -------------------------------------------------------------------------------------
 def load_dataset(data_dir: PathLike, jobs: int = 1, skip_unreadable: bool = False,
-                 progress: bool = False) -> LoadReport:
-    """Features of every trajectory of ``data_dir`` (from the feature cache when up to date).
+                 progress: bool = False, state: str = 'true') -> LoadReport:
+    """Features of every trajectory of ``data_dir`` (from the feature cache when up to date),
+    computed from its ``state`` (``'true'`` or ``'estimated'``, :mod:`fall_predictor.data.dataset`).
 
     Raises :class:`~fall_predictor.data.dataset.DatasetError` if the directory is not a usable
     dataset, or if some bags are unreadable and ``skip_unreadable`` is False (the message names
     them); with ``skip_unreadable`` they are left out (``LoadReport.errors`` lists them).
     """
-    report = load_features(data_dir, jobs=jobs, progress=progress)
+    report = load_features(data_dir, jobs=jobs, progress=progress, state=state)
     if report.errors and not skip_unreadable:
         listed = '; '.join(f'{tid}: {error}' for tid, error in list(report.errors.items())[:5])
         more = f' (and {len(report.errors) - 5} more)' if len(report.errors) > 5 else ''
@@ -150,13 +151,15 @@ def train_model(data_dir: PathLike, tau_plus_s: float, learner_name: str = 'tree
                 learner_params: Optional[Mapping[str, Any]] = None,
                 sample_stride: int = DEFAULT_SAMPLE_STRIDE, jobs: int = 1,
                 recommended_tau_his_s: Optional[float] = None, skip_unreadable: bool = False,
-                progress: bool = False) -> tuple[PerModeDecisionLists, ModelMetadata]:
+                progress: bool = False, state: str = 'true') -> tuple[PerModeDecisionLists, ModelMetadata]:
     """Train one decision list per contact mode on every trajectory of ``data_dir``.
 
     ``tau_plus_s`` [s] withholds falling states before ``t_height_drop + tau_plus_s``;
     ``learner_name``/``learner_params`` choose the learner (:func:`make_learner`);
     ``sample_stride`` as in :func:`fit_strided`; ``jobs`` processes load the features;
-    ``recommended_tau_his_s`` [s] is stored in the metadata as the run-time default.
+    ``recommended_tau_his_s`` [s] is stored in the metadata as the run-time default;
+    ``state`` is the state the features come from (stored in the metadata as the one actually
+    used, see :func:`~fall_predictor.data.dataset.resolve_state`).
     """
     if not math.isfinite(tau_plus_s):
         raise ValueError(f'tau_plus_s must be finite, got {tau_plus_s!r}')
@@ -165,7 +168,7 @@ def train_model(data_dir: PathLike, tau_plus_s: float, learner_name: str = 'tree
         raise ValueError(f'recommended_tau_his_s must be >= 0, got {recommended_tau_his_s!r}')
     learner = make_learner(learner_name, learner_params)
     sample_stride = check_sample_stride(sample_stride)
-    report = load_dataset(data_dir, jobs, skip_unreadable, progress)
+    report = load_dataset(data_dir, jobs, skip_unreadable, progress, state)
     require_outcomes(report.trajectories, data_dir, need_balanced=False)
     lists = fit_strided(report.trajectories, tau_plus_s, learner, sample_stride)
     # Issue 12: the time-to-fall trees and the robot mass (fall direction) ship in the model.
@@ -178,7 +181,7 @@ def train_model(data_dir: PathLike, tau_plus_s: float, learner_name: str = 'tree
         learner_params=learner.get_params(), dataset_fingerprint=report.fingerprint,
         recommended_tau_his_s=recommended_tau_his_s, sample_stride=sample_stride,
         feature_settings=report.settings, robot_mass_kg=robot_total_mass_kg(data_dir),
-        time_to_fall=time_to_fall)
+        time_to_fall=time_to_fall, state=report.state)
     return lists, metadata
 
 

@@ -16,7 +16,8 @@ Layout (schema ``fall_predictor.decision_lists``, version 3)::
       "features": {"rate_window_s": 0.01, "edge_tolerance_m": 0.01,   # FeatureSettings: how
                    "sample_period_s": 0.001, "guard_com_height_m": 0.48}, # the monitor must compute
       "training": {"tau_plus_s": -0.25, "balanced_weight": 4.0, "falling_weight": 1.0,
-                   "sample_stride": 10, "learner": {"name": "TreeListLearner", "params": {...}}},
+                   "sample_stride": 10, "learner": {"name": "TreeListLearner", "params": {...}},
+                   "state": "estimated"},                    # optional; absent = "true"
       "recommended_tau_his_s": 0.06,                          # or null
       "dataset_fingerprint": "...",
       "created": {"utc": "2025-01-01T00:00:00Z", "package_version": "0.1.0"},
@@ -60,6 +61,8 @@ SCHEMA_NAME = 'fall_predictor.decision_lists'
 SCHEMA_VERSION = 3
 #: Older versions this reader still accepts (version 2: no robot mass, no time to fall).
 SUPPORTED_SCHEMA_VERSIONS = (2, 3)
+#: Values of ``training.state`` (optional; absent = 'true').
+TRAINING_STATES = ('true', 'estimated')
 _CLASS_BY_NAME = {CLASS_NAMES[BALANCED]: BALANCED, CLASS_NAMES[FALLING]: FALLING}
 
 PathLike = Union[str, 'os.PathLike[str]']
@@ -99,6 +102,9 @@ class ModelMetadata:
     robot_mass_kg: Optional[float] = None
     #: Seconds left until fallen, per contact mode (None: the model has none).
     time_to_fall: Optional[TimeToFallRegressor] = field(default=None, compare=False)
+    #: The state the training features came from: 'true' (the simulator's) or 'estimated'
+    #: (the state estimator's, from the sensor topics); files without it were trained on 'true'.
+    state: str = 'true'
 
 
 def _model_document(lists: PerModeDecisionLists, metadata: ModelMetadata) -> dict[str, Any]:
@@ -121,6 +127,7 @@ def _model_document(lists: PerModeDecisionLists, metadata: ModelMetadata) -> dic
             'falling_weight': metadata.falling_weight,
             'sample_stride': metadata.sample_stride,
             'learner': {'name': metadata.learner_name, 'params': metadata.learner_params},
+            'state': metadata.state,
         },
         'recommended_tau_his_s': metadata.recommended_tau_his_s,
         'dataset_fingerprint': metadata.dataset_fingerprint,
@@ -282,8 +289,13 @@ def _parse_model(text: str, path: Path) -> tuple[PerModeDecisionLists, ModelMeta
             rules.append(Rule(tuple(conditions), label))
         lists.append(DecisionList(tuple(rules), default))
 
-    training = read.object(document['training'], 'training',
-                           ('tau_plus_s', 'balanced_weight', 'falling_weight', 'sample_stride', 'learner'))
+    training = document['training']
+    training = read.object(training, 'training',
+                           ('tau_plus_s', 'balanced_weight', 'falling_weight', 'sample_stride', 'learner')
+                           + (('state',) if isinstance(training, dict) and 'state' in training else ()))
+    state = read.string(training.get('state', 'true'), 'training.state')
+    if state not in TRAINING_STATES:
+        raise read.fail('training.state', f'expected one of {list(TRAINING_STATES)}, got {state!r}')
     learner = read.object(training['learner'], 'training.learner', ('name', 'params'))
     params = learner['params']
     if not isinstance(params, dict):
@@ -317,5 +329,5 @@ def _parse_model(text: str, path: Path) -> tuple[PerModeDecisionLists, ModelMeta
         recommended_tau_his_s=tau_his, sample_stride=stride, feature_settings=feature_settings,
         created_utc=read.string(created['utc'], 'created.utc'),
         package_version=read.string(created['package_version'], 'created.package_version'),
-        robot_mass_kg=mass, time_to_fall=time_to_fall)
+        robot_mass_kg=mass, time_to_fall=time_to_fall, state=state)
     return PerModeDecisionLists(tuple(lists)), metadata
