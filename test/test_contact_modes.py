@@ -92,6 +92,15 @@ CASES = [
     # Staggered stance, left foot ahead: the hull has diagonal edges.
     ('LR staggered front', meas(corners((0.15, 0.1, 0.0)), R_FLAT, cop=(0.15 + HL, 0.1)),
      M.LR_FRONT),
+    # Issue 12: left foot 0.3 m ahead; the diagonal edges' normals are nearer +-y than +-x but
+    # fold by their sagittal sign (the back-left diagonal faces -x, the front-right one +x).
+    ('LR staggered back-left diagonal', meas(corners((0.3, 0.1, 0.0)), R_FLAT,
+                                             cop=(0.15 - HL, WIDTH / 2)), M.LR_BACK),
+    ('LR staggered front-right diagonal', meas(corners((0.3, 0.1, 0.0)), R_FLAT,
+                                               cop=(0.15 + HL, -WIDTH / 2)), M.LR_FRONT),
+    # ... while the outer side of the leading foot stays a lateral edge: LR-INSIDE.
+    ('LR staggered outer side', meas(corners((0.3, 0.1, 0.0)), R_FLAT,
+                                     cop=(0.3, 0.1 + HW - D)), M.LR_INSIDE),
     # Both feet on their toes: four collinear contacts, a segment hull.
     ('LR both on toes', meas(corners(LEFT_FOOT, 'f'), corners(RIGHT_FOOT, 'f'), cop=(HL, 0.0)),
      M.LR_FRONT),

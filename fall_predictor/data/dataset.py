@@ -38,7 +38,7 @@ from fall_predictor.monitor.fileio import atomic_output
 from fall_predictor.monitor.records import PushSpec, TrajectoryFeatures
 
 FORMAT = 'fall_predictor/dataset/v1'
-CACHE_FORMAT = 'fall_predictor/features-cache/v2'
+CACHE_FORMAT = 'fall_predictor/features-cache/v3'  # v3: LR lateral edges fold FRONT/BACK
 #: Where features can come from (module docs); the CLI default is ``'estimated'``.
 STATES = ('estimated', 'true')
 

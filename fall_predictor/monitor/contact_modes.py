@@ -30,6 +30,13 @@ The listed components are FRONT and BACK for every support, plus LEFT for the le
 and RIGHT for the right foot alone. So ``L-RIGHT -> L-INSIDE``, ``L-FRONT-RIGHT -> L-FRONT``,
 ``R-BACK-LEFT -> R-BACK``, ``LR-LEFT`` and ``LR-RIGHT -> LR-INSIDE``,
 ``LR-FRONT-LEFT -> LR-FRONT``. No contact at all is ``OUTSIDE``.
+
+**Double-stance edges fold by their sagittal sign** (issue 12): on a staggered double stance the
+support polygon has diagonal edges whose outward normal is closer to +-y than to +-x; a CoP on
+such an edge is tipping over it, not inside. Such an LR edge is folded to FRONT or BACK by the
+sign of its outward normal's sagittal (heading-frame x) component, unless that component is
+below ``sin(LR_LATERAL_EDGE_DEG)`` of the normal's length (a purely lateral edge, the outer side
+of a foot when the feet are side by side), which stays LR-INSIDE as before.
 """
 from __future__ import annotations
 
@@ -77,6 +84,11 @@ Y_SIDES = ('LEFT', 'RIGHT')
 
 #: The only LEFT/RIGHT component SPEC §7 lists per support (the outer side of a single foot).
 _LISTED_Y_SIDE: dict[str, Optional[str]] = {'L': 'LEFT', 'R': 'RIGHT', 'LR': None}
+
+#: An LR edge whose outward normal is within this angle [deg] of +-y is purely lateral and folds
+#: to LR-INSIDE; a more tilted lateral edge folds to FRONT/BACK by its sagittal sign.
+LR_LATERAL_EDGE_DEG = 10.0
+_LR_SAGITTAL_MIN = math.sin(math.radians(LR_LATERAL_EDGE_DEG))
 
 
 def mode_from_parts(support: str, x_side: Optional[str], y_side: Optional[str]) -> ContactMode:
@@ -150,6 +162,22 @@ def _sides_from_normals(normals: list[Point], c: float, s: float
     return x_side, y_side
 
 
+def lr_lateral_edge_fold(normals: list[Point], c: float, s: float) -> Optional[str]:
+    """The sagittal fold (``'FRONT'``/``'BACK'``) of a double stance whose CoP lies only on
+    lateral edges (outward normals nearer +-y than +-x): the sign of the nearest such edge's
+    sagittal component, or None when that edge is purely lateral (within
+    :data:`LR_LATERAL_EDGE_DEG` of +-y) or some edge is already sagittal."""
+    for nx, ny in normals:
+        hx, hy = c * nx + s * ny, -s * nx + c * ny
+        if abs(hx) >= abs(hy):
+            return None
+    for nx, ny in normals:
+        hx = c * nx + s * ny
+        if abs(hx) > _LR_SAGITTAL_MIN * math.hypot(nx, ny):
+            return 'FRONT' if hx > 0.0 else 'BACK'
+    return None
+
+
 def _polygon_normals(px: float, py: float, hull: list[Point], tol: float) -> list[Point]:
     """Outward normals of the hull edges within ``tol`` of the CoP, nearest first."""
     normals = []
@@ -208,8 +236,10 @@ def classify_contact_mode_and_cop(m: Measurement, edge_tolerance_m: float = 0.01
 
     hull = convex_hull([(r[0], r[1]) for r in rows])
     if len(hull) >= 3:
-        x_side, y_side = _sides_from_normals(
-            _polygon_normals(cop_x, cop_y, hull, edge_tolerance_m), c, s)
+        normals = _polygon_normals(cop_x, cop_y, hull, edge_tolerance_m)
+        x_side, y_side = _sides_from_normals(normals, c, s)
+        if support == 'LR' and x_side is None and y_side is not None:
+            x_side = lr_lateral_edge_fold(normals, c, s)
     elif len(hull) == 2:
         x_side, y_side = _sides_from_normals(
             _segment_normals(cop_x, cop_y, hull, _sole_centre(m, support), edge_tolerance_m),
