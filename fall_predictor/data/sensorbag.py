@@ -114,3 +114,20 @@ def read_sensor_params(path: str | os.PathLike[str]) -> Optional[dict]:
         raise BagError(f'{meta}: unreadable bag metadata: {exc}') from exc
     text = (info.get('custom_data') or {}).get(SENSOR_PARAMS_METADATA_KEY)
     return None if text is None else json.loads(text)
+
+
+def read_imu(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The bag's ``/imu/data``: header times [s] (n,), orientations (n, 4) as x, y, z, w and
+    angular velocities [rad/s] (n, 3) in the IMU frame, in stamp order. A bag without IMU
+    messages raises :class:`BagError`."""
+    bag = Path(path)
+    rows = []
+    for message in iter_messages(bag, (IMU.name,)):
+        msg = message.msg
+        o, w = msg.orientation, msg.angular_velocity
+        rows.append((stamp_to_ns(msg.header.stamp.sec, msg.header.stamp.nanosec),
+                     o.x, o.y, o.z, o.w, w.x, w.y, w.z))
+    if not rows:
+        raise BagError(f'{bag}: no {IMU.name} messages (was it generated with --sensor-noise?)')
+    a = np.array(sorted(rows), dtype=float)
+    return a[:, 0] / 1e9, a[:, 1:5], a[:, 5:8]

@@ -68,10 +68,13 @@ def nested_baseline_json(trajectories: Sequence[TrajectoryFeatures], thresholds:
 def cross_validated_baselines(trajectories: Sequence[TrajectoryFeatures],
                               capture_point: Optional[Sequence[np.ndarray]], grids: Any,
                               tau_his_values: Sequence[float], folds: int, seed: int,
-                              budgets: Sequence[float] = NESTED_FPR_BUDGETS) -> dict[str, Any]:
-    """CoM height, momentum and (with distances) capture point, each over its threshold grid
-    (``grids``: a :class:`~fall_predictor.learning.evaluation.BaselineGrids`) x ``tau_his``,
-    nested per FPR budget."""
+                              budgets: Sequence[float] = NESTED_FPR_BUDGETS,
+                              imu: Optional[Sequence[np.ndarray]] = None) -> dict[str, Any]:
+    """CoM height, momentum, (with distances) capture point and (with ``imu`` signals,
+    :func:`~fall_predictor.learning.tilt_detector.imu_signals_cached`) the IMU tilt detector,
+    each over its threshold grid (``grids``: a
+    :class:`~fall_predictor.learning.evaluation.BaselineGrids`) x ``tau_his``, nested per FPR
+    budget."""
     heights = [float(h) for h in grids.com_height_m]
     momentum = [(float(a), float(b)) for a in grids.momentum_sagittal
                 for b in grids.momentum_frontal]
@@ -82,6 +85,9 @@ def cross_validated_baselines(trajectories: Sequence[TrajectoryFeatures],
     if capture_point is not None:
         margins = [float(m) for m in grids.capture_point_margin_m]
         baselines['capture_point'] = (margins, lambda i, m: np.asarray(capture_point[i]) > -m)
+    if imu is not None:
+        from fall_predictor.learning.tilt_detector import threshold_grid, tilt_alarms
+        baselines['imu_tilt'] = (threshold_grid(), lambda i, th: tilt_alarms(imu[i], *th))
     return {name: nested_baseline_json(trajectories, thresholds, atomic_for, tau_his_values,
                                        folds, seed, budgets)
             for name, (thresholds, atomic_for) in baselines.items()}

@@ -49,7 +49,8 @@ def plot_pareto_intervals(path: Path, fits: Sequence[FoldFit], points: Sequence[
     for entry in (nested or {}).get('nested', []):
         _errorbar(ax, entry['outer'], fmt='D', color='tab:red', ms=5,
                   label='learned, nested' if entry is nested['nested'][0] else None)
-    colours = {'com_height': 'tab:blue', 'momentum': 'tab:green', 'capture_point': 'tab:orange'}
+    colours = {'com_height': 'tab:blue', 'momentum': 'tab:green', 'capture_point': 'tab:orange',
+               'imu_tilt': 'tab:purple'}
     for name, entries in (baselines_nested or {}).items():
         for k, entry in enumerate(entries):
             _errorbar(ax, entry['outer'], fmt='s', color=colours.get(name, 'gray'), ms=4,

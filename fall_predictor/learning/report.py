@@ -105,6 +105,7 @@ def sweep_table(result: SweepResult) -> str:
     lines.append('| lead fraction | ' + ' | '.join(f'— | {_fmt(p.lead_fraction, 2)}'
                                                    for _, p in result.selected) + ' |')
     lines += nested_table_lines(_nested(result))
+    lines += _nested_baseline_lines(result.baselines_nested)
     lines += ['', f'Mean best tau_lead over FPR budgets in [0, {PARETO_MAX_FPR}] (area under the '
               f'Pareto front / {PARETO_MAX_FPR}): learned {_fmt(pareto_mean_lead(result.points))} s; '
               + ', '.join(f'{name} {_fmt(pareto_mean_lead(curve))} s'
@@ -147,3 +148,22 @@ def sweep_table(result: SweepResult) -> str:
               f'cross-validation {t.cross_validation_s:.0f} s ({t.n_fits} trainings, mean full-size '
               f'fit {t.fit_s_mean_full:.2f} s), plots {t.plots_s:.0f} s.', '']
     return '\n'.join(lines)
+
+
+def _nested_baseline_lines(document: Optional[dict[str, Any]]) -> list[str]:
+    """The baselines chosen like the learned lists: threshold and tau_his on training folds."""
+    if not document:
+        return []
+    lines = ['', '## Baselines, nested (threshold and tau_his chosen on the training folds)', '',
+             '| baseline | FPR budget | FPR [95 % CI] | tau_lead [s] [95 % CI] | misses |',
+             '|---|---|---|---|---|']
+    for name, entries in document.items():
+        for entry in entries:
+            o = entry['outer']
+            if o.get('fpr') is None or o.get('tau_lead_s') is None:
+                figures = '— | —'
+            else:
+                figures = (f"{o['fpr']:.3f} [{o['fpr_ci95'][0]:.3f}, {o['fpr_ci95'][1]:.3f}] | "
+                           f"{o['tau_lead_s']:.2f} [{o['tau_lead_ci95'][0]:.2f}, {o['tau_lead_ci95'][1]:.2f}]")
+            lines.append(f"| {name} | ≤ {entry['max_fpr']} | {figures} | {o['n_missed']}/{o['n_fallen']} |")
+    return lines

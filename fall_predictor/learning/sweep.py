@@ -195,9 +195,11 @@ def run_sweep(data_dir: PathLike, out_dir: PathLike, config: SweepConfig = Sweep
     capture_point_s = time.perf_counter() - start
     start = time.perf_counter()
     baselines = baseline_curves(trajectories, distances, config.baseline_grids)
+    from fall_predictor.learning.tilt_detector import imu_signals_cached
+    imu = imu_signals_cached(data_dir, trajectories, jobs, progress)
     baselines_nested = cross_validated_baselines(trajectories, distances, config.baseline_grids,
                                                  config.tau_his_values_s, config.folds,
-                                                 config.seed)
+                                                 config.seed, imu=imu)
     baselines_s = time.perf_counter() - start
 
     start = time.perf_counter()
