@@ -238,11 +238,16 @@ def cmd_evaluate(args) -> int:
 
 def cmd_import_bags(args) -> int:
     from fall_predictor.data.dataset import DatasetError
-    from fall_predictor.data.generation import import_recordings
+    from fall_predictor.data.generation import ImportReport, import_recordings
+    from fall_predictor.data.robot_import import import_robot_recordings, is_robot_recording
 
     try:
-        report = import_recordings(args.bags, args.out)
-    except DatasetError as error:
+        if all(is_robot_recording(bag) for bag in args.bags):       # a robot's own topics
+            urdf = args.urdf.read_text() if args.urdf is not None else None
+            report = ImportReport(*import_robot_recordings(args.bags, args.out, urdf))
+        else:
+            report = import_recordings(args.bags, args.out)
+    except (DatasetError, OSError) as error:
         return _fail('import-bags', error)
     payload = {'out': str(args.out), 'imported': len(report.rows),
                'fallen': sum(r.fallen for r in report.rows), 'rejected': report.rejected}
@@ -307,11 +312,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--json', action='store_true')
     p.set_defaults(func=cmd_stats)
 
-    p = sub.add_parser('import-bags', help='make a dataset from live recordings (recorder_node bags)',
-                       description='Copy recorded bags (one push each, C_bal throughout: record with '
-                                   '`bringup --record DIR --no-fall-trigger`) into a new dataset directory '
-                                   'with an index, so that train/evaluate/sweep can use them.')
+    p = sub.add_parser('import-bags', help='make a dataset from recordings (recorder_node or a robot\'s own)',
+                       description='Copy recorded bags into a new dataset directory with an index, so that '
+                                   'train/evaluate/sweep can use them: recorder_node bags (one push each, '
+                                   'C_bal throughout: `bringup --record DIR --no-fall-trigger`), or a robot\'s '
+                                   '`ros2 bag record` of /joint_states, /imu/data, /left_foot/wrench, '
+                                   '/right_foot/wrench (and /robot_description): falls are then found from the '
+                                   'estimated CoM height and the IMU tilt (docs/method.md).')
     p.add_argument('bags', nargs='+', type=Path, help='bag directories')
+    p.add_argument('--urdf', type=Path, default=None, help='the robot\'s URDF, for recordings without '
+                   '/robot_description')
     p.add_argument('--out', type=Path, required=True, help='new dataset directory')
     p.add_argument('--json', action='store_true')
     p.set_defaults(func=cmd_import_bags)

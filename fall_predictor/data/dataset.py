@@ -39,6 +39,8 @@ from fall_predictor.monitor.records import PushSpec, TrajectoryFeatures
 
 FORMAT = 'fall_predictor/dataset/v1'
 CACHE_FORMAT = 'fall_predictor/features-cache/v3'  # v3: LR lateral edges fold FRONT/BACK
+#: The robot's URDF of an imported robot dataset whose bags hold no /robot_description.
+ROBOT_URDF_FILE = 'robot.urdf'
 #: Where features can come from (module docs); the CLI default is ``'estimated'``.
 STATES = ('estimated', 'true')
 
@@ -108,6 +110,8 @@ def resolve_state(out: str | os.PathLike, requested: str) -> tuple[str, Optional
     """
     if requested not in STATES:
         raise ValueError(f'state must be one of {STATES}, got {requested!r}')
+    if requested == 'true' and read_manifest(out).get('ground_truth') is False:
+        raise DatasetError(f'{out} holds a robot\'s recordings: there is no true state; use --state estimated')
     if requested == 'estimated' and not has_sensor_topics(out):
         return 'true', (f'{out} was recorded without sensor topics: features from the true state '
                         '(record them with `generate --sensor-noise 1` to train on estimated state)')
@@ -171,7 +175,8 @@ def _measurements(bag: Path, state: str) -> list:
         return read_trajectory(bag).measurements
     # Imported here: Pinocchio is loaded only by those who estimate.
     from fall_predictor.data.estimation import estimated_measurements
-    return estimated_measurements(bag)
+    urdf_file = bag.parent.parent / ROBOT_URDF_FILE          # DATA/bags/<id> -> DATA/robot.urdf
+    return estimated_measurements(bag, urdf=urdf_file.read_text() if urdf_file.exists() else None)
 
 
 def _load_or_build(out: Path, row: IndexRow, settings: FeatureSettings, state: str = 'true'

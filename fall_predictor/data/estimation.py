@@ -47,13 +47,14 @@ def aligned_config(urdf: str, samples: list, truth: dict, config: EstimatorConfi
     return config
 
 
-def estimated_measurements(path: str | os.PathLike[str], config: EstimatorConfig = EstimatorConfig()
-                           ) -> list[Measurement]:
+def estimated_measurements(path: str | os.PathLike[str], config: EstimatorConfig = EstimatorConfig(),
+                           urdf: Optional[str] = None) -> list[Measurement]:
     """The state the estimator gives from a bag's sensor topics alone, as the live node runs it:
     default configuration, the world frame the robot starts in, no ground truth (samples the
-    estimator refuses are left out, as the node publishes nothing for them)."""
+    estimator refuses are left out, as the node publishes nothing for them). ``urdf`` replaces
+    the bag's ``/robot_description`` (for recordings without one)."""
     bag = Path(path)
-    urdf = read_robot_description(bag)
+    urdf = urdf if urdf is not None else read_robot_description(bag)
     if urdf is None:
         raise BagError(f'{bag}: no /robot_description (was it generated with --sensor-noise?)')
     try:

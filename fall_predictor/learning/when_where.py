@@ -24,7 +24,7 @@ from typing import Any, Optional, Sequence, Union
 import numpy as np
 
 from fall_predictor.data.cache import cached_arrays
-from fall_predictor.data.dataset import DatasetError, read_index
+from fall_predictor.data.dataset import DatasetError, read_index, read_manifest
 from fall_predictor.monitor.decision_list import PerModeDecisionLists
 from fall_predictor.monitor.fall_direction import (angular_error_rad, capture_point_direction,
                                                    momentum_direction)
@@ -33,7 +33,7 @@ from fall_predictor.monitor.records import TrajectoryFeatures
 from fall_predictor.monitor.time_to_fall import TimeToFallRegressor
 
 PathLike = Union[str, 'os.PathLike[str]']
-COM_CACHE_FORMAT = 'fall_predictor/com-heading-cache/v1'
+COM_CACHE_FORMAT = 'fall_predictor/com-heading-cache/v2'
 
 
 def trigger_indices(trajectories: Sequence[TrajectoryFeatures], lists: PerModeDecisionLists,
@@ -78,9 +78,10 @@ def _com_entry(data_dir: Path, bag: str, trajectory_id: str) -> dict[str, np.nda
     bag_dir = data_dir / bag
 
     def from_bag() -> dict[str, np.ndarray]:
-        ms = read_trajectory(bag_dir).measurements
-        return {'com_xy': np.array([m.com[:2] for m in ms]).reshape(len(ms), 2),
-                'heading': np.array([m.heading for m in ms])}
+        ms = read_trajectory(bag_dir).measurements or []
+        return {'t': np.array([m.t for m in ms], dtype=float),
+                'com_xy': np.array([m.com[:2] for m in ms]).reshape(len(ms), 2),
+                'heading': np.array([m.heading for m in ms], dtype=float)}
 
     try:
         arrays, _ = cached_arrays(data_dir / 'cache' / f'com_{trajectory_id}.npz', bag_dir,
@@ -114,15 +115,19 @@ def direction_errors_deg(data_dir: PathLike, trajectories: Sequence[TrajectoryFe
     each trigger."""
     predict = DIRECTIONS[direction]
     data_dir = Path(data_dir)
+    if read_manifest(data_dir).get('ground_truth') is False:
+        return []                       # a robot's recordings: no true CoM to compare with
     bags = {row.trajectory_id: row.bag for row in read_index(data_dir)}
     errors = []
     for traj, k in zip(trajectories, triggers):
         if k is None:
             continue
         com = _com_entry(data_dir, bags[traj.trajectory_id], traj.trajectory_id)
-        if com['com_xy'].shape[0] != traj.t.size:
-            raise DatasetError(f'{traj.trajectory_id}: CoM samples do not match the features')
-        actual = actual_direction(com['com_xy'], com['heading'], traj.t, k, traj.t_fallen)
+        # The true CoM at the feature samples' times (estimated features may skip samples).
+        at = np.searchsorted(com['t'], traj.t - 5e-4)
+        if at.max() >= com['t'].size or np.abs(com['t'][at] - traj.t).max() > 5e-4:
+            raise DatasetError(f'{traj.trajectory_id}: the true CoM misses feature sample times')
+        actual = actual_direction(com['com_xy'][at], com['heading'][at], traj.t, k, traj.t_fallen)
         predicted = predict(traj.X[k].tolist(), mass_kg)
         if np.all(np.isfinite(actual)) and np.all(np.isfinite(predicted)):
             errors.append(math.degrees(angular_error_rad(predicted, actual)))
