@@ -134,9 +134,10 @@ def add_bringup_arguments(parser: argparse.ArgumentParser) -> None:
                         help='node logs (default: a new temporary directory)')
     parser.add_argument('--no-fall-trigger', dest='fall_trigger', action='store_false',
                         help='monitor only: C_bal stays in charge (record training data this way)')
-    parser.add_argument('--sensors', action='store_true',
-                        help='the simulator publishes robot sensor topics; state_estimator_node makes '
-                             'the measurement (exact state on /fall_predictor/ground_truth)')
+    parser.add_argument('--true-state', dest='sensors', action='store_false',
+                        help='feed the monitor the simulator\'s exact state instead of the default: the '
+                             'simulator publishes robot sensor topics and state_estimator_node makes the '
+                             'measurement (exact state then on /fall_predictor/ground_truth)')
 
 
 def add_learner_arguments(p: argparse.ArgumentParser) -> None:

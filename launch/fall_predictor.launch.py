@@ -1,12 +1,12 @@
-"""Launch the onboard fall monitor: simulator, controller, feature and predictor nodes, and
-optionally the recorder.
+"""Launch the onboard fall monitor: simulator, state estimator, controller, feature and
+predictor nodes, and optionally the recorder.
 
 Usage (full ROS 2 install, package built with colcon)::
 
     ros2 launch fall_predictor fall_predictor.launch.py
     ros2 launch fall_predictor fall_predictor.launch.py real_time_factor:=0.0 record:=true \
         bag_path:=/tmp/fall_bags model_path:=/path/to/model.json
-    ros2 launch fall_predictor fall_predictor.launch.py sensors:=true   # estimator in the loop
+    ros2 launch fall_predictor fall_predictor.launch.py sensors:=false  # exact state, no estimator
 
 Parameters come from ``config/fall_predictor.yaml`` (``params_file``); the launch arguments
 ``real_time_factor``, ``model_path`` and ``bag_path`` are applied on top of it, so they win
@@ -41,9 +41,11 @@ def generate_launch_description() -> LaunchDescription:
                               description='recorder output directory (one bag per run)'),
         DeclareLaunchArgument('namespace', default_value='',
                               description='namespace of every node and topic (e.g. robot1)'),
-        DeclareLaunchArgument('sensors', default_value='false',
-                              description='simulator publishes robot sensor topics; '
-                                          'state_estimator_node makes the measurement'),
+        DeclareLaunchArgument('sensors', default_value='true',
+                              description='true (default): the simulator publishes robot sensor '
+                                          'topics and state_estimator_node makes the measurement, '
+                                          'as on a robot (the shipped model is trained on this '
+                                          'estimated state); false: the exact simulated state'),
     ]
 
     def node(executable: str, overrides: dict | None = None, **kwargs) -> Node:

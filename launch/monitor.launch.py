@@ -1,4 +1,4 @@
-"""Launch the fall monitor alone, for a robot that publishes ``fall_predictor/measurement``.
+"""Launch the fall monitor alone, on a robot: state estimator, feature and predictor nodes.
 
 Usage (full ROS 2 install, package built with colcon)::
 
@@ -8,8 +8,9 @@ Usage (full ROS 2 install, package built with colcon)::
 
 By default the feature and predictor nodes run in one process on one executor (the
 ``fall_monitor`` executable); ``single_process:=false`` starts them as separate processes.
-``estimator:=true`` adds the state estimator in front of them, for a robot that publishes its
-raw sensors (``joint_states``, ``imu/data``, the foot wrenches, ``robot_description``). All
+The state estimator runs in front of them on the robot's raw sensors (``joint_states``,
+``imu/data``, the foot wrenches, ``robot_description``); ``estimator:=false`` leaves it out
+for a robot that publishes ``fall_predictor/measurement`` itself. All
 topics are relative, so ``namespace`` moves the whole interface (``/robot1/fall_predictor/...``);
 ``measurement_topic`` remaps the monitor's input. Parameters come from ``config/monitor.yaml``
 (``params_file``), whose ``/**/<node>`` sections match under any namespace; ``model_path`` is
@@ -43,8 +44,9 @@ def generate_launch_description() -> LaunchDescription:
                               description='the monitor\'s input topic (remapping)'),
         DeclareLaunchArgument('single_process', default_value='true',
                               description='true: fall_monitor (one process); false: one per node'),
-        DeclareLaunchArgument('estimator', default_value='false',
-                              description='true: also the state estimator (raw sensor input)'),
+        DeclareLaunchArgument('estimator', default_value='true',
+                              description='true (default): the state estimator on the raw sensor '
+                                          'topics; false: the robot publishes the measurement'),
     ]
     model = {'model_path': ParameterValue(LaunchConfiguration('model_path'), value_type=str)}
     remappings = [('fall_predictor/measurement', LaunchConfiguration('measurement_topic'))]

@@ -74,6 +74,8 @@ def test_bringup_arguments() -> None:
                                       '--real-time-factor', '1'])
     assert (args.pushes, args.seed, args.json, args.real_time_factor) == (3, 7, True, 1.0)
     assert args.domain_id is None and args.record is None
+    assert args.sensors                 # the estimator in the loop, as on a robot, by default
+    assert not build_parser().parse_args(['bringup', '--true-state']).sensors
 
 
 def test_record_live_with_c_bal_throughout_then_import_and_train(tmp_path: Path) -> None:
