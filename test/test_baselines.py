@@ -4,9 +4,8 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from fall_predictor.learning.baselines import (capture_point_curve, capture_point_distances,
-                                      com_height_curve, momentum_curve, pareto_front,
-                                      signed_distance_to_support)
+from fall_predictor.learning.baselines import capture_point_curve, com_height_curve, momentum_curve, pareto_front
+from fall_predictor.monitor.capture_point import capture_point_distances, signed_distance_to_support
 from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2 as GRAVITY
 from fall_predictor.monitor.records import FEATURE_NAMES, Measurement, TrajectoryFeatures
 from fall_predictor.robot.model import TOTAL_MASS_KG

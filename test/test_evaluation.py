@@ -7,11 +7,14 @@ import numpy as np
 import pytest
 
 from fall_predictor import cli
+from fall_predictor.data.bagio import read_trajectory
+from fall_predictor.data.dataset import read_index, robot_total_mass_kg
 from fall_predictor.learning.evaluation import (capture_point_distances_cached, evaluate_model,
                                                 evaluation_json, json_float)
 from fall_predictor.learning.intervals import wilson_interval
 from fall_predictor.learning.metrics import evaluate_lists
 from fall_predictor.learning.training import load_dataset, train_model
+from fall_predictor.monitor.capture_point import capture_point_distances
 from fall_predictor.monitor.model_file import save_model
 
 from learning_fixtures import fixture_dataset  # noqa: F401  (a pytest fixture)
@@ -22,16 +25,20 @@ def test_json_float_writes_nan_and_infinity_as_null():
     assert json_float(math.nan) is None and json_float(-math.inf) is None and json_float(None) is None
 
 
-def test_capture_point_distances_are_cached_per_bag(fixture_dataset):
+def test_capture_point_distances_are_kept_in_the_feature_cache(fixture_dataset):
     trajectories = load_dataset(fixture_dataset).trajectories[:2]
-    first = capture_point_distances_cached(fixture_dataset, trajectories)
-    cache = fixture_dataset / 'cache' / f'cp_{trajectories[0].trajectory_id}.npz'
-    assert cache.exists()
+    cache = fixture_dataset / 'cache' / f'{trajectories[0].trajectory_id}.npz'
+    assert cache.exists()                                      # written by load_dataset
     stamp = cache.stat().st_mtime_ns
+    first = capture_point_distances_cached(fixture_dataset, trajectories)
     second = capture_point_distances_cached(fixture_dataset, trajectories)
-    assert cache.stat().st_mtime_ns == stamp                   # read from the cache
+    assert cache.stat().st_mtime_ns == stamp                   # read from the cache, not the bag
+    rows = {r.trajectory_id: r for r in read_index(fixture_dataset)}
     for a, b, traj in zip(first, second, trajectories):
         assert a.shape == traj.t.shape and np.array_equal(a, b)
+        # Independent: straight from the bag's measurements.
+        ms = read_trajectory(fixture_dataset / rows[traj.trajectory_id].bag).measurements
+        np.testing.assert_array_equal(a, capture_point_distances(ms, robot_total_mass_kg(fixture_dataset)))
 
 
 def test_evaluate_model_with_baselines(fixture_dataset):

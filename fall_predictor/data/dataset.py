@@ -38,7 +38,7 @@ from fall_predictor.monitor.fileio import atomic_output
 from fall_predictor.monitor.records import PushSpec, TrajectoryFeatures
 
 FORMAT = 'fall_predictor/dataset/v1'
-CACHE_FORMAT = 'fall_predictor/features-cache/v3'  # v3: LR lateral edges fold FRONT/BACK
+CACHE_FORMAT = 'fall_predictor/features-cache/v4'  # v3: LR lateral edges fold FRONT/BACK; v4: + cp
 #: The robot's URDF of an imported robot dataset whose bags hold no /robot_description.
 ROBOT_URDF_FILE = 'robot.urdf'
 #: Where features can come from (module docs); the CLI default is ``'estimated'``.
@@ -179,9 +179,21 @@ def _measurements(bag: Path, state: str) -> list:
     return estimated_measurements(bag, urdf=urdf_file.read_text() if urdf_file.exists() else None)
 
 
-def _load_or_build(out: Path, row: IndexRow, settings: FeatureSettings, state: str = 'true'
-                   ) -> tuple[Optional[TrajectoryFeatures], Optional[str], bool]:
-    """Features of one trajectory (cached), or the error that kept them from being read."""
+def _total_mass_or_none(out: Path) -> Optional[float]:
+    try:
+        return robot_total_mass_kg(out)
+    except DatasetError:
+        return None
+
+
+def cached_feature_arrays(out: Path, row: IndexRow, settings: FeatureSettings = FeatureSettings(),
+                          state: str = 'true') -> tuple[dict[str, np.ndarray], bool]:
+    """The derived arrays of one trajectory (from its cache entry when up to date) and whether
+    they were computed now: ``t`` [s], features ``X``, contact ``mode``, ``foot_force_n`` and the
+    capture point's signed distance to the support polygon ``cp_distance_m`` (NaN when the
+    dataset gives no robot mass), all from the same ``state``. Raises OSError or BagError."""
+    from fall_predictor.monitor.capture_point import capture_point_distances
+
     bag = out / row.bag
 
     def from_bag() -> dict[str, np.ndarray]:
@@ -191,14 +203,23 @@ def _load_or_build(out: Path, row: IndexRow, settings: FeatureSettings, state: s
         X, mode = extract_features(ms, settings.rate_window_s,
                                    settings.sample_period_s, settings.edge_tolerance_m)
         foot_force = np.array([[m.left_contacts[:, 2].sum(), m.right_contacts[:, 2].sum()] for m in ms])
+        mass = _total_mass_or_none(out)
+        cp = capture_point_distances(ms, mass) if mass is not None else np.full(len(ms), np.nan)
         return {'t': np.array([m.t for m in ms]), 'X': X, 'mode': mode,
-                'foot_force_n': foot_force.reshape(len(ms), 2)}
+                'foot_force_n': foot_force.reshape(len(ms), 2), 'cp_distance_m': cp}
 
+    # Features computed with other settings are another kind of derived data.
+    kind = f'{CACHE_FORMAT}?{json.dumps(asdict(settings), sort_keys=True)}&state={state}'
+    name = row.trajectory_id + ('' if state == 'true' else f'.{state}')
+    return cached_arrays(out / 'cache' / f'{name}.npz', bag, kind, from_bag)
+
+
+def _load_or_build(out: Path, row: IndexRow, settings: FeatureSettings, state: str = 'true'
+                   ) -> tuple[Optional[TrajectoryFeatures], Optional[str], bool]:
+    """Features of one trajectory (cached), or the error that kept them from being read."""
+    bag = out / row.bag
     try:
-        # Features computed with other settings are another kind of derived data.
-        kind = f'{CACHE_FORMAT}?{json.dumps(asdict(settings), sort_keys=True)}&state={state}'
-        name = row.trajectory_id + ('' if state == 'true' else f'.{state}')
-        arrays, built = cached_arrays(out / 'cache' / f'{name}.npz', bag, kind, from_bag)
+        arrays, built = cached_feature_arrays(out, row, settings, state)
     except OSError as exc:
         return None, f'{bag}: {exc}', False
     except BagError as exc:

@@ -61,7 +61,7 @@ def robot_recording_row(bag: Path, tid: str, urdf: Optional[str] = None) -> Inde
     """The index row of one robot recording, labelled from the estimated state (module docs)."""
     from fall_predictor.data.estimation import estimated_measurements
     from fall_predictor.data.sensorbag import read_imu, read_robot_description
-    from fall_predictor.learning.tilt_detector import fused_roll_pitch
+    from fall_predictor.monitor.geometry import fused_roll_pitch
 
     if urdf is None:
         urdf = read_robot_description(bag)

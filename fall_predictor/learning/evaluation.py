@@ -3,9 +3,9 @@ their JSON form.
 
 :func:`evaluate_model` runs a model over every trajectory of a dataset (no cross-validation:
 see :mod:`fall_predictor.learning.crossval`); :func:`baseline_curves` evaluates the CoM-height,
-momentum and capture-point baselines over threshold grids. The capture point's distances come
-from the bags, cached per trajectory by :func:`capture_point_distances_cached` in the one
-derived-data cache of the package (:func:`fall_predictor.data.cache.cached_arrays`). The CLI
+momentum and capture-point baselines over threshold grids. The capture point's distances are
+computed with the features and kept in the feature cache
+(:func:`capture_point_distances_cached`). The CLI
 subcommand ``evaluate`` is a thin wrapper.
 
 JSON has no NaN or infinity: :func:`json_float` writes them as null.
@@ -20,10 +20,8 @@ from typing import Any, Optional, Sequence
 
 import numpy as np
 
-from fall_predictor.data.cache import cached_arrays
-from fall_predictor.data.dataset import DatasetError, read_index, robot_total_mass_kg
-from fall_predictor.learning.baselines import (CurvePoint, capture_point_curve,
-                                               capture_point_distances, com_height_curve,
+from fall_predictor.data.dataset import DatasetError, read_index
+from fall_predictor.learning.baselines import (CurvePoint, capture_point_curve, com_height_curve,
                                                momentum_curve, pareto_front)
 from fall_predictor.learning.metrics import EvaluationResult, evaluate_lists
 from fall_predictor.learning.training import PathLike, load_dataset
@@ -31,42 +29,37 @@ from fall_predictor.monitor.decision_list import PerModeDecisionLists
 from fall_predictor.monitor.records import TrajectoryFeatures
 
 
-# -- the capture point's distances, cached --------------------------------------------------------
-CAPTURE_POINT_CACHE_FORMAT = 'fall_predictor/capture-point-cache/v1'
-
-
-def _capture_point_entry(data_dir: Path, bag: str, trajectory_id: str, n_samples: int,
-                         total_mass_kg: float) -> tuple[np.ndarray, bool]:
-    """Capture-point distances of one trajectory from its cache entry or its bag."""
-    from fall_predictor.data.bagio import BagError, read_trajectory
-
-    bag_dir = data_dir / bag
-
-    def from_bag() -> dict[str, np.ndarray]:
-        distance = capture_point_distances(read_trajectory(bag_dir).measurements, total_mass_kg)
-        if distance.size != n_samples:
-            raise DatasetError(f'{bag_dir}: {distance.size} measurements but {n_samples} feature '
-                               'samples; rebuild the feature cache')
-        return {'distance': distance}
+# -- the capture point's distances, cached -------------------------------------------------------
+def _capture_point_entry(data_dir: Path, row: Any, n_samples: int, state: str) -> np.ndarray:
+    """Capture-point distances of one trajectory, from its feature cache entry."""
+    from fall_predictor.data.bagio import BagError
+    from fall_predictor.data.dataset import cached_feature_arrays
 
     try:
-        arrays, built = cached_arrays(data_dir / 'cache' / f'cp_{trajectory_id}.npz', bag_dir,
-                                      CAPTURE_POINT_CACHE_FORMAT, from_bag)
+        arrays, _ = cached_feature_arrays(data_dir, row, state=state)
     except OSError as error:
-        raise DatasetError(f'{bag_dir}: {error}') from error
+        raise DatasetError(f'{data_dir / row.bag}: {error}') from error
     except BagError as error:
         raise DatasetError(str(error)) from error
-    return arrays['distance'], built
+    distance = arrays['cp_distance_m']
+    if distance.size != n_samples:
+        raise DatasetError(f'{data_dir / row.bag}: {distance.size} capture-point samples but '
+                           f'{n_samples} feature samples')
+    if np.isnan(distance).all():
+        raise DatasetError(f'{data_dir}: dataset.json does not give the robot\'s total mass; '
+                           'the capture point needs it')
+    return distance
 
 
 def capture_point_distances_cached(data_dir: PathLike, trajectories: Sequence[TrajectoryFeatures],
-                                   jobs: int = 1, progress: bool = False) -> list[np.ndarray]:
+                                   jobs: int = 1, progress: bool = False, state: str = 'true'
+                                   ) -> list[np.ndarray]:
     """Per trajectory, the capture point's signed distance [m] to the support polygon per sample.
 
-    Computed from the bag's measurements
-    (:func:`~fall_predictor.learning.baselines.capture_point_distances`) once and cached as
-    ``DATA/cache/cp_<trajectory id>.npz``, keyed by the bag fingerprint like the feature cache,
-    so that sweeps do not read bags again.
+    Computed with the features from the same ``state``
+    (:func:`~fall_predictor.monitor.capture_point.capture_point_distances`) and kept in the
+    feature cache (:func:`~fall_predictor.data.dataset.cached_feature_arrays`), so that sweeps
+    do not read bags again.
     """
     from joblib import delayed
     from tqdm import tqdm
@@ -74,16 +67,13 @@ def capture_point_distances_cached(data_dir: PathLike, trajectories: Sequence[Tr
     from fall_predictor.data.parallel import local_parallel
 
     data_dir = Path(data_dir)
-    bags = {row.trajectory_id: row.bag for row in read_index(data_dir)}
-    missing = [traj.trajectory_id for traj in trajectories if traj.trajectory_id not in bags]
+    rows = {row.trajectory_id: row for row in read_index(data_dir)}
+    missing = [traj.trajectory_id for traj in trajectories if traj.trajectory_id not in rows]
     if missing:
         raise DatasetError(f'{data_dir}: trajectories not in the index: {", ".join(missing[:5])}')
-    total_mass_kg = robot_total_mass_kg(data_dir)
-    entries = local_parallel(jobs)(
-        delayed(_capture_point_entry)(data_dir, bags[traj.trajectory_id], traj.trajectory_id,
-                                      traj.t.size, total_mass_kg)
+    return local_parallel(jobs)(
+        delayed(_capture_point_entry)(data_dir, rows[traj.trajectory_id], traj.t.size, state)
         for traj in tqdm(trajectories, desc='capture point', unit='traj', disable=not progress))
-    return [distance for distance, _ in entries]
 
 
 # -- baselines ------------------------------------------------------------------------------------
@@ -202,7 +192,7 @@ def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: f
     result = evaluate_lists(trajectories, lists, (tau_his_s,))[float(tau_his_s)]
     curves = None
     if baselines:
-        distances = capture_point_distances_cached(data_dir, trajectories, jobs, progress)
+        distances = capture_point_distances_cached(data_dir, trajectories, jobs, progress, state)
         curves = baseline_curves(trajectories, distances)
     ttf_error = direction_error = cp_error = None
     if time_to_fall is not None or robot_mass_kg is not None:

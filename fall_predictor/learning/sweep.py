@@ -190,7 +190,7 @@ def run_sweep(data_dir: PathLike, out_dir: PathLike, config: SweepConfig = Sweep
     load_s = time.perf_counter() - started
 
     start = time.perf_counter()
-    distances = (capture_point_distances_cached(data_dir, trajectories, jobs, progress)
+    distances = (capture_point_distances_cached(data_dir, trajectories, jobs, progress, config.state)
                  if config.capture_point else None)
     capture_point_s = time.perf_counter() - start
     start = time.perf_counter()

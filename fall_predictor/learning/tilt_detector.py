@@ -23,6 +23,7 @@ import numpy as np
 
 from fall_predictor.data.cache import cached_arrays
 from fall_predictor.data.dataset import DatasetError, has_sensor_topics, read_index
+from fall_predictor.monitor.geometry import fused_roll_pitch  # noqa: F401 (part of this module's API)
 from fall_predictor.monitor.records import TrajectoryFeatures
 
 IMU_CACHE_FORMAT = 'fall_predictor/imu-cache/v1'
@@ -35,17 +36,6 @@ def threshold_grid(angles_deg: Sequence[float] = ANGLE_THRESHOLDS_DEG,
                    rates_rad_s: Sequence[float] = RATE_THRESHOLDS_RAD_S) -> list[tuple[float, float]]:
     """Every (tilt [deg], rate [rad/s]) threshold pair of the grid."""
     return [(float(a), float(r)) for a in angles_deg for r in rates_rad_s]
-
-
-def fused_roll_pitch(quat_xyzw: np.ndarray) -> np.ndarray:
-    """Fused roll and pitch [rad] (n, 2) of orientations (n, 4): the world z axis seen from the
-    body, ``roll = asin(R[2, 1])``, ``pitch = asin(-R[2, 0])`` (R body to world)."""
-    q = np.asarray(quat_xyzw, dtype=float)
-    q = q / np.linalg.norm(q, axis=1, keepdims=True)
-    x, y, z, w = q.T
-    r20 = 2.0 * (x * z - y * w)
-    r21 = 2.0 * (y * z + x * w)
-    return np.column_stack([np.arcsin(np.clip(r21, -1.0, 1.0)), np.arcsin(np.clip(-r20, -1.0, 1.0))])
 
 
 def tilt_alarms(signals: np.ndarray, angle_thr_deg: float, rate_thr_rad_s: float) -> np.ndarray:

@@ -14,6 +14,8 @@ from __future__ import annotations
 import math
 from typing import Iterable
 
+import numpy as np
+
 Point = tuple[float, float]
 
 #: Default geometric tolerance [m]: points closer than this are one point, and a vertex
@@ -171,3 +173,14 @@ def to_yaw_frame(x: float, y: float, yaw: float) -> Point:
     """
     c, s = math.cos(yaw), math.sin(yaw)
     return c * x + s * y, -s * x + c * y
+
+
+def fused_roll_pitch(quat_xyzw: np.ndarray) -> np.ndarray:
+    """Fused roll and pitch [rad] (n, 2) of orientations (n, 4): the world z axis seen from the
+    body, ``roll = asin(R[2, 1])``, ``pitch = asin(-R[2, 0])`` (R body to world)."""
+    q = np.asarray(quat_xyzw, dtype=float)
+    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    x, y, z, w = q.T
+    r20 = 2.0 * (x * z - y * w)
+    r21 = 2.0 * (y * z + x * w)
+    return np.column_stack([np.arcsin(np.clip(r21, -1.0, 1.0)), np.arcsin(np.clip(-r20, -1.0, 1.0))])
