@@ -36,7 +36,7 @@ def main() -> None:
                         f'settings of {args.model}: each fold trains on {round(point["n_train"])} trajectories '
                         f'with these settings and is evaluated on the other {n - round(point["n_train"])} at tau_his = {tau_his} s. '
                         f'The shipped model itself is then trained on all {n}.'),
-        'model_command': f'fall-predictor train --data data/d1000 --tau-plus={tau_plus} '
+        'model_command': f'fall-predictor train --data data/d1000s --tau-plus={tau_plus} '
                          f'--tau-his-recommended {tau_his} --out {args.model} --jobs 2',
         'dataset_command': args.dataset_command,
         'evaluation_command': sweep['command'],

@@ -1,18 +1,29 @@
 #!/usr/bin/env bash
 # Regenerate the dataset-dependent results of docs/results.md on the current robot: the
-# 1000-trajectory dataset, its statistics and Fig. 6 plots, the cross-validated sweep (Table 2,
-# Fig. 10/11), the shipped model and its evaluation, the robot's robustness and credibility.
-# About 1.5 h on 2 cores. Data goes to data/ (not committed); figures and JSON to docs/.
+# 1000-trajectory dataset and a 300-trajectory held-out test set (another seed), both recorded
+# with the robot's sensor topics; the cross-validated sweep on the estimated state with nested
+# operating points and the held-out test set (Table 2, Fig. 10/11, Pareto front with intervals);
+# the shipped model (estimated state) and its held-out evaluation; the same on the true state
+# for comparison; the sensor-noise sweep; the robot's robustness and credibility.
+# About 3 h on 2 cores. Data goes to data/ (not committed); figures and JSON to docs/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 FP=.venv/bin/fall-predictor
 JOBS=${JOBS:-2}
-$FP generate --trajectories 1000 --seed 0 --out data/d1000 --jobs "$JOBS" --json
-$FP stats data/d1000 --plots docs/figures --jobs "$JOBS" --json > docs/dataset_stats.json
-$FP sweep --data data/d1000 --folds 10 --out docs/sweep --jobs "$JOBS" --json > /dev/null
-$FP train --data data/d1000 --tau-plus=-0.25 --tau-his-recommended 0.06 --out models/default_model.json --jobs "$JOBS"
+$FP generate --trajectories 1000 --seed 0 --out data/d1000s --sensor-noise 1 --jobs "$JOBS" --json
+$FP generate --trajectories 300 --seed 1 --out data/t300s --sensor-noise 1 --jobs "$JOBS" --json
+$FP stats data/d1000s --plots docs/figures --jobs "$JOBS" --json > docs/dataset_stats.json
+scripts/evaluation_pipeline.sh data/d1000s data/t300s docs/sweep --folds 10
+$FP train --data data/d1000s --tau-plus=-0.25 --tau-his-recommended 0.06 --out models/default_model.json --jobs "$JOBS"
 .venv/bin/python scripts/model_evaluation.py --sweep docs/sweep/sweep.json --model models/default_model.json \
-  --out models/default_model.evaluation.json
+  --out models/default_model.evaluation.json \
+  --dataset-command "fall-predictor generate --trajectories 1000 --seed 0 --out data/d1000s --sensor-noise 1 --jobs 2"
+$FP evaluate --data data/t300s --model models/default_model.json --jobs "$JOBS" --json > docs/heldout_estimated.json
+# The true state, same trajectories and settings, for the side-by-side.
+$FP train --data data/d1000s --state true --tau-plus=-0.25 --tau-his-recommended 0.06 --out data/true_state_model.json --jobs "$JOBS"
+$FP evaluate --data data/t300s --state true --model data/true_state_model.json --jobs "$JOBS" --json > docs/heldout_true.json
+.venv/bin/python benchmarks/bench_noise_sweep.py --model models/default_model.json --trajectories 40 --seed 2 \
+  --work data/noise --jobs "$JOBS" --out docs/noise_sweep.json --plot docs/noise_sweep.png
 $FP robustness --jobs "$JOBS" --json --out benchmarks/results/robustness.json > /dev/null
 .venv/bin/python benchmarks/bench_robot_credibility.py --trajectories 100 > /dev/null
 .venv/bin/python scripts/fig2_force_sweep.py --model models/default_model.json --tau-his 0.06 --jobs "$JOBS"
