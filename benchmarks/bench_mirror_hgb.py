@@ -10,7 +10,7 @@ Trains on ``--train`` (every ``--stride``-th sample, tau_plus ``--tau-plus``) an
   samples (a reference upper bound), with its per-sample prediction cost (one sample at a time,
   as the 1 kHz monitor would call it, and batched).
 
-Usage: ``python benchmarks/bench_mirror_hgb.py --train D --test T [--out F.json]``
+Usage: ``python benchmarks/bench_mirror_hgb.py --train D --test T [--state true] [--out F.json]``
 """
 from __future__ import annotations
 
@@ -67,11 +67,13 @@ def main() -> None:
     parser.add_argument('--tau-plus', type=float, default=-0.25)
     parser.add_argument('--tau-his', type=float, default=0.06)
     parser.add_argument('--stride', type=int, default=10)
+    parser.add_argument('--state', choices=('estimated', 'true'), default='estimated',
+                        help='features from the estimated (default) or the true state')
     parser.add_argument('--out', default=None)
     args = parser.parse_args()
-    train = load_dataset(args.train, jobs=2).trajectories
-    test = load_dataset(args.test, jobs=2).trajectories
-    result = {'train': Path(args.train).name, 'test': Path(args.test).name,
+    train = load_dataset(args.train, jobs=2, state=args.state).trajectories
+    test = load_dataset(args.test, jobs=2, state=args.state).trajectories
+    result = {'train': Path(args.train).name, 'test': Path(args.test).name, 'state': args.state,
               'n_train': len(train), 'tau_plus_s': args.tau_plus, 'tau_his_s': args.tau_his,
               'stride': args.stride}
     for name, mirror in (('tree', False), ('tree_mirror', True)):

@@ -147,7 +147,7 @@ def cmd_train(args) -> int:
                                       args.stride, jobs=args.jobs,
                                       recommended_tau_his_s=args.tau_his_recommended,
                                       skip_unreadable=args.skip_unreadable, progress=not args.json,
-                                      state=state)
+                                      state=state, mirror=args.mirror)
         save_model(args.out, lists, metadata)
     except (DatasetError, ModelFileError) as error:
         return _fail('train', error)
@@ -155,7 +155,7 @@ def cmd_train(args) -> int:
     payload = {'model': str(args.out), 'tau_plus_s': metadata.tau_plus_s,
                'recommended_tau_his_s': metadata.recommended_tau_his_s,
                'learner': {'name': metadata.learner_name, 'params': metadata.learner_params},
-               'sample_stride': args.stride, 'state': metadata.state,
+               'sample_stride': args.stride, 'state': metadata.state, 'mirror': metadata.mirror,
                'dataset_fingerprint': metadata.dataset_fingerprint,
                'mean_rule_size': lists.mean_rule_size, 'rule_sizes': list(lists.rule_sizes),
                'depths': list(lists.depths), 'wall_s': wall}
@@ -347,6 +347,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--out', type=Path, required=True, help='model file to write (JSON)')
     argtypes.add_learner_arguments(p)
     argtypes.add_state_argument(p)
+    p.add_argument('--mirror', action='store_true',
+                   help='also learn from each trajectory\'s left-right mirror image (modes, y components '
+                        'and signs mirrored)')
     p.add_argument('--tau-his-recommended', type=argtypes.nonnegative, default=None,
                    help='history window [s] to store as the model\'s run-time default')
     p.add_argument('--jobs', type=argtypes.positive_int, default=1, help='processes loading features')

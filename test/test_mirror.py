@@ -48,3 +48,38 @@ def test_mirrored_data_teaches_the_mirrored_rule():
     np.testing.assert_array_equal(both.predict(x, right), [FALLING, BALANCED])
     x[:, LIN_MOM_Y] *= -1
     np.testing.assert_array_equal(both.predict(x, np.full(2, FALLING_MODE)), [FALLING, BALANCED])
+
+
+def test_train_mirror_option_gives_lists_that_agree_with_their_mirror_image(tmp_path, capsys):
+    """``train --mirror``: a sample and its mirror image get the same prediction (in mirrored
+    modes) on nearly every training sample, and the model file says it was mirrored."""
+    import json
+
+    from fall_predictor.cli import main
+    from fall_predictor.data.dataset import load_features
+    from fall_predictor.monitor.model_file import load_model
+
+    out = tmp_path / 'data'
+    assert main(['generate', '--trajectories', '3', '--seed', '0', '--out', str(out), '--horizon', '0.8',
+                 '--json']) == 0
+    plain, mirrored = tmp_path / 'plain.json', tmp_path / 'mirror.json'
+    assert main(['train', '--data', str(out), '--state', 'true', '--tau-plus=-0.25', '--out', str(plain)]) == 0
+    assert main(['train', '--data', str(out), '--state', 'true', '--tau-plus=-0.25', '--out', str(mirrored),
+                 '--mirror', '--json']) == 0
+    assert json.loads(capsys.readouterr().out.splitlines()[-1])['mirror'] is True
+    lists, metadata = load_model(mirrored)
+    assert metadata.mirror and not load_model(plain)[1].mirror
+    trajectories = load_features(out, progress=False).trajectories
+    X = np.concatenate([t.X for t in trajectories])
+    modes = np.concatenate([t.mode for t in trajectories])
+    X, modes = X[modes >= 0], modes[modes >= 0]
+
+    def agreement(model_lists):
+        """On the samples it calls falling, or calls falling in their mirror image."""
+        a = model_lists.predict(X, modes)
+        b = model_lists.predict(X * MIRROR_SIGNS, MIRROR_MODES[modes])
+        either = (a == FALLING) | (b == FALLING)
+        assert either.sum() > 100
+        return float(np.mean(a[either] == b[either]))
+    assert agreement(lists) >= 0.99
+    assert agreement(load_model(plain)[0]) < 0.9       # not symmetric without the option

@@ -151,7 +151,8 @@ def train_model(data_dir: PathLike, tau_plus_s: float, learner_name: str = 'tree
                 learner_params: Optional[Mapping[str, Any]] = None,
                 sample_stride: int = DEFAULT_SAMPLE_STRIDE, jobs: int = 1,
                 recommended_tau_his_s: Optional[float] = None, skip_unreadable: bool = False,
-                progress: bool = False, state: str = 'true') -> tuple[PerModeDecisionLists, ModelMetadata]:
+                progress: bool = False, state: str = 'true', mirror: bool = False
+                ) -> tuple[PerModeDecisionLists, ModelMetadata]:
     """Train one decision list per contact mode on every trajectory of ``data_dir``.
 
     ``tau_plus_s`` [s] withholds falling states before ``t_height_drop + tau_plus_s``;
@@ -159,7 +160,8 @@ def train_model(data_dir: PathLike, tau_plus_s: float, learner_name: str = 'tree
     ``sample_stride`` as in :func:`fit_strided`; ``jobs`` processes load the features;
     ``recommended_tau_his_s`` [s] is stored in the metadata as the run-time default;
     ``state`` is the state the features come from (stored in the metadata as the one actually
-    used, see :func:`~fall_predictor.data.dataset.resolve_state`).
+    used, see :func:`~fall_predictor.data.dataset.resolve_state`); with ``mirror`` the lists
+    also learn from every trajectory's left-right mirror image (:func:`fit_strided`).
     """
     if not math.isfinite(tau_plus_s):
         raise ValueError(f'tau_plus_s must be finite, got {tau_plus_s!r}')
@@ -170,7 +172,7 @@ def train_model(data_dir: PathLike, tau_plus_s: float, learner_name: str = 'tree
     sample_stride = check_sample_stride(sample_stride)
     report = load_dataset(data_dir, jobs, skip_unreadable, progress, state)
     require_outcomes(report.trajectories, data_dir, need_balanced=False)
-    lists = fit_strided(report.trajectories, tau_plus_s, learner, sample_stride)
+    lists = fit_strided(report.trajectories, tau_plus_s, learner, sample_stride, mirror=mirror)
     # Issue 12: the time-to-fall trees and the robot mass (fall direction) ship in the model.
     from fall_predictor.data.dataset import robot_total_mass_kg
     from fall_predictor.learning.time_to_fall_training import fit_time_to_fall
@@ -181,7 +183,7 @@ def train_model(data_dir: PathLike, tau_plus_s: float, learner_name: str = 'tree
         learner_params=learner.get_params(), dataset_fingerprint=report.fingerprint,
         recommended_tau_his_s=recommended_tau_his_s, sample_stride=sample_stride,
         feature_settings=report.settings, robot_mass_kg=robot_total_mass_kg(data_dir),
-        time_to_fall=time_to_fall, state=report.state)
+        time_to_fall=time_to_fall, state=report.state, mirror=mirror)
     return lists, metadata
 
 

@@ -17,7 +17,7 @@ Layout (schema ``fall_predictor.decision_lists``, version 3)::
                    "sample_period_s": 0.001, "guard_com_height_m": 0.48}, # the monitor must compute
       "training": {"tau_plus_s": -0.25, "balanced_weight": 4.0, "falling_weight": 1.0,
                    "sample_stride": 10, "learner": {"name": "TreeListLearner", "params": {...}},
-                   "state": "estimated"},                    # optional; absent = "true"
+                   "state": "estimated", "mirror": false},   # optional; absent = "true", false
       "recommended_tau_his_s": 0.06,                          # or null
       "dataset_fingerprint": "...",
       "created": {"utc": "2025-01-01T00:00:00Z", "package_version": "0.1.0"},
@@ -105,6 +105,8 @@ class ModelMetadata:
     #: The state the training features came from: 'true' (the simulator's) or 'estimated'
     #: (the state estimator's, from the sensor topics); files without it were trained on 'true'.
     state: str = 'true'
+    #: Trained on the trajectories and their left-right mirror images (issue 12).
+    mirror: bool = False
 
 
 def _model_document(lists: PerModeDecisionLists, metadata: ModelMetadata) -> dict[str, Any]:
@@ -128,6 +130,7 @@ def _model_document(lists: PerModeDecisionLists, metadata: ModelMetadata) -> dic
             'sample_stride': metadata.sample_stride,
             'learner': {'name': metadata.learner_name, 'params': metadata.learner_params},
             'state': metadata.state,
+            'mirror': metadata.mirror,
         },
         'recommended_tau_his_s': metadata.recommended_tau_his_s,
         'dataset_fingerprint': metadata.dataset_fingerprint,
@@ -292,10 +295,13 @@ def _parse_model(text: str, path: Path) -> tuple[PerModeDecisionLists, ModelMeta
     training = document['training']
     training = read.object(training, 'training',
                            ('tau_plus_s', 'balanced_weight', 'falling_weight', 'sample_stride', 'learner')
-                           + (('state',) if isinstance(training, dict) and 'state' in training else ()))
+                           + tuple(k for k in ('state', 'mirror') if isinstance(training, dict) and k in training))
     state = read.string(training.get('state', 'true'), 'training.state')
     if state not in TRAINING_STATES:
         raise read.fail('training.state', f'expected one of {list(TRAINING_STATES)}, got {state!r}')
+    mirror = training.get('mirror', False)
+    if not isinstance(mirror, bool):
+        raise read.fail('training.mirror', f'expected true or false, got {mirror!r}')
     learner = read.object(training['learner'], 'training.learner', ('name', 'params'))
     params = learner['params']
     if not isinstance(params, dict):
@@ -329,5 +335,5 @@ def _parse_model(text: str, path: Path) -> tuple[PerModeDecisionLists, ModelMeta
         recommended_tau_his_s=tau_his, sample_stride=stride, feature_settings=feature_settings,
         created_utc=read.string(created['utc'], 'created.utc'),
         package_version=read.string(created['package_version'], 'created.package_version'),
-        robot_mass_kg=mass, time_to_fall=time_to_fall, state=state)
+        robot_mass_kg=mass, time_to_fall=time_to_fall, state=state, mirror=mirror)
     return PerModeDecisionLists(tuple(lists)), metadata
