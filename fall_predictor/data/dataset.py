@@ -179,6 +179,20 @@ def _measurements(bag: Path, state: str) -> list:
     return estimated_measurements(bag, urdf=urdf_file.read_text() if urdf_file.exists() else None)
 
 
+def cached_bag_arrays(data_dir: Path, bag: str, name: str, kind: str, compute) -> dict[str, np.ndarray]:
+    """Arrays derived from one bag of a dataset, cached as ``DATA/cache/<name>.npz``
+    (:func:`~fall_predictor.data.cache.cached_arrays`); a bag that cannot be read is a
+    :class:`DatasetError` naming it."""
+    bag_dir = Path(data_dir) / bag
+    try:
+        arrays, _ = cached_arrays(Path(data_dir) / 'cache' / f'{name}.npz', bag_dir, kind, compute)
+    except OSError as error:
+        raise DatasetError(f'{bag_dir}: {error}') from error
+    except BagError as error:
+        raise DatasetError(str(error)) from error
+    return arrays
+
+
 def _total_mass_or_none(out: Path) -> Optional[float]:
     try:
         return robot_total_mass_kg(out)

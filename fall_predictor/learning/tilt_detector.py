@@ -21,8 +21,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from fall_predictor.data.cache import cached_arrays
-from fall_predictor.data.dataset import DatasetError, has_sensor_topics, read_index
+from fall_predictor.data.dataset import cached_bag_arrays, has_sensor_topics, read_index
 from fall_predictor.monitor.geometry import fused_roll_pitch  # noqa: F401 (part of this module's API)
 from fall_predictor.monitor.records import TrajectoryFeatures
 
@@ -57,23 +56,13 @@ def tilt_alarms(signals: np.ndarray, angle_thr_deg: float, rate_thr_rad_s: float
 
 
 def _imu_entry(data_dir: Path, bag: str, trajectory_id: str) -> dict[str, np.ndarray]:
-    from fall_predictor.data.bagio import BagError
     from fall_predictor.data.sensorbag import read_imu
 
-    bag_dir = data_dir / bag
-
     def from_bag() -> dict[str, np.ndarray]:
-        t, quat, gyro = read_imu(bag_dir)
+        t, quat, gyro = read_imu(data_dir / bag)
         return {'t': t, 'roll_pitch': fused_roll_pitch(quat), 'gyro': gyro}
 
-    try:
-        arrays, _ = cached_arrays(data_dir / 'cache' / f'imu_{trajectory_id}.npz', bag_dir,
-                                  IMU_CACHE_FORMAT, from_bag)
-    except OSError as error:
-        raise DatasetError(f'{bag_dir}: {error}') from error
-    except BagError as error:
-        raise DatasetError(str(error)) from error
-    return arrays
+    return cached_bag_arrays(data_dir, bag, f'imu_{trajectory_id}', IMU_CACHE_FORMAT, from_bag)
 
 
 def aligned_signals(imu: dict[str, np.ndarray], t: np.ndarray) -> np.ndarray:

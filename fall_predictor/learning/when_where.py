@@ -23,8 +23,7 @@ from typing import Any, Optional, Sequence, Union
 
 import numpy as np
 
-from fall_predictor.data.cache import cached_arrays
-from fall_predictor.data.dataset import DatasetError, read_index, read_manifest
+from fall_predictor.data.dataset import DatasetError, cached_bag_arrays, read_index, read_manifest
 from fall_predictor.monitor.decision_list import PerModeDecisionLists
 from fall_predictor.monitor.fall_direction import (angular_error_rad, capture_point_direction,
                                                    momentum_direction)
@@ -73,24 +72,15 @@ def time_to_fall_errors(trajectories: Sequence[TrajectoryFeatures], triggers: Se
 
 
 def _com_entry(data_dir: Path, bag: str, trajectory_id: str) -> dict[str, np.ndarray]:
-    from fall_predictor.data.bagio import BagError, read_trajectory
-
-    bag_dir = data_dir / bag
+    from fall_predictor.data.bagio import read_trajectory
 
     def from_bag() -> dict[str, np.ndarray]:
-        ms = read_trajectory(bag_dir).measurements or []
+        ms = read_trajectory(data_dir / bag).measurements or []
         return {'t': np.array([m.t for m in ms], dtype=float),
                 'com_xy': np.array([m.com[:2] for m in ms]).reshape(len(ms), 2),
                 'heading': np.array([m.heading for m in ms], dtype=float)}
 
-    try:
-        arrays, _ = cached_arrays(data_dir / 'cache' / f'com_{trajectory_id}.npz', bag_dir,
-                                  COM_CACHE_FORMAT, from_bag)
-    except OSError as error:
-        raise DatasetError(f'{bag_dir}: {error}') from error
-    except BagError as error:
-        raise DatasetError(str(error)) from error
-    return arrays
+    return cached_bag_arrays(data_dir, bag, f'com_{trajectory_id}', COM_CACHE_FORMAT, from_bag)
 
 
 def actual_direction(com_xy: np.ndarray, heading: np.ndarray, t: np.ndarray, k: int,
