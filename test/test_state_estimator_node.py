@@ -114,10 +114,16 @@ def test_simulator_sensor_topics_through_the_estimator_track_the_ground_truth():
                 n.destroy_node()
     common = sorted(set(truth) & set(estimated))
     assert len(common) >= 250
-    # The simulator publishes the ground truth on its own topic; the estimate of the standing
-    # robot from its sensors alone is within millimetres of it.
-    errors = [np.linalg.norm(estimated[k].com - truth[k].com) for k in common]
+    # The simulator publishes the ground truth on its own topic. The estimator's world frame is
+    # the one the robot stood in when the estimator started (an odometry frame, REP 105): its
+    # horizontal origin is aligned with the truth's at the first common sample, as any
+    # comparison against motion capture does (heights need no alignment: z = 0 is the ground).
+    # From there on, the estimate from the sensors alone stays within millimetres of the truth.
+    offset = truth[common[0]].com - estimated[common[0]].com
+    offset[2] = 0.0
+    errors = [np.linalg.norm(estimated[k].com + offset - truth[k].com) for k in common]
     assert np.percentile(errors, 99) < 0.01
+    assert max(abs(estimated[k].com[2] - truth[k].com[2]) for k in common) < 0.01
     assert all(len(estimated[k].left_contacts) and len(estimated[k].right_contacts) for k in common[-50:])
 
 
