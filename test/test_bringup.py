@@ -127,3 +127,30 @@ def test_bringup_with_sensors_runs_the_estimator_in_the_loop(tmp_path: Path) -> 
     assert len(results) == 1 and results[0]['outcome'] in ('fall_predicted', 'fall_missed', 'predicted_no_fall', 'no_fall')
     log = (tmp_path / 'logs' / 'state_estimator_node.log').read_text()
     assert 'robot description: 42.10 kg, 26 joints' in log
+
+
+def test_a_node_that_ignores_sigint_and_sigterm_is_aborted_with_its_stacks_in_its_log(tmp_path: Path) -> None:
+    # A hung node must neither hold the bring-up forever nor vanish without a trace: after
+    # SIGINT and SIGTERM it gets SIGABRT, and faulthandler writes where it was stuck.
+    import sys
+    import time
+
+    from fall_predictor.ros.bringup import start_process, stop_nodes
+    stuck = ('import signal, time\n'
+             'signal.signal(signal.SIGINT, signal.SIG_IGN)\n'
+             'signal.signal(signal.SIGTERM, signal.SIG_IGN)\n'
+             'def wait_forever():\n'
+             '    print("ready", flush=True)\n'
+             '    while True:\n'
+             '        time.sleep(0.05)\n'
+             'wait_forever()\n')
+    node = start_process('predictor_node', [sys.executable, '-c', stuck], {'PATH': '/usr/bin:/bin'}, tmp_path)
+    deadline = time.monotonic() + 20.0
+    while 'ready' not in node.log_tail() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    started = time.monotonic()
+    codes = stop_nodes({'predictor_node': node}, sigint_timeout_s=0.5, term_timeout_s=0.5)
+    assert codes == {'predictor_node': -6}
+    assert time.monotonic() - started < 5.0
+    log = node.log_path.read_text()
+    assert 'most recent call first' in log and 'wait_forever' in log

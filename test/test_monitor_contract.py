@@ -196,7 +196,8 @@ def robot(tmp_path_factory: pytest.TempPathFactory):
         finally:
             r.node.destroy_node()
             codes = stop_nodes(nodes)
-    assert all(code == 0 for code in codes.values()), codes
+    assert all(code == 0 for code in codes.values()), (
+        codes, {name: nodes[name].log_tail(60) for name, code in codes.items() if code != 0})
 
 
 def alive(robot: Robot) -> bool:

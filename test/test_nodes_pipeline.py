@@ -400,7 +400,8 @@ def test_recorder_bags_hold_every_published_message(system: System) -> None:
              for name in ('simulator_node', 'controller_node', 'feature_node', 'predictor_node')}
     simulator = final['simulator_node']
     codes = stop_nodes(nodes)
-    assert all(code == 0 for code in codes.values()), codes
+    assert all(code == 0 for code in codes.values()), (
+        codes, {name: nodes[name].log_tail(60) for name, code in codes.items() if code != 0})
     published = {
         MEASUREMENT.name: int(simulator['measurements']),
         JOINT_STATES.name: int(simulator['joint_states']),

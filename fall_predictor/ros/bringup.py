@@ -127,6 +127,9 @@ def start_process(name: str, command: list[str], env: dict[str, str],
     bring-up, which then stops the nodes in order), dying with this process, output to
     ``log_dir/<name>.log``."""
     log_path = log_dir / f'{name}.log'
+    # faulthandler: a node that has to be aborted (see stop_nodes) leaves its Python stacks in
+    # its log, so a hang can be diagnosed after the fact.
+    env = {**env, 'PYTHONFAULTHANDLER': '1'}
     with open(log_path, 'wb') as log:
         process = subprocess.Popen(
             command, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT, env=env,
@@ -143,10 +146,12 @@ def start_node(name: str, params_file: Path, overrides: dict[str, str], env: dic
 
 def stop_nodes(nodes: dict[str, NodeProcess], sigint_timeout_s: float = 10.0,
                term_timeout_s: float = 3.0, recorder_drain_s: float = 1.0) -> dict[str, int]:
-    """Stop the nodes in :data:`SHUTDOWN_ORDER`: SIGINT and wait, then SIGTERM, then SIGKILL.
+    """Stop the nodes in :data:`SHUTDOWN_ORDER`: SIGINT and wait, then SIGTERM, then SIGABRT
+    (the node's Python stacks go to its log: :func:`start_process` enables faulthandler),
+    then SIGKILL.
 
     The recorder is stopped ``recorder_drain_s`` after the others so that it receives what
-    they published last. Returns the exit code of every process.
+    they published last. Returns the exit code of every process (-6 or -9: it hung).
     """
     for name in SHUTDOWN_ORDER:
         node = nodes.get(name)
@@ -161,8 +166,10 @@ def stop_nodes(nodes: dict[str, NodeProcess], sigint_timeout_s: float = 10.0,
         if _wait(node.process, sigint_timeout_s) is None:
             node.process.terminate()
             if _wait(node.process, term_timeout_s) is None:
-                node.process.kill()
-                node.process.wait()
+                node.process.send_signal(signal.SIGABRT)
+                if _wait(node.process, term_timeout_s) is None:
+                    node.process.kill()
+                    node.process.wait()
     return {name: node.process.returncode for name, node in nodes.items()}
 
 
