@@ -7,7 +7,8 @@ estimates, at 1 kHz:
 * **torso orientation**: the gyroscope integrated, pulled towards the IMU's attitude output
   with gain ``attitude_gain`` per sample (a complementary filter: the attitude output's
   white noise is averaged out, its bias is not); yaw relative to the first sample plus
-  ``initial_yaw_rad`` (the world frame is the frame the robot started in);
+  ``initial_yaw_rad`` (the world frame is the frame the robot started in, its origin at
+  ``initial_xy_m`` on the loaded soles' centres at the first sample);
 * **floating-base position and velocity**: the part of each loaded sole on the ground (its
   corners within ``tilt_tolerance_m`` of the lowest: the whole sole, an edge or a corner) is
   anchored where it touched down (z = 0), re-anchored when that part changes; leg kinematics
