@@ -22,8 +22,11 @@ $FP evaluate --data data/t300s --model models/default_model.json --jobs "$JOBS" 
 # The true state, same trajectories and settings, for the side-by-side.
 $FP train --data data/d1000s --state true --tau-plus=-0.25 --tau-his-recommended 0.06 --out data/true_state_model.json --jobs "$JOBS"
 $FP evaluate --data data/t300s --state true --model data/true_state_model.json --jobs "$JOBS" --json > docs/heldout_true.json
+.venv/bin/python benchmarks/bench_true_vs_estimated.py --data data/d1000s --test data/t300s --jobs "$JOBS" --out docs/true_vs_estimated.json
+.venv/bin/python benchmarks/bench_mirror_hgb.py --train data/d1000s --test data/t300s --out benchmarks/results/mirror_hgb_d1000s_t204s.json
 .venv/bin/python benchmarks/bench_noise_sweep.py --model models/default_model.json --trajectories 40 --seed 2 \
   --work data/noise --jobs "$JOBS" --out docs/noise_sweep.json --plot docs/noise_sweep.png
+.venv/bin/python benchmarks/bench_scale_out.py --trajectories 200 --work-dir data/scale --out benchmarks/results/scale_out_200.json
 $FP robustness --jobs "$JOBS" --json --out benchmarks/results/robustness.json > /dev/null
 .venv/bin/python benchmarks/bench_robot_credibility.py --trajectories 100 > /dev/null
 .venv/bin/python scripts/fig2_force_sweep.py --model models/default_model.json --tau-his 0.06 --jobs "$JOBS"
