@@ -334,6 +334,12 @@ def test_finite_in_contract_values_and_glitches_neither_kill_nor_trigger(robot: 
     robot.last_t = round(robot.last_t + 0.010, 3)
     valid_t = robot.last_t
     robot.inject(pack_measurement(measurement(valid_t)))
+    # Let the readers take the injected samples before the stream could push them out of
+    # their shallow queues on a loaded machine.
+    assert robot.spin_until(lambda: robot.states_since(valid_t), 10.0)
+    deadline = time.monotonic() + 20.0
+    while robot.counter('feature_node', 'invalid_measurements') < invalid_before + len(cases) + 1:
+        assert time.monotonic() < deadline, 'the injected samples were never all counted'
     sent = robot.stream(0.3)
     assert robot.spin_until(lambda: robot.states_since(sent[-1]), 5.0)
     assert robot.states_since(valid_t)[0].t == valid_t
