@@ -24,6 +24,7 @@ $FP train --data data/d1000s --state true --tau-plus=-0.25 --tau-his-recommended
 $FP evaluate --data data/t300s --state true --model data/true_state_model.json --jobs "$JOBS" --json > docs/heldout_true.json
 .venv/bin/python benchmarks/bench_true_vs_estimated.py --data data/d1000s --test data/t300s --jobs "$JOBS" --out docs/true_vs_estimated.json
 .venv/bin/python benchmarks/bench_mirror_hgb.py --train data/d1000s --test data/t300s --out benchmarks/results/mirror_hgb_d1000s_t204s.json
+.venv/bin/python benchmarks/bench_mirror_hgb.py --train data/d1000s --folds 10 --out benchmarks/results/mirror_hgb_cv_d1000s.json
 .venv/bin/python benchmarks/bench_noise_sweep.py --model models/default_model.json --trajectories 40 --seed 2 \
   --work data/noise --jobs "$JOBS" --out docs/noise_sweep.json --plot docs/noise_sweep.png
 .venv/bin/python benchmarks/bench_scale_out.py --trajectories 200 --work-dir data/scale --out benchmarks/results/scale_out_200.json
