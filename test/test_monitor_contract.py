@@ -189,7 +189,10 @@ def robot(tmp_path_factory: pytest.TempPathFactory):
         r.env = env
         r.tmp = tmp
         try:
-            if not r.spin_until(lambda: r.pub.get_subscription_count() >= 2 and r.falling, 60.0):
+            # Started: both nodes read the measurements, and the latched start-up trigger and
+            # controller mode have reached this node (its side of those matches can lag).
+            if not r.spin_until(lambda: r.pub.get_subscription_count() >= 2 and r.falling
+                                and r.modes, 60.0):
                 pytest.fail('monitor did not start:\n' + '\n'.join(
                     n.log_tail() for n in nodes.values()))
             yield r
