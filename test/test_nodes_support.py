@@ -29,10 +29,18 @@ MOMENTUM_THRESHOLD = 25.0
 MODEL_TAU_HIS_S = 0.01
 
 
+#: Largest ROS domain id Fast DDS accepts: above it the port numbers overflow and Fast DDS
+#: ends the whole process with exit(1), without a Python exception.
+MAX_DOMAIN_ID = 232
+
+
 def test_domain_id(offset: int) -> int:
-    """A ROS domain id for this test process: 1..70 from the pid, plus ``offset`` (0, 70 or
-    140, one per test module), always within Fast DDS's 0..232."""
-    return 1 + os.getpid() % 70 + offset
+    """A ROS domain id for this test process: 1..70 from the pid plus ``offset`` (one per test
+    module, 0 <= offset < MAX_DOMAIN_ID), wrapped into 1..MAX_DOMAIN_ID; distinct offsets give
+    distinct ids within one process."""
+    if not 0 <= offset < MAX_DOMAIN_ID:
+        raise ValueError(f'offset must be in [0, {MAX_DOMAIN_ID}), got {offset}')
+    return 1 + (os.getpid() % 70 + offset) % MAX_DOMAIN_ID
 
 
 test_domain_id.__test__ = False        # a helper, not a test
