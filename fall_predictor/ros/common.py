@@ -425,6 +425,12 @@ def run_nodes(factories: Sequence[Callable[[], Node]], name: str,
             executor.spin()
         except (KeyboardInterrupt, ExternalShutdownException):
             pass
+        except Exception:
+            # Ctrl-C / SIGTERM invalidate the context at once, in C; a callback that was already
+            # running then fails on its next publish ("publisher's context is invalid"). That is
+            # the shutdown, not a fault; with the context still valid it is one.
+            if rclpy.ok():
+                raise
         return 0
     finally:
         for node in nodes:
