@@ -261,11 +261,10 @@ class StateEstimator:
             point_rel[side] = rel[side] + rot_sole[side] @ point_local[side]
         if first:
             if loaded:
-                # The world frame goes on the whole soles' centres, not on the part judged on
-                # the ground: that part hangs on the first, unfiltered tilt (0.5 deg of IMU error
-                # makes an edge of a flat sole and would shift the frame by half a sole).
-                centre = self.sole_corners.mean(axis=0)
-                mid = np.mean([rel[side] + rot_sole[side] @ centre for side in loaded], axis=0)
+                # The world frame goes on the soles' centres (the sole frames' origins), not on
+                # the part judged on the ground: that part hangs on the first, unfiltered tilt
+                # (0.5 deg of IMU error makes an edge of a flat sole: half a sole's shift).
+                mid = np.mean([rel[side] for side in loaded], axis=0)
                 ground = np.mean([point_rel[side][2] for side in loaded])
                 self.p = np.array([cfg.initial_xy_m[0] - mid[0], cfg.initial_xy_m[1] - mid[1], -ground])
             self.v = np.zeros(3)
