@@ -144,6 +144,10 @@ def start_node(name: str, params_file: Path, overrides: dict[str, str], env: dic
     return start_process(name, node_command(name, params_file, overrides), env, log_dir)
 
 
+#: What a node that outlives SIGINT gets next, each after ``term_timeout_s``.
+_ESCALATION = (signal.SIGTERM, signal.SIGABRT, signal.SIGKILL)
+
+
 def stop_nodes(nodes: dict[str, NodeProcess], sigint_timeout_s: float = 10.0,
                term_timeout_s: float = 3.0, recorder_drain_s: float = 1.0) -> dict[str, int]:
     """Stop the nodes in :data:`SHUTDOWN_ORDER`: SIGINT and wait, then SIGTERM, then SIGABRT
@@ -163,13 +167,14 @@ def stop_nodes(nodes: dict[str, NodeProcess], sigint_timeout_s: float = 10.0,
         if name == 'simulator_node':
             _wait(node.process, sigint_timeout_s)
     for node in nodes.values():
-        if _wait(node.process, sigint_timeout_s) is None:
-            node.process.terminate()
-            if _wait(node.process, term_timeout_s) is None:
-                node.process.send_signal(signal.SIGABRT)
-                if _wait(node.process, term_timeout_s) is None:
-                    node.process.kill()
-                    node.process.wait()
+        timeout_s = sigint_timeout_s
+        for escalation in _ESCALATION:
+            if _wait(node.process, timeout_s) is not None:
+                break
+            node.process.send_signal(escalation)
+            timeout_s = term_timeout_s
+        else:
+            node.process.wait()
     return {name: node.process.returncode for name, node in nodes.items()}
 
 
