@@ -162,6 +162,15 @@ class Robot:
         assert self.spin_until(lambda: name in self.diagnostics, 5.0), name
         return int(next(kv.value for kv in self.diagnostics[name].values if kv.key == key))
 
+    def counter_reaches(self, node: str, key: str, value: int, timeout_s: float = 20.0) -> bool:
+        """Whether :meth:`counter` reaches ``value`` within ``timeout_s`` wall seconds (the
+        readers' sensor queues are shallow: a test waits for this before streaming on)."""
+        deadline = time.monotonic() + timeout_s
+        while self.counter(node, key) < value:
+            if time.monotonic() > deadline:
+                return False
+        return True
+
     def states_since(self, t_from: float, status: int = STATUS_OK) -> list:
         return [s for s in self.states if s.t >= t_from and s.status == status]
 
@@ -253,9 +262,8 @@ def test_one_old_stamp_or_a_glitch_does_not_undo_the_fall(robot: Robot) -> None:
     robot.inject(pack_measurement(measurement(robot.last_t - 0.5)))   # 0.5 s old
     # The readers' sensor queues are shallow (REP 2003): on a loaded machine the stream below
     # could push the injected samples out before they are read, so wait until they are.
-    deadline = time.monotonic() + 20.0
-    while any(robot.counter(node, 'out_of_order') != count + 1 for node, count in before.items()):
-        assert time.monotonic() < deadline, 'the old sample was never counted'
+    for node, count in before.items():
+        assert robot.counter_reaches(node, 'out_of_order', count + 1), f'{node}: old sample never counted'
     robot.inject(pack_measurement(measurement(0.0)))                   # a "new run" stamp
     robot.spin_until(lambda: False, 0.3)
     robot.stream(0.1)
@@ -340,9 +348,8 @@ def test_finite_in_contract_values_and_glitches_neither_kill_nor_trigger(robot: 
     # Let the readers take the injected samples before the stream could push them out of
     # their shallow queues on a loaded machine.
     assert robot.spin_until(lambda: robot.states_since(valid_t), 10.0)
-    deadline = time.monotonic() + 20.0
-    while robot.counter('feature_node', 'invalid_measurements') < invalid_before + len(cases) + 1:
-        assert time.monotonic() < deadline, 'the injected samples were never all counted'
+    assert robot.counter_reaches('feature_node', 'invalid_measurements',
+                                 invalid_before + len(cases) + 1), 'injected samples not all counted'
     sent = robot.stream(0.3)
     assert robot.spin_until(lambda: robot.states_since(sent[-1]), 5.0)
     assert robot.states_since(valid_t)[0].t == valid_t
