@@ -56,8 +56,10 @@ OVERRIDES = '''/**/predictor_node:
   ros__parameters:
     max_sample_age_s: 0.15
     stale_timeout_s: 5.0
+/**/feature_node:
+  ros__parameters:
     qos_overrides:
-      /robot1/fall_predictor/features:
+      /robot1/fall_predictor/measurement:
         subscription:
           reliability: reliable
 '''
@@ -224,15 +226,15 @@ def test_params_file_sections_match_under_the_namespace(robot: Robot) -> None:
     values = [v.double_value for v in future.result().values[:2]]
     assert values == [0.15, 42.1]          # the user's override; the robot's mass (default)
     assert future.result().values[2].bool_value is False
-    # QoS by parameters (rclpy's QoSOverridingOptions): the override made the predictor read
-    # its features reliably; the feature node reads measurements best effort (REP 2003).
-    readers = {(info.node_name, info.topic_type): info.qos_profile.reliability
-               for topic in ('/robot1/fall_predictor/features', '/robot1/fall_predictor/measurement')
-               for info in robot.node.get_subscriptions_info_by_topic(topic)}
-    assert readers[('predictor_node', 'std_msgs/msg/Float64MultiArray')] == \
-        ReliabilityPolicy.RELIABLE
-    assert readers[('feature_node', 'std_msgs/msg/Float64MultiArray')] == \
-        ReliabilityPolicy.BEST_EFFORT
+    # QoS by parameters (rclpy's QoSOverridingOptions): the override made the feature node
+    # read the measurements reliably (best effort by default, REP 2003).
+    readers = {(topic, info.node_name): info.qos_profile.reliability
+               for topic in ('features', 'measurement')
+               for info in robot.node.get_subscriptions_info_by_topic(
+                   f'/robot1/fall_predictor/{topic}')}
+    assert readers[('measurement', 'feature_node')] == ReliabilityPolicy.RELIABLE
+    # In fall_monitor the predictor takes the features in process: nobody reads them here.
+    assert [key for key in readers if key[0] == 'features'] == []
 
 
 def test_trigger_is_latched_for_late_subscribers_with_the_direction(robot: Robot) -> None:

@@ -11,12 +11,21 @@ import sys
 from pathlib import Path
 
 import pytest
+import rclpy.node
 from geometry_msgs.msg import WrenchStamped
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
+from std_msgs.msg import Float64MultiArray
 from test_nodes_support import MODEL_TAU_HIS_S, ros_context, test_domain_id, write_momentum_model
 
 from fall_predictor.ros.bringup import ros_environment
-from fall_predictor.ros.common import NodeStartupError, ParamSpec
+from fall_predictor.data.topics import FEATURES, STATE
+from fall_predictor.data.wire import I_STATE_FALLING
+from fall_predictor.monitor.predictor import OnlinePredictor
+from fall_predictor.ros import conversions as ros_qos
+from fall_predictor.ros.common import NodeStartupError, ParamSpec, create_subscription, spin_until
+from fall_predictor.ros.fall_monitor import MONITOR_NODES, in_process_chain
+from fall_predictor.sim.trajectory import run_trajectory
 from fall_predictor.ros.feature_node import FeatureNode
 from fall_predictor.ros.predictor_node import PredictorNode
 from fall_predictor.monitor.features import FeatureSettings
@@ -193,3 +202,55 @@ def test_predictor_process_refuses_to_start_with_a_clear_error(tmp_path: Path) -
         fatal = [line for line in output.splitlines() if '[FATAL]' in line]
         assert len(fatal) == 1 and 'cannot start' in fatal[0] and expected in fatal[0], output
 
+
+
+# -- fall_monitor: the nodes of one process hand samples over in process -----------------------
+
+def test_fall_monitor_hands_each_features_message_to_the_predictor_in_process(tmp_path: Path
+                                                                             ) -> None:
+    """In ``fall_monitor`` the predictor has no features subscription: the feature node hands
+    it every message directly, once and in order (its states equal the library's extractor and
+    predictor run offline on the same measurements), and still publishes every features
+    message for other processes (a probe receives them over DDS)."""
+    model = write_momentum_model(tmp_path / 'model.json')
+    lists, _ = load_model(model)
+    measurements = run_trajectory(PushSpec(450.0, 0.0, 0.1, 0.3), 1.2,
+                                  stop_when_fallen=False).measurements
+    extractor = FeatureSettings().extractor()
+    offline = OnlinePredictor(lists, MODEL_TAU_HIS_S, FeatureSettings().sample_period_s,
+                              FeatureSettings().guard_com_height_m)
+    expected = [offline.step(m.t, *extractor.update(m)).falling for m in measurements]
+    assert 0 < sum(expected) < len(expected)          # the push is predicted, not at once
+
+    with ros_context(DOMAIN) as context:
+        feature, predictor = [make() for make in in_process_chain(
+            MONITOR_NODES, context=context,
+            parameter_overrides=[Parameter('model_path', value=str(model)),
+                                 Parameter('max_sample_age_s', value=0.0)])]
+        probe = rclpy.node.Node('in_process_probe', context=context)
+        states: list[float] = []
+        features: list[float] = []
+        create_subscription(probe, Float64MultiArray, STATE,
+                            lambda msg: states.append(msg.data[I_STATE_FALLING]), lossless=True)
+        create_subscription(probe, Float64MultiArray, FEATURES,
+                            lambda msg: features.append(msg.data[0]), lossless=True)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(probe)
+        try:
+            assert not [s.topic_name for s in predictor.subscriptions
+                        if s.topic_name.endswith('features')]
+            assert spin_until(executor, lambda: feature.output.publisher.get_subscription_count()
+                              >= 1 and predictor._state_pub.get_subscription_count() >= 1, 10.0)
+            for k, m in enumerate(measurements):
+                feature._on_measurement(ros_qos.measurement_to_msg(m))
+                if k % 50 == 49:                # keep the reliable queues short
+                    spin_until(executor, lambda: len(states) == k + 1, 10.0)
+            assert spin_until(executor, lambda: len(states) == len(measurements)
+                              and len(features) == len(measurements), 10.0)
+        finally:
+            executor.shutdown()
+            for node in (probe, predictor, feature):
+                node.destroy_node()
+    assert [bool(v) for v in states] == expected
+    assert features == [m.t for m in measurements]
+    assert predictor.counts['features'] == len(measurements)

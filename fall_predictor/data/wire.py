@@ -31,10 +31,9 @@ Features layout v1 (17 float64): ``[0]`` t [s], ``[1:16]`` the 15 features in
 State layout v2 (11 float64, ``/fall_predictor/state``; read by slot, no strings): the
 ``I_STATE_*`` / ``S_STATE_*`` constants below, documented slot by slot in the README.
 
-Every field is also checked against the plausibility bounds of
-:mod:`fall_predictor.monitor.plausibility`: a value no robot can produce is rejected like a
-malformed one. Header stamps and bag log times are the samples' own (simulation) time. Every
-malformed input raises :class:`WireFormatError` naming the field.
+Every field is also checked against the bounds of :mod:`fall_predictor.monitor.plausibility`:
+a value no robot can produce is rejected like a malformed one, by :class:`WireFormatError`
+naming the field. Header stamps and bag log times are the samples' own (simulation) time.
 """
 from __future__ import annotations
 
@@ -191,8 +190,9 @@ def _check_measurement(a: np.ndarray) -> tuple[int, int]:
     if a.size < MEASUREMENT_HEADER_LEN:
         raise WireFormatError(
             f'measurement: {a.size} values, fewer than the {MEASUREMENT_HEADER_LEN}-value header')
-    n_left = _count(float(a[I_N_LEFT]), 'measurement n_left')
-    n_right = _count(float(a[I_N_RIGHT]), 'measurement n_right')
+    h = a[:MEASUREMENT_HEADER_LEN].tolist()     # Python floats: cheaper to check one by one
+    n_left = _count(h[I_N_LEFT], 'measurement n_left')
+    n_right = _count(h[I_N_RIGHT], 'measurement n_right')
     expected = MEASUREMENT_HEADER_LEN + 3 * (n_left + n_right)
     if a.size != expected:
         raise WireFormatError(
@@ -205,12 +205,12 @@ def _check_measurement(a: np.ndarray) -> tuple[int, int]:
     if not finite.all():
         index = int(np.argmin(finite))
         raise WireFormatError(f'measurement.{_field_at(index)} is not finite: {a[index]!r}')
-    if a[I_NON_FOOT_CONTACT] not in (0.0, 1.0):
+    if h[I_NON_FOOT_CONTACT] not in (0.0, 1.0):
         raise WireFormatError(
-            f'measurement.non_foot_contact must be 0 or 1, got {a[I_NON_FOOT_CONTACT]!r}')
+            f'measurement.non_foot_contact must be 0 or 1, got {h[I_NON_FOOT_CONTACT]!r}')
     try:
-        check_measurement_bounds(a[I_T], a[S_COM], a[S_LIN_MOM], a[S_ANG_MOM], a[I_HEADING],
-                                 a[S_COP], a[S_LEFT_FOOT], a[S_RIGHT_FOOT], a[S_PUSH_FORCE],
+        check_measurement_bounds(h[I_T], h[S_COM], h[S_LIN_MOM], h[S_ANG_MOM], h[I_HEADING],
+                                 h[S_COP], h[S_LEFT_FOOT], h[S_RIGHT_FOOT], h[S_PUSH_FORCE],
                                  a[MEASUREMENT_HEADER_LEN:])
     except ImplausibleSample as error:
         raise WireFormatError(f'measurement: {error}') from None
@@ -289,11 +289,12 @@ def _check_features(a: np.ndarray) -> int:
         index = int(np.argmin(finite))
         name = ('t', *FEATURE_NAMES, 'mode')[index]
         raise WireFormatError(f'features.{name} is not finite: {a[index]!r}')
+    v = a.tolist()                          # Python floats: cheaper to check one by one
     try:
-        check_feature_bounds(a[0], a[1:1 + N_FEATURES])
+        check_feature_bounds(v[0], v[1:1 + N_FEATURES])
     except ImplausibleSample as error:
         raise WireFormatError(f'features: {error}') from None
-    return _mode_index(float(a[-1]), 'features contact mode')
+    return _mode_index(v[-1], 'features contact mode')
 
 
 def unpack_features(data: ArrayLike) -> FeatureSample:
@@ -386,7 +387,7 @@ def pack_state(state: PredictorState) -> np.ndarray:
     return out
 
 
-def _flag(a: np.ndarray, index: int) -> bool:
+def _flag(a: Sequence[float], index: int) -> bool:
     if a[index] not in (0.0, 1.0):
         raise WireFormatError(f'state.{STATE_SLOT_NAMES[index]} must be 0 or 1, got {a[index]!r}')
     return bool(a[index])
@@ -400,28 +401,29 @@ def unpack_state(data: ArrayLike) -> PredictorState:
     a = _as_vector(data, 'state')
     if a.size != STATE_LEN:
         raise WireFormatError(f'state: {a.size} values, expected {STATE_LEN}')
+    v = a.tolist()                          # Python floats: cheaper to check one by one
     for index in range(I_STATE_TIME_TO_FALL):
-        if not math.isfinite(a[index]):
-            raise WireFormatError(f'state.{STATE_SLOT_NAMES[index]} is not finite: {a[index]!r}')
-    check_time_bounds(a[I_STATE_T])
-    status = a[I_STATE_STATUS]
+        if not math.isfinite(v[index]):
+            raise WireFormatError(f'state.{STATE_SLOT_NAMES[index]} is not finite: {v[index]!r}')
+    check_time_bounds(v[I_STATE_T])
+    status = v[I_STATE_STATUS]
     if status not in (STATUS_OK, STATUS_DISABLED, STATUS_STALE):
         raise WireFormatError(f'state.status must be 0, 1 or 2, got {status!r}')
-    mode = a[I_STATE_CONTACT_MODE]
+    mode = v[I_STATE_CONTACT_MODE]
     if mode != -1.0:
         _mode_index(mode, 'state.contact_mode')
-    tau = a[I_STATE_TAU_HIS]
+    tau = v[I_STATE_TAU_HIS]
     if tau < 0.0:
         raise WireFormatError(f'state.tau_his_s must be >= 0 s, got {tau!r}')
-    ttf = a[I_STATE_TIME_TO_FALL]
+    ttf = v[I_STATE_TIME_TO_FALL]
     if not (math.isnan(ttf) or 0.0 <= ttf <= 1e3):
         raise WireFormatError(f'state.time_to_fall_s must be NaN or in [0, 1000] s, got {ttf!r}')
-    dx, dy = float(a[S_STATE_DIRECTION][0]), float(a[S_STATE_DIRECTION][1])
+    dx, dy = float(v[S_STATE_DIRECTION][0]), float(v[S_STATE_DIRECTION][1])
     if not (math.isnan(dx) and math.isnan(dy)) and not abs(math.hypot(dx, dy) - 1.0) <= 1e-6:
         raise WireFormatError(f'state.fall_direction must be a unit vector or NaN, got {(dx, dy)}')
     return PredictorState(
-        t=float(a[I_STATE_T]), falling=_flag(a, I_STATE_FALLING), atomic=_flag(a, I_STATE_ATOMIC),
-        guard=_flag(a, I_STATE_GUARD), latched=_flag(a, I_STATE_LATCHED),
+        t=float(v[I_STATE_T]), falling=_flag(v, I_STATE_FALLING), atomic=_flag(v, I_STATE_ATOMIC),
+        guard=_flag(v, I_STATE_GUARD), latched=_flag(v, I_STATE_LATCHED),
         contact_mode=None if mode == -1.0 else int(mode), tau_his_s=float(tau),
         stale_reason='stale' if status == STATUS_STALE else None,
         enabled=status != STATUS_DISABLED, time_to_fall_s=_nan_or(ttf),

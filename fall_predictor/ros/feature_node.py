@@ -34,9 +34,10 @@ from fall_predictor.data.sample_order import Sample, SampleIntake
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.ros.common import (HANDLED_ERRORS, MAX_MODEL_BYTES, MODEL_PATH,
                                        Diagnostics, InputErrors,
-                                       ParamSpec, Report, create_publisher, create_subscription,
+                                       ParamSpec, Report, create_publisher,
                                        declare_parameters, feature_setting_params, guarded,
                                        load_model_for, run_node)
+from fall_predictor.ros.in_process import Output, connect_input
 from fall_predictor.data.topics import FEATURES, MEASUREMENT
 from fall_predictor.data.wire import LEVEL_OK, LEVEL_STALE, LEVEL_WARN
 
@@ -55,7 +56,9 @@ PARAMS = (
 class FeatureNode(Node):
     """Wraps :class:`~fall_predictor.monitor.features.FeatureExtractor`; see the module docs."""
 
-    def __init__(self, **kwargs: object) -> None:
+    def __init__(self, upstream: Optional[Output] = None, **kwargs: object) -> None:
+        """``upstream``: take the measurements from this output of a node of the same process
+        (``fall_monitor --estimator``) instead of subscribing; ``kwargs`` go to ``Node``."""
         super().__init__(NODE_NAME, **kwargs)
         p = declare_parameters(self, PARAMS)
         _, _, settings = load_model_for(self, str(p['model_path']), {k: p[k] for k in SETTINGS},
@@ -64,8 +67,9 @@ class FeatureNode(Node):
         self._stale_timeout_s = float(p['stale_timeout_s'])
         self.add_post_set_parameters_callback(self._apply_parameters)
 
-        self._features_pub = create_publisher(self, Float64MultiArray, FEATURES)
-        inputs = [create_subscription(self, Float64MultiArray, MEASUREMENT, self._on_measurement)]
+        #: The features, published and handed to in-process consumers (``fall_monitor``).
+        self.output = Output(create_publisher(self, Float64MultiArray, FEATURES))
+        inputs = connect_input(self, Float64MultiArray, MEASUREMENT, self._on_measurement, upstream)
         self._intake = SampleIntake(settings.sample_period_s)
         self._bad_inputs = InputErrors(self)
         #: Counters by event name (reported in /diagnostics).
@@ -106,7 +110,7 @@ class FeatureNode(Node):
         except HANDLED_ERRORS as error:
             self._bad_inputs.reject(f'measurement at t = {m.t} s', error)
             return
-        self._features_pub.publish(features)
+        self.output.publish(features)
         self.counts['features'] += 1
 
     def _report(self) -> Report:

@@ -55,10 +55,11 @@ from fall_predictor.robot.model import TOTAL_MASS_KG
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.ros.common import (MAX_MODEL_BYTES, MAX_SAMPLE_AGE, MODEL_PATH,
                                        Diagnostics, InputErrors,
-                                       ParamSpec, Report, SampleAge, create_publisher,
-                                       create_subscription, declare_parameters,
+                                       ParamSpec, Report, SampleAge,
+                                       create_publisher, declare_parameters,
                                        feature_setting_params, guarded, load_model_for, run_node,
                                        steady_clock)
+from fall_predictor.ros.in_process import Output, connect_input
 
 NODE_NAME = 'predictor_node'
 #: Largest accepted history window [s]: beyond the longest oracle lead a window only hides falls.
@@ -88,7 +89,9 @@ def tau_his_param(default_s: float) -> ParamSpec:
 class PredictorNode(Node):
     """Wraps :class:`~fall_predictor.monitor.predictor.OnlinePredictor`; see the module docs."""
 
-    def __init__(self, **kwargs: object) -> None:
+    def __init__(self, upstream: Optional[Output] = None, **kwargs: object) -> None:
+        """``upstream``: take the features from this output of a node of the same process
+        (``fall_monitor``) instead of subscribing; ``kwargs`` go to ``Node``."""
         super().__init__(NODE_NAME, **kwargs)
         p = declare_parameters(self, (MODEL_PATH, MAX_MODEL_BYTES, STALE_TIMEOUT, MAX_SAMPLE_AGE,
                                       *feature_setting_params(SETTINGS)))
@@ -112,7 +115,7 @@ class PredictorNode(Node):
         self._state_pub = create_publisher(self, Float64MultiArray, STATE)
         self._falling_pub = create_publisher(self, Bool, FALLING)
         self._direction_pub = create_publisher(self, Vector3Stamped, FALL_DIRECTION)
-        inputs = [create_subscription(self, Float64MultiArray, FEATURES, self._on_features)]
+        inputs = connect_input(self, Float64MultiArray, FEATURES, self._on_features, upstream)
         self._intake = SampleIntake(settings.sample_period_s)
         self._age = SampleAge(self)
         self._bad_inputs = InputErrors(self)

@@ -37,6 +37,7 @@ from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.ros.common import (HANDLED_ERRORS, SAMPLE_PERIOD_S, Diagnostics, InputErrors,
                                        ParamSpec, Report, create_publisher, create_subscription,
                                        declare_parameters, guarded, run_node)
+from fall_predictor.ros.in_process import Output
 from fall_predictor.ros.sensor_conversions import imu_from_msg, stamp_ns, wrench_from_msg
 
 NODE_NAME = 'state_estimator_node'
@@ -68,7 +69,8 @@ class StateEstimatorNode(Node):
                        'resets': 0}
         self._missing_at_report = 0
         self._last_input_wall: Optional[float] = None
-        self._measurement_pub = create_publisher(self, Float64MultiArray, MEASUREMENT)
+        #: The measurements, published and handed to in-process consumers (``fall_monitor``).
+        self.output = Output(create_publisher(self, Float64MultiArray, MEASUREMENT))
         inputs = [
             create_subscription(self, String, ROBOT_DESCRIPTION, self._on_description),
             create_subscription(self, JointState, SENSOR_JOINT_STATES,
@@ -147,7 +149,7 @@ class StateEstimatorNode(Node):
                     self._bad_inputs.reject(f'sample at t = {t} s', ValueError(self._estimator.last_issue))
                 return
             self.counts['degraded'] += bool(self._estimator.degraded)
-            self._measurement_pub.publish(ros_qos.measurement_to_msg(m))
+            self.output.publish(ros_qos.measurement_to_msg(m))
         except HANDLED_ERRORS as error:
             self._bad_inputs.reject(f'sample at t = {t} s', error)
             return
