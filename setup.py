@@ -48,6 +48,7 @@ setup(
             'predictor_node = fall_predictor.ros.predictor_node:main',
             'recorder_node = fall_predictor.ros.recorder_node:main',
             'fall_monitor = fall_predictor.ros.fall_monitor:main',
+            'simulated_robot = fall_predictor.ros.simulated_robot:main',
             'state_estimator_node = fall_predictor.ros.state_estimator_node:main',
         ],
     },

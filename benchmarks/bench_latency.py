@@ -40,7 +40,8 @@ from fall_predictor.ros.bringup import (NodeProcess, default_domain_id, default_
                                     stop_nodes)
 from fall_predictor.monitor.decision_list import Condition, DecisionList, PerModeDecisionLists, Rule
 from fall_predictor.monitor.model_file import ModelMetadata, save_model
-from fall_predictor.ros.common import create_subscription, run_node
+from fall_predictor.ros.common import create_subscription, run_node, run_nodes
+from fall_predictor.ros.simulated_robot import robot_nodes
 from fall_predictor.ros.observer import Observer
 from fall_predictor.ros.simulator_node import NODE_NAME, SimulatorNode
 from fall_predictor.monitor.records import FALLING, FEATURE_NAMES, N_CONTACT_MODES, Measurement
@@ -50,8 +51,9 @@ from fall_predictor.data.wire import I_STATE_STATUS, I_STATE_T, STATUS_STALE
 _SIMULATOR_CHILD = '--simulator-child'
 
 
-def _run_timed_simulator(out: Path, ros_args: list[str]) -> int:
-    """The simulator node, noting (sample time [ms], wall time [s]) before each publish."""
+def _run_timed_simulator(out: Path, ros_args: list[str], composed: bool = False) -> int:
+    """The simulator node, noting (sample time [ms], wall time [s]) before each publish;
+    ``composed``: with the controller node in this process (``simulated_robot``)."""
     published: list[tuple[int, float]] = []
 
     class TimedSimulatorNode(SimulatorNode):
@@ -59,7 +61,10 @@ def _run_timed_simulator(out: Path, ros_args: list[str]) -> int:
             published.append((round(m.t * 1000), time.monotonic()))
             super()._publish_sample(m)
 
-    code = run_node(TimedSimulatorNode, NODE_NAME, ros_args)
+    if composed:
+        code = run_nodes(robot_nodes(TimedSimulatorNode), 'simulated_robot', ros_args)
+    else:
+        code = run_node(TimedSimulatorNode, NODE_NAME, ros_args)
     np.save(out, np.array(published, dtype=np.float64).reshape(-1, 2))
     return code
 
@@ -108,7 +113,8 @@ NODE_NAMES = ('predictor_node', 'feature_node', 'controller_node', 'simulator_no
 
 
 def run_benchmark(duration_s: float, real_time_factor: float, model: Optional[Path],
-                  domain_id: int, single_process_monitor: bool = False) -> dict[str, object]:
+                  domain_id: int, single_process_monitor: bool = False,
+                  composed_robot: bool = False) -> dict[str, object]:
     tmp = Path(tempfile.mkdtemp(prefix='bench_latency_'))
     model = model or _momentum_model(tmp / 'model.json')
     env = ros_environment(domain_id)
@@ -123,14 +129,17 @@ def run_benchmark(duration_s: float, real_time_factor: float, model: Optional[Pa
     try:
         monitor = ((('fall_monitor', {'model_path': str(model)}),) if single_process_monitor
                    else (('predictor_node', {'model_path': str(model)}), ('feature_node', {})))
-        for name, overrides in (*monitor, ('controller_node', {})):
+        controller = () if composed_robot else (('controller_node', {}),)
+        for name, overrides in (*monitor, *controller):
             nodes[name] = start_node(name, params, overrides, env, tmp)
         ros_args = node_command('simulator_node', params, {
             'real_time_factor': repr(float(real_time_factor)), 'autostart': 'false',
             'lockstep': 'true'})[3:]                  # without "python -m <module>"
-        nodes['simulator_node'] = start_process(
-            'simulator_node', [sys.executable, __file__, _SIMULATOR_CHILD, str(publish_times),
-                               *ros_args], env, tmp)
+        robot = 'simulated_robot' if composed_robot else 'simulator_node'
+        nodes[robot] = start_process(
+            robot, [sys.executable, __file__, _SIMULATOR_CHILD + ('-composed' if composed_robot
+                                                                   else ''),
+                    str(publish_times), *ros_args], env, tmp)
         # No stream subscriptions but the timed one: this process must not load the system.
         observer = Observer(context, 'bench_latency', follow_streams=False)
         state_sub = _subscribe_timed_states(observer.node, state_arrivals)
@@ -180,6 +189,8 @@ def run_benchmark(duration_s: float, real_time_factor: float, model: Optional[Pa
         'wall_s': round(wall_s, 3),
         'real_time_factor_target': real_time_factor,
         'monitor': 'fall_monitor (one process)' if single_process_monitor else 'two processes',
+        'robot': ('simulated_robot (simulator + controller, one process)' if composed_robot
+                  else 'simulator_node and controller_node, two processes'),
         'real_time_factor': round(simulated_s / wall_s, 4),
         'samples_published': len(samples),
         'states_received': int(latencies.size),
@@ -195,8 +206,9 @@ def run_benchmark(duration_s: float, real_time_factor: float, model: Optional[Pa
 
 
 def main() -> None:
-    if len(sys.argv) > 2 and sys.argv[1] == _SIMULATOR_CHILD:
-        sys.exit(_run_timed_simulator(Path(sys.argv[2]), sys.argv[3:]))
+    if len(sys.argv) > 2 and sys.argv[1].startswith(_SIMULATOR_CHILD):
+        sys.exit(_run_timed_simulator(Path(sys.argv[2]), sys.argv[3:],
+                                      composed=sys.argv[1].endswith('-composed')))
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--duration', type=float, default=60.0,
                         help='simulated seconds (default 60)')
@@ -206,11 +218,14 @@ def main() -> None:
     parser.add_argument('--domain-id', type=int, default=None)
     parser.add_argument('--single-process-monitor', action='store_true',
                         help='run the feature and predictor nodes as fall_monitor (one process)')
+    parser.add_argument('--composed-robot', action='store_true',
+                        help='run the simulator and controller nodes as simulated_robot '
+                             '(one process, lock-step closed in process)')
     parser.add_argument('--out', type=Path, default=None, help='also write the JSON here')
     args = parser.parse_args()
     result = run_benchmark(args.duration, args.real_time_factor, args.model,
                            default_domain_id() if args.domain_id is None else args.domain_id,
-                           args.single_process_monitor)
+                           args.single_process_monitor, args.composed_robot)
     text = json.dumps(result, indent=1)
     print(text)
     if args.out is not None:

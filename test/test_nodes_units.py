@@ -10,6 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import rclpy.node
 from geometry_msgs.msg import WrenchStamped
@@ -25,6 +26,7 @@ from fall_predictor.monitor.predictor import OnlinePredictor
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.ros.common import NodeStartupError, ParamSpec, create_subscription, spin_until
 from fall_predictor.ros.fall_monitor import MONITOR_NODES, in_process_chain
+from fall_predictor.ros.simulated_robot import robot_nodes
 from fall_predictor.sim.trajectory import run_trajectory
 from fall_predictor.ros.feature_node import FeatureNode
 from fall_predictor.ros.predictor_node import PredictorNode
@@ -254,3 +256,35 @@ def test_fall_monitor_hands_each_features_message_to_the_predictor_in_process(tm
     assert [bool(v) for v in states] == expected
     assert features == [m.t for m in measurements]
     assert predictor.counts['features'] == len(measurements)
+
+
+def test_simulated_robot_closes_the_lock_step_loop_in_process() -> None:
+    """simulator + controller in one process: every sample's command comes back in process
+    (no missed or late command, no command subscription), and the world follows exactly the
+    library's own simulation loop (the offline trajectory, bit for bit)."""
+    duration_s = 0.6
+    # Offline a little longer: the node steps in batches and may stop a few steps later.
+    offline = {round(m.t * 1000): m for m in run_trajectory(
+        None, duration_s + 0.02, stop_when_fallen=False).measurements}
+    with ros_context(DOMAIN) as context:
+        simulator, controller = [make() for make in robot_nodes(
+            context=context, parameter_overrides=[
+                Parameter('real_time_factor', value=0.0),
+                Parameter('walk_duration_s', value=duration_s + 0.02 + 5.0)])]
+        executor = SingleThreadedExecutor(context=context)
+        for node in (simulator, controller):
+            executor.add_node(node)
+        try:
+            assert not [s.topic_name for s in simulator.subscriptions
+                        if s.topic_name.endswith('joint_commands')]
+            steps = round(duration_s * 1000)
+            assert spin_until(executor, lambda: simulator.counts['steps'] >= steps, 60.0)
+            sim_t, sim_com = simulator._m.t, simulator._m.com.copy()
+            counts = dict(simulator.counts)
+        finally:
+            executor.shutdown()
+            for node in (controller, simulator):
+                node.destroy_node()
+    assert counts['missed_commands'] == 0 and counts['late_commands'] == 0
+    assert counts['steps'] >= steps
+    assert np.array_equal(sim_com, offline[round(sim_t * 1000)].com)

@@ -36,6 +36,7 @@ from fall_predictor.ros.common import (HANDLED_ERRORS, SAMPLE_PERIOD_S, Diagnost
                                        InputErrors, ParamSpec, Report, create_publisher,
                                        create_subscription, declare_parameters, guarded,
                                        run_node)
+from fall_predictor.ros.in_process import Output, connect_input
 from fall_predictor.data.sample_order import Sample, SampleIntake
 from fall_predictor.data.topics import CONTROLLER_MODE, FALLING, JOINT_COMMANDS, MEASUREMENT
 from fall_predictor.data.wire import LEVEL_OK, LEVEL_WARN
@@ -56,7 +57,9 @@ PARAMS = (
 class ControllerNode(Node):
     """Wraps :class:`~fall_predictor.robot.controllers.ControllerSwitch`; see the module docs."""
 
-    def __init__(self, **kwargs: object) -> None:
+    def __init__(self, upstream: Optional[Output] = None, **kwargs: object) -> None:
+        """``upstream``: take the measurements from this output of a node of the same process
+        (``simulated_robot``) instead of subscribing; ``kwargs`` go to ``Node``."""
         super().__init__(NODE_NAME, **kwargs)
         p = declare_parameters(self, PARAMS)
         self._walk_duration_s = float(p['walk_duration_s'])
@@ -64,10 +67,11 @@ class ControllerNode(Node):
         self._fall_trigger_enabled = bool(p['fall_trigger_enabled'])
         self.add_post_set_parameters_callback(self._apply_parameters)
 
-        self._command_pub = create_publisher(self, JointState, JOINT_COMMANDS)
+        #: The joint commands, published and handed to in-process consumers (the simulator).
+        self.output = Output(create_publisher(self, JointState, JOINT_COMMANDS))
         self._mode_pub = create_publisher(self, String, CONTROLLER_MODE)
-        inputs = [create_subscription(self, Float64MultiArray, MEASUREMENT, self._on_measurement,
-                                      lossless=True),
+        inputs = [*connect_input(self, Float64MultiArray, MEASUREMENT, self._on_measurement,
+                                 upstream, lossless=True),
                   create_subscription(self, Bool, FALLING, self._on_falling)]
 
         self._intake = SampleIntake(SAMPLE_PERIOD_S)
@@ -121,7 +125,7 @@ class ControllerNode(Node):
             # A finite but implausible measurement can make the leg IK fail.
             self._bad_inputs.reject(f'measurement at t = {m.t} s (controller)', error)
             return
-        self._command_pub.publish(command)
+        self.output.publish(command)
         self.counts['commands'] += 1
 
     @guarded('trigger')

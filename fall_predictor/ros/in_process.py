@@ -40,6 +40,11 @@ class Output:
         """The publisher's fully qualified topic name."""
         return self.publisher.topic_name
 
+    @property
+    def consumers(self) -> int:
+        """How many in-process consumers are connected."""
+        return len(self._consumers)
+
     def connect(self, consumer: Callable[[Any], None]) -> None:
         """Deliver every message published from now on to ``consumer`` as well."""
         self._consumers.append(consumer)
@@ -52,14 +57,15 @@ class Output:
 
 
 def connect_input(node: Node, msg_type: type, spec: TopicSpec, callback: Callable[[Any], None],
-                  upstream: Optional[Output]) -> list[Subscription]:
-    """A node's main input: ``upstream``'s messages in process when given, else a subscription.
+                  upstream: Optional[Output], lossless: bool = False) -> list[Subscription]:
+    """A node's main input: ``upstream``'s messages in process when given, else a subscription
+    (``lossless``: with the publisher's reliable QoS, see ``create_subscription``).
 
     Returns the subscriptions created (for :class:`Diagnostics`' ``unmatched_inputs``): none
     when the input comes from ``upstream``, whose topic must be ``spec``'s.
     """
     if upstream is None:
-        return [create_subscription(node, msg_type, spec, callback)]
+        return [create_subscription(node, msg_type, spec, callback, lossless=lossless)]
     expected = node.resolve_topic_name(spec.ros_name)
     if upstream.topic_name != expected:
         raise ValueError(f'in-process input {upstream.topic_name} is not {expected}')

@@ -69,6 +69,7 @@ from fall_predictor.ros.common import (Diagnostics,
                                          InputErrors, NodeStartupError, ParamSpec, ParamValue,
                                          Report, create_publisher, create_subscription,
                                          declare_parameters, run_node, steady_clock)
+from fall_predictor.ros.in_process import Output
 from fall_predictor.sim.pushes import PushDistribution
 from fall_predictor.monitor.records import Measurement, PushSpec
 from fall_predictor.sim.simulator import DT_S, Simulator
@@ -84,6 +85,8 @@ _WATCHDOG_PERIOD_S = 0.01
 #: Lock-step pacing gives up catching up with wall time when this far behind [s].
 _MAX_PACING_LAG_S = 0.1
 _PAUSED = 'paused (~/pause)'
+#: Lock-step with an in-process controller: steps per executor wake-up (see ``_advance``).
+_STEPS_PER_WAKEUP = 5
 
 PARAMS = (
     ParamSpec('lockstep', True, 'wait for the controller command of each sample before '
@@ -121,7 +124,10 @@ def _check_pacing(values: Mapping[str, ParamValue]) -> Optional[str]:
 class SimulatorNode(Node):
     """Owns one :class:`~fall_predictor.sim.simulator.Simulator`; see the module documentation."""
 
-    def __init__(self, **kwargs: object) -> None:
+    def __init__(self, in_process_controller: bool = False, **kwargs: object) -> None:
+        """``in_process_controller``: the joint commands come from a controller node of the same
+        process (:meth:`connect_controller`, ``simulated_robot``), not from a subscription;
+        ``kwargs`` go to ``Node``."""
         super().__init__(NODE_NAME, **kwargs)
         p = declare_parameters(self, PARAMS, _check_pacing)
         self._lockstep = bool(p['lockstep'])
@@ -142,13 +148,20 @@ class SimulatorNode(Node):
 
         self._sensors = SimulatedSensors(self, float(p['sensor_noise_scale']), int(p['sensor_seed'])) \
             if p['publish_sensors'] else None
-        self._measurement_pub = create_publisher(self, Float64MultiArray,
-                                                 MEASUREMENT if self._sensors is None else GROUND_TRUTH)
+        #: The measurement (the exact state on ground_truth with sensors), published and handed
+        #: to in-process consumers (the controller in ``simulated_robot``).
+        self.output = Output(create_publisher(self, Float64MultiArray,
+                                              MEASUREMENT if self._sensors is None else GROUND_TRUTH))
         self._clock_pub = create_publisher(self, Clock, CLOCK)
         self._joint_state_pub = create_publisher(self, JointState, JOINT_STATES)
         self._push_pub = create_publisher(self, WrenchStamped, PUSH)
-        self._command_sub = create_subscription(self, JointState, JOINT_COMMANDS,
-                                                self._on_command)
+        self._command_sub = None if in_process_controller else create_subscription(
+            self, JointState, JOINT_COMMANDS, self._on_command)
+        self._in_process_commands: Optional[bool] = False if in_process_controller else None
+        self._in_publish = False            # publishing a sample (an in-process command may come)
+        # Resumes the in-process lock-step loop from the executor (see _advance).
+        self._continue = self.create_guard_condition(self._on_continue) \
+            if in_process_controller else None
         create_subscription(self, WrenchStamped, PUSH_REQUEST, self._on_push_request)
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.create_service(SetBool, '~/pause', self._on_pause)
@@ -178,7 +191,8 @@ class SimulatorNode(Node):
         if not self._lockstep:
             self._step_timer = self.create_timer(DT_S / self._real_time_factor,
                                                  self._on_step_timer, clock=steady_clock())
-        self._diagnostics = Diagnostics(self, self._report, lambda: self._m.t, [self._command_sub])
+        self._diagnostics = Diagnostics(self, self._report, lambda: self._m.t,
+                                        [s for s in (self._command_sub,) if s is not None])
         self._begin_run(None if p['autostart'] else 'waiting for ~/reset')
         self.get_logger().info(
             f'simulator ready: lockstep={self._lockstep}, real_time_factor='
@@ -217,16 +231,34 @@ class SimulatorNode(Node):
         if hold is None:
             self._try_start()
 
+    def connect_controller(self, commands: Output) -> None:
+        """Take the joint commands from ``commands`` (a controller node of this process)."""
+        if self._in_process_commands is None:
+            raise ValueError('the simulator was built to subscribe to its commands')
+        expected = self.resolve_topic_name(JOINT_COMMANDS.ros_name)
+        if commands.topic_name != expected:
+            raise ValueError(f'in-process commands {commands.topic_name} are not {expected}')
+        commands.connect(self._on_command)
+        self._in_process_commands = True
+        if self._hold is None and not self._published:
+            self._try_start()
+
     def _try_start(self) -> None:
         """Publish the first sample of the run once someone listens (and, in lock-step,
         someone commands)."""
-        consumer = self._measurement_pub if self._sensors is None else self._joint_state_pub
-        if consumer.get_subscription_count() == 0:
+        if self._sensors is None:
+            listened = self.output.consumers or self.output.publisher.get_subscription_count()
+        else:
+            listened = self._joint_state_pub.get_subscription_count()
+        if not listened:
             return
-        if self._lockstep and self._command_sub.get_publisher_count() == 0:
+        if self._lockstep and not (self._in_process_commands or (
+                self._command_sub is not None and self._command_sub.get_publisher_count())):
             return
         self._pace_anchor = (time.monotonic(), self._m.t)
         self._publish_sample(self._m)
+        if self._command_ready and self._continue is not None:
+            self._continue.trigger()        # answered in process: step from the executor
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         self._begin_run()
@@ -267,7 +299,8 @@ class SimulatorNode(Node):
             return
         self._command = sample.position
         self._command_ready = True
-        self._advance()
+        if not self._in_publish:            # in process, the loop in _advance() goes on
+            self._advance()
 
     def _on_push_request(self, msg: WrenchStamped) -> None:
         try:
@@ -312,9 +345,27 @@ class SimulatorNode(Node):
             self._advance()
 
     def _advance(self) -> None:
-        """Step once with the current command and publish the new sample."""
-        if self._hold is not None:
-            return
+        """Step once with the current command and publish the new sample.
+
+        With the controller in process its command arrives while the sample is published:
+        then step on, up to :data:`_STEPS_PER_WAKEUP` steps, and continue from the executor
+        (a guard condition) so that timers, services and the other inputs (the fall trigger,
+        push requests) are served in between.
+        """
+        for _ in range(_STEPS_PER_WAKEUP):
+            if self._hold is not None:
+                return
+            self._step_and_publish()
+            if not (self._lockstep and self._command_ready):
+                return                      # the command comes later, from another process
+        if self._continue is not None:
+            self._continue.trigger()
+
+    def _on_continue(self) -> None:
+        if self._command_ready and self._published:
+            self._advance()
+
+    def _step_and_publish(self) -> None:
         if self._lockstep:
             self._pace()
         self._sim.set_joint_targets(self._command)
@@ -346,7 +397,16 @@ class SimulatorNode(Node):
             self._pace_anchor = (time.monotonic(), self._m.t)
 
     def _publish_sample(self, m: Measurement) -> None:
-        self._measurement_pub.publish(ros_qos.measurement_to_msg(m))
+        # Await sample k's command before publishing it: in process it arrives during publish.
+        self._published = True
+        self._awaiting_ns = time_to_ns(m.t)
+        self._command_ready = False
+        self._published_wall = time.monotonic()
+        self._in_publish = True
+        try:
+            self.output.publish(ros_qos.measurement_to_msg(m))
+        finally:
+            self._in_publish = False
         self._clock_pub.publish(Clock(clock=ros_qos.stamp(m.t)))
         self.counts['measurements'] += 1
         if self._sensors is not None:
@@ -357,10 +417,6 @@ class SimulatorNode(Node):
             self._joint_state_pub.publish(
                 ros_qos.joint_state_to_msg(m.t, rm.JOINT_NAMES, q, dq, effort))
             self.counts['joint_states'] += 1
-        self._published = True
-        self._awaiting_ns = time_to_ns(m.t)
-        self._command_ready = False
-        self._published_wall = time.monotonic()
         if self._t_fallen is None and m.fallen:
             self._t_fallen = m.t
             self.get_logger().info(f'robot fallen at t = {m.t:.3f} s')
