@@ -100,14 +100,31 @@ def test_simulation_launch_file(monkeypatch):
     arguments, nodes = _description(monkeypatch, 'fall_predictor.launch.py')
     assert _params_file(arguments) == 'fall_predictor.yaml'
     assert arguments['namespace'] == ''
+    assert arguments['composed_robot'] == 'false'
     executables = [n.kwargs['executable'] for n in nodes]
-    assert executables == ['simulator_node', 'state_estimator_node', 'controller_node',
-                           'feature_node', 'predictor_node', 'recorder_node']
+    assert executables == ['simulated_robot', 'simulator_node', 'state_estimator_node',
+                           'controller_node', 'feature_node', 'predictor_node', 'recorder_node']
     assert set(executables) <= _console_scripts()
     for n in nodes:
         assert n.kwargs['namespace'].name == 'namespace'
-        assert n.kwargs['name'] == n.kwargs['executable']
-    recorder, estimator = nodes[-1], nodes[1]
+        # Single-node processes are named after their executable; simulated_robot's two
+        # nodes keep their own names (no renaming).
+        assert n.kwargs['name'] == (None if n.kwargs['executable'] == 'simulated_robot'
+                                    else n.kwargs['executable'])
+    # composed_robot switches between simulated_robot and the two separate processes.
+    for composed in ('true', 'false'):
+        started = [n.kwargs['executable'] for n in nodes
+                   if 'condition' not in n.kwargs
+                   or n.kwargs['condition'].args[0].name != 'composed_robot'
+                   or (composed == 'true') != n.kwargs['condition'].negate]
+        robot = (['simulated_robot'] if composed == 'true'
+                 else ['simulator_node', 'controller_node'])
+        assert [e for e in started if e in ('simulated_robot', 'simulator_node',
+                                           'controller_node')] == robot, composed
+    by_executable = {n.kwargs['executable']: n for n in nodes}
+    assert by_executable['simulated_robot'].kwargs['parameters'][1] is \
+        by_executable['simulator_node'].kwargs['parameters'][1]    # the same overrides
+    recorder, estimator = by_executable['recorder_node'], by_executable['state_estimator_node']
     assert isinstance(recorder.kwargs['condition'], IfCondition)
     assert recorder.kwargs['condition'].args[0].name == 'record'
     assert estimator.kwargs['condition'].args[0].name == 'sensors'
