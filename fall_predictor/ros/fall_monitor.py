@@ -5,7 +5,7 @@ state estimator node first, for a robot that publishes its raw sensors instead o
 measurement) as separate ROS nodes, with their own names,
 parameters, services and ``/diagnostics`` entries, but in one process spun by one
 ``SingleThreadedExecutor``. Inside the process each node hands its output message to the next
-node's input callback directly (:class:`~fall_predictor.ros.common.Output`, intra-process
+node's input callback directly (:class:`~fall_predictor.ros.in_process.Output`, intra-process
 delivery as in rclcpp) and still publishes it for other processes (recorders, tools): a sample
 goes from measurement to state in one executor wake-up, with no DDS round trip and no
 (de)serialization between the nodes. The downstream nodes therefore do not subscribe to those

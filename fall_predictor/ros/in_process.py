@@ -2,10 +2,10 @@
 
 rclpy has no intra-process communication: a message between two nodes of one process goes
 through DDS, (de)serialization and one more executor wake-up, which at 1 kHz cost more CPU
-than a monitor node's own work. A node's main output is therefore an :class:`Output`, which can hand each message
-object to consumers of the same process before publishing it; a downstream node built with
-``upstream=<that output>`` (:func:`connect_input`) takes its input from there instead of
-subscribing. ``fall_monitor`` composes its nodes this way.
+than a monitor node's own work. A node's main output is therefore an :class:`Output`, which can
+hand each message object to consumers of the same process before publishing it; a downstream
+node built with ``upstream=<that output>`` (:func:`connect_input`) takes its input from there
+instead of subscribing. ``fall_monitor`` and ``simulated_robot`` compose their nodes this way.
 """
 from __future__ import annotations
 
@@ -66,8 +66,15 @@ def connect_input(node: Node, msg_type: type, spec: TopicSpec, callback: Callabl
     """
     if upstream is None:
         return [create_subscription(node, msg_type, spec, callback, lossless=lossless)]
+    take_from(node, spec, upstream, callback)
+    return []
+
+
+def take_from(node: Node, spec: TopicSpec, upstream: Output, callback: Callable[[Any], None]
+              ) -> None:
+    """Connect ``callback`` of ``node`` to ``upstream``, which must publish ``spec``'s topic
+    as ``node`` resolves it (same namespace and remappings); ValueError otherwise."""
     expected = node.resolve_topic_name(spec.ros_name)
     if upstream.topic_name != expected:
         raise ValueError(f'in-process input {upstream.topic_name} is not {expected}')
     upstream.connect(callback)
-    return []

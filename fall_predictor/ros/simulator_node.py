@@ -69,7 +69,7 @@ from fall_predictor.ros.common import (Diagnostics,
                                          InputErrors, NodeStartupError, ParamSpec, ParamValue,
                                          Report, create_publisher, create_subscription,
                                          declare_parameters, run_node, steady_clock)
-from fall_predictor.ros.in_process import Output
+from fall_predictor.ros.in_process import Output, take_from
 from fall_predictor.sim.pushes import PushDistribution
 from fall_predictor.monitor.records import Measurement, PushSpec
 from fall_predictor.sim.simulator import DT_S, Simulator
@@ -157,7 +157,7 @@ class SimulatorNode(Node):
         self._push_pub = create_publisher(self, WrenchStamped, PUSH)
         self._command_sub = None if in_process_controller else create_subscription(
             self, JointState, JOINT_COMMANDS, self._on_command)
-        self._in_process_commands: Optional[bool] = False if in_process_controller else None
+        self._commands_connected = False   # an in-process controller (connect_controller)
         self._in_publish = False            # publishing a sample (an in-process command may come)
         # Resumes the in-process lock-step loop from the executor (see _advance).
         self._continue = self.create_guard_condition(self._on_continue) \
@@ -233,13 +233,10 @@ class SimulatorNode(Node):
 
     def connect_controller(self, commands: Output) -> None:
         """Take the joint commands from ``commands`` (a controller node of this process)."""
-        if self._in_process_commands is None:
+        if self._command_sub is not None:
             raise ValueError('the simulator was built to subscribe to its commands')
-        expected = self.resolve_topic_name(JOINT_COMMANDS.ros_name)
-        if commands.topic_name != expected:
-            raise ValueError(f'in-process commands {commands.topic_name} are not {expected}')
-        commands.connect(self._on_command)
-        self._in_process_commands = True
+        take_from(self, JOINT_COMMANDS, commands, self._on_command)
+        self._commands_connected = True
         if self._hold is None and not self._published:
             self._try_start()
 
@@ -252,7 +249,7 @@ class SimulatorNode(Node):
             listened = self._joint_state_pub.get_subscription_count()
         if not listened:
             return
-        if self._lockstep and not (self._in_process_commands or (
+        if self._lockstep and not (self._commands_connected or (
                 self._command_sub is not None and self._command_sub.get_publisher_count())):
             return
         self._pace_anchor = (time.monotonic(), self._m.t)
