@@ -49,6 +49,8 @@ REPO = Path(__file__).resolve().parents[1]
 NAMESPACE = '/robot1'
 LEFT = [(0.1, 0.15), (-0.1, 0.15), (-0.1, 0.05), (0.1, 0.05)]
 RIGHT = [(0.1, -0.05), (-0.1, -0.05), (-0.1, -0.15), (0.1, -0.15)]
+#: Sample time of the test robot's first measurement [s].
+CLOCK_START_S = 100.0
 STANDING_P = 2.0                            #: a balanced momentum [kg m/s]
 FALLING_P = MOMENTUM_THRESHOLD + 15.0       #: above the model's threshold
 #: Overrides of config/monitor.yaml, as a user's params file would hold them.
@@ -102,7 +104,10 @@ class Robot:
                                       lambda m: self.modes.append(m.data),
                                       ros_qos.qos_profile(FALLING.qos))
         self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics, 50)
-        self.t0_wall = time.monotonic()
+        # The robot's clock has run for a while when the monitor starts: its stamps begin at
+        # CLOCK_START_S, so that "0.5 s old" is never near t = 0, where the restart rule
+        # (SampleIntake) takes an older sample as the possible start of a new run instead.
+        self.t0_wall = time.monotonic() - CLOCK_START_S
         self.last_t = 0.0
 
     def _on_state(self, msg: Float64MultiArray) -> None:
