@@ -40,13 +40,14 @@ from fall_predictor.ros.bringup import (NodeProcess, default_domain_id, default_
                                     stop_nodes)
 from fall_predictor.monitor.decision_list import Condition, DecisionList, PerModeDecisionLists, Rule
 from fall_predictor.monitor.model_file import ModelMetadata, save_model
-from fall_predictor.ros.common import create_subscription, run_node, run_nodes
+from fall_predictor.ros.endpoints import create_subscription
+from fall_predictor.ros.runner import run_node, run_nodes
 from fall_predictor.ros.simulated_robot import robot_nodes
 from fall_predictor.ros.observer import Observer
 from fall_predictor.ros.simulator_node import NODE_NAME, SimulatorNode
 from fall_predictor.monitor.records import FALLING, FEATURE_NAMES, N_CONTACT_MODES, Measurement
-from fall_predictor.data.topics import STATE
-from fall_predictor.data.wire import I_STATE_STATUS, I_STATE_T, STATUS_STALE
+from fall_predictor.contract.topics import STATE
+from fall_predictor.contract.wire import I_STATE_STATUS, I_STATE_T, STATUS_STALE
 
 _SIMULATOR_CHILD = '--simulator-child'
 

@@ -35,10 +35,10 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from std_msgs.msg import Float64MultiArray
 
-from fall_predictor.data.topics import MEASUREMENT
+from fall_predictor.contract.topics import MEASUREMENT
 from fall_predictor.monitor.records import PushSpec
 from fall_predictor.ros import conversions as ros_qos
-from fall_predictor.ros.common import create_publisher
+from fall_predictor.ros.endpoints import create_publisher
 from fall_predictor.ros.fall_monitor import MONITOR_NODES, in_process_chain
 from fall_predictor.sim.trajectory import run_trajectory
 

@@ -39,12 +39,12 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
 
-from fall_predictor.data.topics import MEASUREMENT, STATE
-from fall_predictor.data.wire import I_STATE_STATUS, I_STATE_T, STATUS_OK
+from fall_predictor.contract.topics import MEASUREMENT, STATE
+from fall_predictor.contract.wire import I_STATE_STATUS, I_STATE_T, STATUS_OK
 from fall_predictor.monitor.records import PushSpec
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.ros.bringup import ros_environment, start_process, stop_nodes
-from fall_predictor.ros.common import create_publisher, create_subscription
+from fall_predictor.ros.endpoints import create_publisher, create_subscription
 from fall_predictor.sim.trajectory import run_trajectory
 
 REPO = Path(__file__).resolve().parents[1]

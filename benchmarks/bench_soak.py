@@ -41,12 +41,12 @@ from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
 
 from fall_predictor.data.bagio import read_trajectory
-from fall_predictor.data.topics import MEASUREMENT, MEASUREMENT_LABEL, STATE
-from fall_predictor.data.wire import (I_STATE_STATUS, I_STATE_T, I_T, S_COM, S_COP, S_LIN_MOM,
+from fall_predictor.contract.topics import MEASUREMENT, MEASUREMENT_LABEL, STATE
+from fall_predictor.contract.wire import (I_STATE_STATUS, I_STATE_T, I_T, S_COM, S_COP, S_LIN_MOM,
                                       pack_measurement)
 from fall_predictor.monitor.records import Measurement
 from fall_predictor.ros.bringup import ros_environment, start_process, stop_nodes
-from fall_predictor.ros.common import create_publisher, create_subscription
+from fall_predictor.ros.endpoints import create_publisher, create_subscription
 from fall_predictor.ros.conversions import float64_array_msg
 
 REPO = Path(__file__).resolve().parents[1]

@@ -6,6 +6,7 @@ import importlib
 import sys
 import time
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 
@@ -64,12 +65,25 @@ def cmd_simulate(args) -> int:
 # -- generate -----------------------------------------------------------------------------
 
 
+def _sensor_timing(args) -> Optional[dict]:
+    """``--sensor-timing robot``: the drivers of a robot (sim/drivers.py) at ``--joint-rate-hz``,
+    joint states split into legs and upper body, IMU and foot sensors 0.3 / 0.4 ms after them."""
+    if args.sensor_timing == 'simulator':
+        return None
+    from fall_predictor.robot import model as rm
+    from fall_predictor.sim.drivers import DriverTiming
+    legs = tuple(f'{s}_{j}' for s in rm.SIDES for j in rm.LEG_JOINTS)
+    groups = (legs, tuple(n for n in rm.JOINT_NAMES if n not in legs))
+    return DriverTiming.robot(args.joint_rate_hz, groups, clock_offset_ns=0).to_dict()
+
+
 def cmd_generate(args) -> int:
     from fall_predictor.data.dataset import DatasetError, read_manifest
     from fall_predictor.data.generation import GenerationConfig, generate_dataset
 
     config = GenerationConfig(seed=args.seed, horizon_after_push_s=args.horizon,
-                              gait_variety=not args.fixed_gait, sensor_noise_scale=args.sensor_noise)
+                              gait_variety=not args.fixed_gait, sensor_noise_scale=args.sensor_noise,
+                              sensor_timing=_sensor_timing(args))
     start = time.perf_counter()
     try:
         rows = generate_dataset(args.out, args.trajectories, args.seed, jobs=args.jobs, config=config,
@@ -295,6 +309,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--horizon', type=argtypes.positive, default=4.0,
                    help='simulated seconds after the push ends before a trajectory counts as balanced')
     p.add_argument('--sensor-noise', type=float, default=None, metavar='SCALE', help='also record the sensor topics (noise x SCALE; 1 = default sensors)')
+    p.add_argument('--sensor-timing', choices=('simulator', 'robot'), default='simulator',
+                   help='how the sensor topics are published: the simulator\'s timing (all at 1 kHz, one '
+                        'stamp per step) or a robot\'s drivers (joint states at --joint-rate-hz split '
+                        'into legs and upper body, IMU and foot sensors 0.3 / 0.4 ms after them)')
+    p.add_argument('--joint-rate-hz', type=argtypes.positive, default=500.0,
+                   help='joint state rate with --sensor-timing robot [Hz]')
     p.add_argument('--fixed-gait', action='store_true',
                    help='every trajectory walks the default gait (faster: the walk is simulated once per '
                         'process) instead of drawing its gait (SPEC §3 amendment)')

@@ -22,8 +22,9 @@ from rosbags.rosbag2.storage_mcap import McapReader
 
 from fall_predictor.cli import main
 from fall_predictor.data.bag_repair import BACKUP_SUFFIX, repair_bag
-from fall_predictor.data.bagio import BagError, BagWriter, bag_parts, iter_messages, read_trajectory
-from fall_predictor.data.topics import MEASUREMENT
+from fall_predictor.data.bag_writer import BagWriter
+from fall_predictor.data.bagio import BagError, bag_parts, iter_messages, read_trajectory
+from fall_predictor.contract.topics import MEASUREMENT
 from fall_predictor.monitor.records import Measurement
 
 
@@ -124,7 +125,7 @@ _WRITER = r'''
 import sys
 sys.path.insert(0, sys.argv[2])
 from test_bag_repair import measurement
-from fall_predictor.data.bagio import BagWriter
+from fall_predictor.data.bag_writer import BagWriter
 with BagWriter(sys.argv[1]) as writer:
     storage = writer._writer.storage
     k, written = 0, 0

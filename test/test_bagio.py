@@ -7,16 +7,14 @@ import yaml
 from rosbags.rosbag2 import Writer
 from rosbags.rosbag2.enums import StoragePlugin
 
-from fall_predictor.data.bagio import (
-    BagError,
-    BagWriter,
-    decode,
-    iter_messages,
-    read_trajectory,
-    typestore,
-)
-from fall_predictor.data.topics import (CONTROLLER_MODE, FEATURES, JOINT_COMMANDS, JOINT_STATES, MEASUREMENT, PUSH, STATE)
-from fall_predictor.data.wire import PredictorState, pack_measurement
+from fall_predictor.contract.topics import (CONTROLLER_MODE, FEATURES, JOINT_COMMANDS, JOINT_STATES,
+                                            MEASUREMENT, MEASUREMENT_LABEL, PUSH, STATE)
+from fall_predictor.contract.messages import measurement_msg
+from fall_predictor.contract.wire import pack_measurement
+from fall_predictor.data.bag_writer import BagWriter
+from fall_predictor.data.bagio import (LEGACY_ARRAY_TYPE, BagError, decode, iter_messages,
+                                       read_trajectory, typestore)
+from fall_predictor.monitor.fall_monitor import STATUS_OK, MonitorState
 from random_records import make_measurement
 
 N_SAMPLES = 300
@@ -38,8 +36,8 @@ def write_bag(path, measurements, *, compress=True, extras=True):
             if extras and k % 10 == 0:
                 writer.write_joint_state(m.t, JOINTS, np.full(4, k * 0.01), np.ones(4))
                 writer.write_features(m.t, (np.arange(15.0) + k) * 1e-3, k % 16)
-                writer.write_state(PredictorState(m.t, k >= 200, k >= 150, False, k >= 200,
-                                                  k % 16, 0.044))
+                writer.write_state(m.t, MonitorState(STATUS_OK, '', k >= 200, k >= 200, k >= 150,
+                                                     False, k % 16, tau_his_s=0.044))
         if extras:
             writer.write_push(0.1, [250.0, -30.0, 0.0])
     return path
@@ -77,7 +75,8 @@ def test_round_trip_is_exact(bag, measurements):
     assert [p.t for p in rec.pushes] == [0.1]
     assert np.array_equal(rec.pushes[0].force, [250.0, -30.0, 0.0])
     assert [f.mode for f in rec.features] == [k % 16 for k in range(0, N_SAMPLES, 10)]
-    assert [s.falling for s in rec.states] == [k >= 200 for k in range(0, N_SAMPLES, 10)]
+    assert [s.state.falling for s in rec.states] == [k >= 200 for k in range(0, N_SAMPLES, 10)]
+    assert [s.t for s in rec.states] == [k / 1000.0 for k in range(0, N_SAMPLES, 10)]
     assert set(rec.topics) == {MEASUREMENT.name, JOINT_STATES.name, FEATURES.name, STATE.name,
                                PUSH.name}
 
@@ -91,7 +90,7 @@ def test_metadata_is_what_ros2_bag_needs(bag):
     topics = {t['topic_metadata']['name']: t for t in info['topics_with_message_count']}
     assert topics[MEASUREMENT.name]['message_count'] == N_SAMPLES
     meta = topics[MEASUREMENT.name]['topic_metadata']
-    assert meta['type'] == 'std_msgs/msg/Float64MultiArray'
+    assert meta['type'] == 'fall_predictor/msg/Measurement'
     assert meta['serialization_format'] == 'cdr'
     assert meta['type_description_hash'].startswith('RIHS01_')
     qos = meta['offered_qos_profiles'][0]
@@ -216,19 +215,48 @@ def test_bag_without_measurements_is_reported(tmp_path):
     assert len(rec.pushes) == 1
 
 
+def _legacy_measurement(values: np.ndarray, label: str = MEASUREMENT_LABEL):
+    types = typestore().types
+    dim = types['std_msgs/msg/MultiArrayDimension'](label=label, size=len(values), stride=len(values))
+    return types['std_msgs/msg/Float64MultiArray'](
+        layout=types['std_msgs/msg/MultiArrayLayout'](dim=[dim], data_offset=0), data=values)
+
+
+def write_legacy_bag(bag, stamped_arrays) -> None:
+    """A bag as this package wrote them before the typed messages: Float64MultiArray layouts."""
+    store = typestore()
+    with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        conn = writer.add_connection(MEASUREMENT.name, LEGACY_ARRAY_TYPE, typestore=store)
+        for t_ns, msg in stamped_arrays:
+            writer.write(conn, t_ns, store.serialize_cdr(msg, LEGACY_ARRAY_TYPE))
+
+
+def test_bags_recorded_before_the_typed_messages_still_import(tmp_path, measurements):
+    bag = tmp_path / 'legacy'
+    write_legacy_bag(bag, [(round(m.t * 1e9), _legacy_measurement(pack_measurement(m)))
+                           for m in measurements[:20]])
+    rec = read_trajectory(bag)
+    assert rec.topics == {MEASUREMENT.name: LEGACY_ARRAY_TYPE}
+    for got, want in zip(rec.measurements, measurements[:20], strict=True):
+        assert pack_measurement(got).tobytes() == pack_measurement(want).tobytes()
+
+
 def test_malformed_message_in_bag_is_reported(tmp_path, measurements):
     bag = tmp_path / 'bad_label'
-    types = typestore().types
-    dim = types['std_msgs/msg/MultiArrayDimension'](label='other/v1', size=26, stride=26)
-    msg = types['std_msgs/msg/Float64MultiArray'](
-        layout=types['std_msgs/msg/MultiArrayLayout'](dim=[dim], data_offset=0),
-        data=np.zeros(26))
-    with BagWriter(bag) as writer:
-        writer.write_measurement(measurements[0])
-        writer.write(MEASUREMENT.name, MEASUREMENT.msg_type, 5_000_000, msg)
+    write_legacy_bag(bag, [(0, _legacy_measurement(pack_measurement(measurements[0]))),
+                           (5_000_000, _legacy_measurement(np.zeros(26), 'other/v1'))])
     with pytest.raises(BagError, match=f"malformed {MEASUREMENT.name} message at 5000000 ns: "
                                        "layout label 'other/v1'"):
         read_trajectory(bag)
+    typed = tmp_path / 'nan_com'
+    with BagWriter(typed) as writer:
+        writer.write_measurement(measurements[0])
+        bad = measurement_msg(writer._types, 5_000_000, 'odom', measurements[1])
+        bad.com.x = float('nan')
+        writer.write(MEASUREMENT.name, MEASUREMENT.msg_type, 5_000_000, bad)
+    with pytest.raises(BagError, match=f'malformed {MEASUREMENT.name} message at 5000000 ns: '
+                                       'measurement has non-finite values'):
+        read_trajectory(typed)
 
 
 def test_known_topic_with_wrong_type_is_reported(tmp_path):

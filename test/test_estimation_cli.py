@@ -7,7 +7,7 @@ import pytest
 from fall_predictor.cli import main
 from fall_predictor.data.dataset import read_index, read_manifest
 from fall_predictor.data.estimation import estimate_bag, summarise
-from fall_predictor.data.sensorbag import read_robot_description, read_sensor_params, read_sensor_samples
+from fall_predictor.data.sensorbag import read_robot_description, read_sensor_messages, read_sensor_params
 from fall_predictor.robot import model as rm
 
 
@@ -22,17 +22,21 @@ def sensor_dataset(tmp_path_factory):
 def test_bags_carry_the_sensor_topics_parameters_and_description(sensor_dataset):
     row = read_index(sensor_dataset)[0]
     bag = sensor_dataset / row.bag
-    samples = read_sensor_samples(bag)
-    assert len(samples) == row.samples                     # 1 kHz, one per recorded step
-    assert np.diff([s.t for s in samples]) == pytest.approx(0.001)
-    assert tuple(samples[0].joint_names) == rm.JOINT_NAMES
-    loaded = [s for s in samples if s.left_wrench is not None and s.right_wrench is not None]
-    assert len(loaded) == len(samples)
+    streams: dict[str, list] = {'joints': [], 'imu': [], 'l': [], 'r': []}
+    for stream, reading in read_sensor_messages(bag):
+        streams[stream].append(reading)
+    # The simulator's timing: every stream once per recorded step, at 1 kHz.
+    assert {k: len(v) for k, v in streams.items()} == dict.fromkeys(streams, row.samples)
+    assert np.diff([r.stamp_ns for r in streams['joints']]) == pytest.approx(1_000_000)
+    assert streams['joints'][0].names == rm.JOINT_NAMES
+    assert streams['imu'][0].frame_id == rm.IMU_LINK
+    assert (streams['l'][0].frame_id, streams['r'][0].frame_id) == rm.SOLE_FRAMES
     # The robot's weight is on its soles (42.1 kg x 9.81), on average over the walk.
-    fz = np.mean([s.left_wrench[2] + s.right_wrench[2] for s in samples])
+    fz = np.mean([a.wrench[2] + b.wrench[2] for a, b in zip(streams['l'], streams['r'])])
     assert fz == pytest.approx(413.0, rel=0.1)
-    assert read_sensor_params(bag)['noise_scale'] == 1.0
-    assert read_sensor_params(bag) == read_manifest(sensor_dataset)['sensors']
+    params = read_sensor_params(bag)
+    assert params['noise_scale'] == 1.0 and params['timing']['joint_rate_hz'] == 1000.0
+    assert {k: v for k, v in params.items() if k != 'timing'} == read_manifest(sensor_dataset)['sensors']
     assert read_robot_description(bag) == rm.URDF_PATH.read_text()
 
 
@@ -75,7 +79,7 @@ def test_summary_of_known_errors():
 
 
 def test_the_sensor_topic_table_is_consistent():
-    from fall_predictor.data.topics import (LATCHED_QOS, SENSOR_TOPICS, SENSOR_TOPICS_BY_NAME, SIM_RATE_HZ,
+    from fall_predictor.contract.topics import (LATCHED_QOS, SENSOR_TOPICS, SENSOR_TOPICS_BY_NAME, SIM_RATE_HZ,
                                             STREAM_QOS, TOPICS_BY_NAME)
     assert len(SENSOR_TOPICS_BY_NAME) == len(SENSOR_TOPICS) == 6
     for spec in SENSOR_TOPICS:

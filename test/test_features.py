@@ -242,4 +242,4 @@ class TestFeatureSettings:
     def test_the_extractor_uses_the_settings(self):
         extractor = FeatureSettings(rate_window_s=0.02, sample_period_s=0.002,
                                     edge_tolerance_m=0.005).extractor()
-        assert (extractor.window_samples, extractor.dt_s, extractor.edge_tolerance_m) == (10, 0.002, 0.005)
+        assert (extractor.rate_window_s, extractor.dt_s, extractor.edge_tolerance_m) == (0.02, 0.002, 0.005)

@@ -36,13 +36,13 @@ from rclpy.qos import ReliabilityPolicy
 from std_msgs.msg import Bool, Float64MultiArray, String
 from std_srvs.srv import SetBool, Trigger
 
-from fall_predictor.data.topics import FALL_DIRECTION, FALLING, MEASUREMENT, STATE
-from fall_predictor.data.wire import (LEVEL_WARN, STATUS_DISABLED, STATUS_OK, STATUS_STALE,
+from fall_predictor.contract.topics import FALL_DIRECTION, FALLING, MEASUREMENT, STATE
+from fall_predictor.contract.wire import (LEVEL_WARN, STATUS_DISABLED, STATUS_OK, STATUS_STALE,
                                       pack_measurement)
 from fall_predictor.monitor.records import Measurement
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.ros.bringup import ros_environment, start_process, stop_nodes
-from fall_predictor.ros.common import create_publisher, create_subscription
+from fall_predictor.ros.endpoints import create_publisher, create_subscription
 from test_nodes_support import MOMENTUM_THRESHOLD, ros_context, test_domain_id, write_momentum_model
 
 REPO = Path(__file__).resolve().parents[1]

@@ -43,13 +43,14 @@ from fall_predictor.data.bagio import iter_messages, read_trajectory
 from fall_predictor.ros.bringup import (NodeProcess, default_params_file, ros_environment,
                                     start_node, stop_nodes)
 from fall_predictor.monitor.features import extract_features
-from fall_predictor.ros.common import UNMATCHED_INPUTS, create_publisher
+from fall_predictor.ros.endpoints import create_publisher
+from fall_predictor.ros.health import UNMATCHED_INPUTS
 from fall_predictor.ros.observer import ModeChange, Observer, ReceivedSample
 from fall_predictor.monitor.records import Measurement, PushSpec
-from fall_predictor.data.topics import (CONTROLLER_MODE, FALL_DIRECTION, FALLING, FEATURES,
+from fall_predictor.contract.topics import (CONTROLLER_MODE, FALL_DIRECTION, FALLING, FEATURES,
                                         FEATURES_LABEL, JOINT_COMMANDS, JOINT_STATES,
                                         MEASUREMENT, MEASUREMENT_LABEL, PUSH, STATE)
-from fall_predictor.data.wire import LEVEL_STALE, STATUS_STALE, PredictorState
+from fall_predictor.contract.wire import LEVEL_STALE, STATUS_STALE, PredictorState
 
 STRONG_PUSH = PushSpec(force_n=450.0, angle_deg=90.0, height_m=0.1, t_push=2.5)
 NO_PUSH_RUN_S = 10.0

@@ -16,15 +16,19 @@ import rclpy.node
 from geometry_msgs.msg import WrenchStamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
-from std_msgs.msg import Float64MultiArray
 from test_nodes_support import MODEL_TAU_HIS_S, ros_context, test_domain_id, write_momentum_model
 
 from fall_predictor.ros.bringup import ros_environment
-from fall_predictor.data.topics import FEATURES, STATE
-from fall_predictor.data.wire import I_STATE_FALLING
-from fall_predictor.monitor.predictor import OnlinePredictor
+from fall_predictor.contract.topics import FEATURES, STATE
+from fall_predictor.contract import messages
+from fall_predictor.msg import FallState, Features
+from fall_predictor.monitor.fall_monitor import STATUS_FALLEN, FallMonitor
+from fall_predictor.ros.feature_node import base_tilt_rad
+from fall_predictor.ros.robots import fallen_config_for
 from fall_predictor.ros import conversions as ros_qos
-from fall_predictor.ros.common import NodeStartupError, ParamSpec, create_subscription, spin_until
+from fall_predictor.ros.endpoints import create_subscription
+from fall_predictor.ros.parameters import NodeStartupError, ParamSpec
+from fall_predictor.ros.runner import spin_until
 from fall_predictor.ros.fall_monitor import MONITOR_NODES, in_process_chain
 from fall_predictor.ros.simulated_robot import robot_nodes
 from fall_predictor.sim.trajectory import run_trajectory
@@ -140,9 +144,8 @@ def test_feature_and_predictor_nodes_adopt_the_models_feature_settings(tmp_path:
             extractor = features._extractor
             assert (extractor.rate_window_s, extractor.dt_s, extractor.edge_tolerance_m) == (
                 0.02, 0.002, 0.005)
-            assert extractor.window_samples == 10
-            assert predictor._predictor.dt_s == 0.002
-            assert predictor._predictor.guard_com_height_m == 0.4
+            assert predictor._monitor.predictor.dt_s == 0.002
+            assert predictor._monitor.predictor.guard_com_height_m == 0.4
         finally:
             features.destroy_node()
             predictor.destroy_node()
@@ -219,9 +222,17 @@ def test_fall_monitor_hands_each_features_message_to_the_predictor_in_process(tm
     measurements = run_trajectory(PushSpec(450.0, 0.0, 0.1, 0.3), 1.2,
                                   stop_when_fallen=False).measurements
     extractor = FeatureSettings().extractor()
-    offline = OnlinePredictor(lists, MODEL_TAU_HIS_S, FeatureSettings().sample_period_s,
-                              FeatureSettings().guard_com_height_m)
-    expected = [offline.step(m.t, *extractor.update(m)).falling for m in measurements]
+    offline = FallMonitor(lists, MODEL_TAU_HIS_S, fallen_config_for('asimo_like'),
+                          FeatureSettings().sample_period_s, FeatureSettings().guard_com_height_m)
+    outputs = [offline.step(m.t, *extractor.update(m), base_tilt_rad(m.torso_rotation))[0]
+               for m in measurements]
+    expected = [o.falling for o in outputs]
+    # The robot is down (FALLEN, no prediction) from its first sample with the CoM below 0.33 m
+    # or the torso tilted beyond 60 degrees (it stays down: it does not get up).
+    first_fallen = next(k for k, m in enumerate(measurements)
+                        if m.com[2] < 0.33 or m.torso_rotation[2, 2] < math.cos(math.radians(60)))
+    assert [o.status == STATUS_FALLEN for o in outputs] == [
+        k >= first_fallen for k in range(len(outputs))]
     assert 0 < sum(expected) < len(expected)          # the push is predicted, not at once
 
     with ros_context(DOMAIN) as context:
@@ -232,10 +243,13 @@ def test_fall_monitor_hands_each_features_message_to_the_predictor_in_process(tm
         probe = rclpy.node.Node('in_process_probe', context=context)
         states: list[float] = []
         features: list[float] = []
-        create_subscription(probe, Float64MultiArray, STATE,
-                            lambda msg: states.append(msg.data[I_STATE_FALLING]), lossless=True)
-        create_subscription(probe, Float64MultiArray, FEATURES,
-                            lambda msg: features.append(msg.data[0]), lossless=True)
+        create_subscription(probe, FallState, STATE, lambda msg: states.append(msg.falling),
+                            lossless=True)
+        statuses: list[int] = []
+        create_subscription(probe, FallState, STATE, lambda msg: statuses.append(msg.status),
+                            lossless=True)
+        create_subscription(probe, Features, FEATURES,
+                            lambda msg: features.append(messages.stamp_ns(msg)), lossless=True)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(probe)
         try:
@@ -244,7 +258,8 @@ def test_fall_monitor_hands_each_features_message_to_the_predictor_in_process(tm
             assert spin_until(executor, lambda: feature.output.publisher.get_subscription_count()
                               >= 1 and predictor._state_pub.get_subscription_count() >= 1, 10.0)
             for k, m in enumerate(measurements):
-                feature._on_measurement(ros_qos.measurement_to_msg(m))
+                feature._on_measurement(messages.measurement_msg(
+                    ros_qos.TYPES, ros_qos.sim_ns(m.t), 'odom', m))
                 if k % 50 == 49:                # keep the reliable queues short
                     spin_until(executor, lambda: len(states) == k + 1, 10.0)
             assert spin_until(executor, lambda: len(states) == len(measurements)
@@ -254,7 +269,8 @@ def test_fall_monitor_hands_each_features_message_to_the_predictor_in_process(tm
             for node in (probe, predictor, feature):
                 node.destroy_node()
     assert [bool(v) for v in states] == expected
-    assert features == [m.t for m in measurements]
+    assert statuses == [o.status for o in outputs]
+    assert features == [ros_qos.sim_ns(m.t) for m in measurements]
     assert predictor.counts['features'] == len(measurements)
 
 

@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from fall_predictor.data.topics import WireFormatError
-from fall_predictor.data.wire import pack_features, pack_measurement, unpack_features, unpack_measurement
+from fall_predictor.contract.topics import WireFormatError
+from fall_predictor.contract.wire import pack_features, pack_measurement, unpack_features, unpack_measurement
 from fall_predictor.monitor.features import FeatureExtractor
 from fall_predictor.monitor.plausibility import (MAX_SAMPLE_TIME_S, ContinuityCheck,
                                                  ImplausibleSample, check_time)
@@ -125,7 +125,7 @@ def test_continuity_follows_real_fast_motion_and_resyncs_after_a_real_jump():
 
 
 def test_joint_states_and_pushes_have_bounds_too():
-    from fall_predictor.data.wire import JointStateSample, PushEvent
+    from fall_predictor.contract.wire import JointStateSample, PushEvent
     assert JointStateSample(0.1, ('a',), [1.0], [2.0], [3.0]).effort[0] == 3.0
     for values, match in ((([200.0], [], []), 'position beyond 100'),
                           (([0.0], [2e3], []), 'velocity beyond 1000'),

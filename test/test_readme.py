@@ -7,7 +7,7 @@ from urllib.parse import unquote
 
 import pytest
 
-from fall_predictor.data.topics import TOPICS, topics_markdown_table
+from fall_predictor.contract.topics import TOPICS, topics_markdown_table
 from fall_predictor.monitor.records import (CONTACT_MODE_NAMES, FALLEN_COM_HEIGHT_M, FEATURE_NAMES,
                                             GUARD_COM_HEIGHT_M, PUSH_DURATION_S)
 

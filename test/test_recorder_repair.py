@@ -24,10 +24,10 @@ from std_msgs.msg import Float64MultiArray
 
 from fall_predictor.cli import main
 from fall_predictor.data.bagio import BagError, bag_parts, read_trajectory
-from fall_predictor.data.topics import MEASUREMENT
+from fall_predictor.contract.topics import MEASUREMENT
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.ros.bringup import ros_environment, start_process
-from fall_predictor.ros.common import create_publisher
+from fall_predictor.ros.endpoints import create_publisher
 from test_nodes_support import ros_context, test_domain_id
 from test_recorder_crash import measurement
 

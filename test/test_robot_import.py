@@ -10,10 +10,11 @@ import json
 import pytest
 
 from fall_predictor.cli import main
-from fall_predictor.data.bagio import BagWriter, iter_messages
+from fall_predictor.data.bag_writer import BagWriter
+from fall_predictor.data.bagio import iter_messages
 from fall_predictor.data.dataset import read_index, read_manifest, robot_total_mass_kg
 from fall_predictor.data.robot_import import is_robot_recording
-from fall_predictor.data.topics import ROBOT_DESCRIPTION, SENSOR_TOPICS
+from fall_predictor.contract.topics import ROBOT_DESCRIPTION, SENSOR_TOPICS
 from fall_predictor.monitor.model_file import load_model
 from fall_predictor.robot import model as rm
 

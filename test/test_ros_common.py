@@ -16,7 +16,7 @@ _NODE = textwrap.dedent('''
     import rclpy
     from rclpy.node import Node
     from std_msgs.msg import Bool
-    from fall_predictor.ros.common import run_nodes
+    from fall_predictor.ros.runner import run_nodes
 
     class Node_(Node):
         def __init__(self):

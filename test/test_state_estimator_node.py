@@ -1,5 +1,5 @@
-"""state_estimator_node over DDS: the same measurements as the offline estimator (stream ==
-batch), and no crash on a bad description or bad samples."""
+"""state_estimator_node over DDS: the robot's sensor topics as its drivers publish them in, the
+offline pipeline's measurements out; faults said in words, never a crash."""
 from __future__ import annotations
 
 import numpy as np
@@ -8,101 +8,155 @@ from geometry_msgs.msg import WrenchStamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import Imu, JointState
-from std_msgs.msg import Float64MultiArray, String
+from std_msgs.msg import String
 from test_nodes_support import ros_context, test_domain_id
 
-from fall_predictor.data.topics import (IMU, LEFT_FOOT_WRENCH, MEASUREMENT, RIGHT_FOOT_WRENCH, ROBOT_DESCRIPTION,
-                                        SENSOR_JOINT_STATES)
-from fall_predictor.monitor.estimator import StateEstimator
+from fall_predictor.contract import messages
+from fall_predictor.contract.topics import (IMU, LEFT_FOOT_WRENCH, MEASUREMENT, RIGHT_FOOT_WRENCH,
+                                            ROBOT_DESCRIPTION, SENSOR_JOINT_STATES)
 from fall_predictor.monitor.records import PushSpec
+from fall_predictor.monitor.sensor_pipeline import SensorPipeline
+from fall_predictor.msg import Measurement
 from fall_predictor.robot import model as rm
 from fall_predictor.ros import conversions as ros_qos
-from fall_predictor.ros.common import create_publisher, create_subscription, spin_until
-from fall_predictor.ros.sensor_conversions import reading_to_msgs
+from fall_predictor.ros.endpoints import create_publisher, create_subscription
+from fall_predictor.ros.runner import spin_until
 from fall_predictor.ros.state_estimator_node import StateEstimatorNode
+from fall_predictor.sim.drivers import DriverTiming, driver_messages
 from fall_predictor.sim.sensors import SensorParams, apply_sensors
 from fall_predictor.sim.trajectory import run_trajectory
 
 DOMAIN = test_domain_id(162)
 N = 300
+LEGS = tuple(f'{s}_{j}' for s in rm.SIDES for j in rm.LEG_JOINTS)
+UPPER = tuple(n for n in rm.JOINT_NAMES if n not in LEGS)
+BUILD = {'joints': messages.joint_state_msg, 'imu': messages.imu_msg,
+         'l': messages.wrench_msg, 'r': messages.wrench_msg}
 
 
 @pytest.fixture(scope='module')
-def readings():
+def samples():
     run = run_trajectory(PushSpec(60.0, 0.0, 0.1, 0.2), 0.4, record_sensors=True)
     return apply_sensors(run.sensor_truths, SensorParams(), seed=2)[:N]
 
 
-def _drive(readings, description: str, expected: int = 0):
+def offline(samples, timing: DriverTiming) -> dict[int, object]:
+    """The pipeline run offline over the same messages: estimates by stamp."""
+    layout = rm.SENSOR_LAYOUT
+    pipeline = SensorPipeline(layout.description(rm.URDF_PATH.read_text()), layout.imu_frame)
+    out = []
+    for stream, reading in driver_messages(samples, timing):
+        out += (pipeline.joint_state(reading)[0] if stream == 'joints' else
+                pipeline.imu(reading) if stream == 'imu' else pipeline.wrench(stream, reading))
+    return {e.stamp_ns: e for e in out}
+
+
+def _drive(messages_in, description: str, expected: int = 0, params=()):
+    from rclpy.parameter import Parameter
     with ros_context(DOMAIN) as context:
-        node = StateEstimatorNode(context=context)
+        node = StateEstimatorNode(context=context, parameter_overrides=[
+            Parameter(k, value=v) for k, v in params])
         io = Node('estimator_test_io', context=context)
         got = []
-        create_subscription(io, Float64MultiArray, MEASUREMENT,
-                            lambda m: got.append(ros_qos.measurement_from_msg(m)), lossless=True)
-        pubs = [create_publisher(io, JointState, SENSOR_JOINT_STATES), create_publisher(io, Imu, IMU),
-                create_publisher(io, WrenchStamped, LEFT_FOOT_WRENCH),
-                create_publisher(io, WrenchStamped, RIGHT_FOOT_WRENCH)]
+        create_subscription(io, Measurement, MEASUREMENT,
+                            lambda m: got.append(messages.measurement_from_msg(m)), lossless=True)
+        pubs = {'joints': create_publisher(io, JointState, SENSOR_JOINT_STATES),
+                'imu': create_publisher(io, Imu, IMU),
+                'l': create_publisher(io, WrenchStamped, LEFT_FOOT_WRENCH),
+                'r': create_publisher(io, WrenchStamped, RIGHT_FOOT_WRENCH)}
         desc = create_publisher(io, String, ROBOT_DESCRIPTION)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
         executor.add_node(io)
         try:
-            assert spin_until(executor, lambda: all(p.get_subscription_count() for p in pubs)
+            assert spin_until(executor, lambda: all(p.get_subscription_count() for p in pubs.values())
                               and desc.get_subscription_count() > 0, 10.0)
             desc.publish(String(data=description))
-            spin_until(executor, lambda: node._estimator is not None, 2.0)
-            for r in readings:
-                for pub, msg in zip(pubs, reading_to_msgs(r)):
-                    pub.publish(msg)
+            spin_until(executor, lambda: node._pipeline is not None, 2.0)
+            for stream, reading in messages_in:
+                pubs[stream].publish(BUILD[stream](ros_qos.TYPES, reading))
                 # The node reads its sensors best effort with shallow queues (REP 2003): let it
-                # take each sample's four messages before the next ones are published.
-                taken = node.counts['samples'] + node.counts['incomplete']
-                spin_until(executor, lambda: node.counts['samples'] + node.counts['incomplete']
-                           > taken or node._estimator is None, 0.5)
+                # take each message before the next one is published.
+                key = {'joints': 'joint_messages', 'imu': 'imu_messages'}.get(stream, 'wrench_messages')
+                taken = node.counts[key]
+                spin_until(executor, lambda: node.counts[key] > taken, 0.5)
             spin_until(executor, lambda: len(got) >= expected, 20.0 if expected else 1.0)
-            return got, dict(node.counts), node._estimator
+            return got, dict(node.counts), node
         finally:
             executor.shutdown()
             node.destroy_node()
             io.destroy_node()
 
 
-def test_the_node_publishes_what_the_offline_estimator_computes(readings):
-    offline = [m for m in StateEstimator(rm.URDF_PATH.read_text()).run(readings) if m is not None]
-    got, counts, estimator = _drive(readings, rm.URDF_PATH.read_text(), expected=len(offline))
-    assert len(got) == len(offline) and counts['measurements'] == len(got) and counts['rejected'] == 0
-    by_t = {round(m.t * 1000): m for m in offline}
-    for m in got:
-        ref = by_t[round(m.t * 1000)]
-        assert np.allclose(m.com, ref.com, atol=1e-12) and np.allclose(m.lin_mom, ref.lin_mom, atol=1e-12)
-        assert np.allclose(m.left_contacts, ref.left_contacts, atol=1e-12)
+@pytest.mark.parametrize('timing', [
+    DriverTiming(),
+    DriverTiming.robot(joint_rate_hz=500.0, joint_groups=(LEGS, UPPER)),
+], ids=['simulator', 'robot_500hz_split_epoch'])
+def test_the_node_publishes_what_the_offline_pipeline_computes(samples, timing):
+    """Over DDS the node makes exactly the offline pipeline's estimates, each stamped with its
+    driving message's own stamp (epoch stamps included), for simulator-timed and robot-timed
+    streams."""
+    expected = offline(samples, timing)
+    params = [('driving_joints', list(LEGS))] if timing.joint_groups else []
+    got, counts, _ = _drive(driver_messages(samples, timing), rm.URDF_PATH.read_text(),
+                            expected=len(expected), params=params)
+    assert sorted(g.stamp_ns for g in got) == sorted(expected)
+    assert counts['measurements'] + counts['faults'] == len(got)
+    for g in got:
+        ref = expected[g.stamp_ns]
+        assert g.fault == ref.fault
+        if ref.measurement is not None:
+            assert np.allclose(g.measurement.com, ref.measurement.com, atol=1e-12)
+            assert np.allclose(g.measurement.lin_mom, ref.measurement.lin_mom, atol=1e-12)
+            assert np.allclose(g.measurement.left_contacts, ref.measurement.left_contacts,
+                               atol=1e-12)
+    assert sum(g.measurement is not None for g in got) >= len(got) - 5
 
 
-def test_a_description_without_sole_frames_is_logged_not_fatal(readings):
-    got, counts, estimator = _drive(readings[:20], rm.urdf_xml(sole_frames=False))
-    assert estimator is None and got == [] and counts['samples'] == 0
+def test_a_description_without_sole_frames_is_logged_not_fatal(samples):
+    got, counts, node = _drive(driver_messages(samples[:20]), rm.urdf_xml(sole_frames=False))
+    assert node._pipeline is None and got == [] and counts['measurements'] == 0
+    assert 'needs both sole frames' in node._bad_inputs.last
+
+
+def test_a_sensor_that_stops_gives_faults_in_words_not_zeros(samples):
+    """The right foot's sensor stops after 100 ms: every later estimate is a fault naming it."""
+    kept = [(s, r) for s, r in driver_messages(samples[:200])
+            if not (s == 'r' and r.stamp_ns >= 100_000_000)]
+    got, counts, node = _drive(kept, rm.URDF_PATH.read_text(), expected=200)
+    late = [g for g in got if g.stamp_ns >= 110_000_000]
+    assert late and all(g.measurement is None for g in late)
+    assert all(g.fault.startswith('no /right_foot/wrench within 5 ms of /joint_states') for g in late)
+    assert counts['faults'] >= len(late)
+    assert 'no /right_foot/wrench within 5 ms of /joint_states' in node._faults.current()
 
 
 def test_simulator_sensor_topics_through_the_estimator_track_the_ground_truth():
     from rclpy.parameter import Parameter
 
-    from fall_predictor.data.topics import GROUND_TRUTH
+    from fall_predictor.contract.topics import GROUND_TRUTH
     from fall_predictor.ros.simulator_node import SimulatorNode
 
     with ros_context(DOMAIN) as context:
         sim = SimulatorNode(context=context, parameter_overrides=[
             Parameter('publish_sensors', value=True), Parameter('lockstep', value=False),
-            Parameter('real_time_factor', value=1.0)])
-        est = StateEstimatorNode(context=context)
+            Parameter('real_time_factor', value=1.0), Parameter('sensor_joint_rate_hz', value=500.0),
+            Parameter('sensor_imu_offset_s', value=0.0003),
+            Parameter('sensor_wrench_offset_s', value=0.0004),
+            Parameter('sensor_split_joints', value=True)])
+        est = StateEstimatorNode(context=context, parameter_overrides=[
+            Parameter('driving_joints', value=list(LEGS))])
         io = Node('estimator_test_truth', context=context)
         truth, estimated = {}, {}
-        create_subscription(io, Float64MultiArray, GROUND_TRUTH,
-                            lambda m: truth.setdefault(round(ros_qos.measurement_from_msg(m).t * 1000),
-                                                       ros_qos.measurement_from_msg(m)))
-        create_subscription(io, Float64MultiArray, MEASUREMENT,
-                            lambda m: estimated.setdefault(round(ros_qos.measurement_from_msg(m).t * 1000),
-                                                           ros_qos.measurement_from_msg(m)))
+
+        def keep(store):
+            def on(msg):
+                decoded = messages.measurement_from_msg(msg)
+                if decoded.measurement is not None:
+                    store.setdefault(decoded.stamp_ns, decoded.measurement)
+            return on
+        create_subscription(io, Measurement, GROUND_TRUTH, keep(truth))
+        create_subscription(io, Measurement, MEASUREMENT, keep(estimated))
         executor = SingleThreadedExecutor(context=context)
         for n in (sim, est, io):
             executor.add_node(n)
@@ -114,11 +168,13 @@ def test_simulator_sensor_topics_through_the_estimator_track_the_ground_truth():
                 n.destroy_node()
     common = sorted(set(truth) & set(estimated))
     assert len(common) >= 250
-    # The simulator publishes the ground truth on its own topic. The estimator's world frame is
-    # the one the robot stood in when the estimator started (an odometry frame, REP 105): its
-    # horizontal origin is aligned with the truth's at the first common sample, as any
-    # comparison against motion capture does (heights need no alignment: z = 0 is the ground).
-    # From there on, the estimate from the sensors alone stays within millimetres of the truth.
+    # One estimate per 500 Hz joint state cycle, stamped with the joint states' stamps.
+    assert set(np.diff(sorted(estimated))) == {2_000_000}
+    # The estimator's world frame is the one the robot stood in when the estimator started (an
+    # odometry frame, REP 105): its horizontal origin is aligned with the truth's at the first
+    # common sample, as any comparison against motion capture does (heights need no alignment:
+    # z = 0 is the ground). From there on, the estimate from the sensors alone stays within
+    # millimetres of the truth.
     offset = truth[common[0]].com - estimated[common[0]].com
     offset[2] = 0.0
     errors = [np.linalg.norm(estimated[k].com + offset - truth[k].com) for k in common]
@@ -140,18 +196,20 @@ def test_fall_monitor_runs_the_estimator_in_front_of_the_monitor(tmp_path):
     process = start_process('fall_monitor', [
         sys.executable, '-m', 'fall_predictor.ros.fall_monitor', '--estimator', '--ros-args',
         '-p', 'start_type_description_service:=false'], ros_environment(domain), tmp_path)
-    names = set()
+    statuses = {}
     try:
         with ros_context(domain) as context:
             node = Node('watcher', context=context)
             node.create_subscription(DiagnosticArray, '/diagnostics',
-                                     lambda msg: names.update(s.name for s in msg.status), 50)
+                                     lambda msg: statuses.update((s.name, s) for s in msg.status), 50)
             executor = SingleThreadedExecutor(context=context)
             executor.add_node(node)
             assert spin_until(executor, lambda: {'/state_estimator_node', '/feature_node',
-                                                 '/predictor_node'} <= names, 60.0), (
-                names, process.log_tail())
+                                                 '/predictor_node'} <= set(statuses), 60.0), (
+                statuses, process.log_tail())
             node.destroy_node()
     finally:
         codes = stop_nodes({'fall_monitor': process})
     assert codes == {'fall_monitor': 0}
+    estimator = statuses['/state_estimator_node']
+    assert estimator.message == 'no usable robot description yet'

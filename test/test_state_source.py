@@ -10,8 +10,9 @@ import pytest
 
 from fall_predictor.cli import main
 from fall_predictor.data.dataset import load_features, read_index, resolve_state
-from fall_predictor.data.sensorbag import read_robot_description, read_sensor_samples
-from fall_predictor.monitor.estimator import StateEstimator
+from fall_predictor.data.sensorbag import read_robot_description, read_sensor_messages
+from fall_predictor.monitor.sensor_pipeline import SensorPipeline
+from fall_predictor.robot import model as rm
 from fall_predictor.monitor.features import FeatureSettings
 from fall_predictor.monitor.model_file import ModelFileError, load_model
 from fall_predictor.monitor.records import FEATURE_NAMES
@@ -38,19 +39,22 @@ def test_estimated_features_are_the_live_nodes_stream(sensor_dataset):
     assert report.state == 'estimated' and report.note is None and not report.errors
     row = read_index(sensor_dataset)[0]
     traj = next(t for t in report.trajectories if t.trajectory_id == row.trajectory_id)
-    # The live path, one sample at a time: estimator node, then feature node.
+    # The live path, one message at a time: estimator node, then feature node.
     bag = sensor_dataset / row.bag
-    estimator = StateEstimator(read_robot_description(bag))
+    layout = rm.SENSOR_LAYOUT
+    pipeline = SensorPipeline(layout.description(read_robot_description(bag)), layout.imu_frame)
     extractor = FeatureSettings().extractor()
     t, X, mode = [], [], []
-    for sample in read_sensor_samples(bag):
-        m = estimator.update(sample)
-        if m is None:
-            continue
-        x, k = extractor.update(m)
-        t.append(m.t)
-        X.append(x)
-        mode.append(k)
+    for stream, reading in read_sensor_messages(bag):
+        estimates = (pipeline.joint_state(reading)[0] if stream == 'joints' else
+                     pipeline.imu(reading) if stream == 'imu' else pipeline.wrench(stream, reading))
+        for e in estimates:
+            if e.measurement is None:
+                continue
+            x, k = extractor.update(e.measurement)
+            t.append(e.stamp_ns / 1e9)
+            X.append(x)
+            mode.append(k)
     np.testing.assert_array_equal(traj.t, t)
     np.testing.assert_allclose(traj.X, np.array(X), rtol=1e-12, atol=1e-12, equal_nan=True)
     np.testing.assert_array_equal(traj.mode, mode)

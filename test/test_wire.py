@@ -7,14 +7,14 @@ import numpy as np
 import pytest
 
 from fall_predictor.monitor.records import N_FEATURES
-from fall_predictor.data.topics import (CONTROLLER_MODE, FEATURES_LABEL, LATCHED_QOS, MEASUREMENT_LABEL, SIM_RATE_HZ, STREAM_QOS, TOPICS, TOPICS_BY_NAME, QosSpec, WireFormatError, check_controller_mode, topics_markdown_table)
-from fall_predictor.data.wire import (
+from fall_predictor.contract.topics import (CONTROLLER_MODE, FEATURES_LABEL, LATCHED_QOS, MEASUREMENT_LABEL, SIM_RATE_HZ, STREAM_QOS, TOPICS, TOPICS_BY_NAME, QosSpec, WireFormatError, check_controller_mode, topics_markdown_table)
+from fall_predictor.contract.wire import (
     I_STATE_CONTACT_MODE, I_STATE_FALLING, I_STATE_LATCHED, I_STATE_STATUS, I_STATE_T,
     I_STATE_TAU_HIS, I_STATE_TIME_TO_FALL, MEASUREMENT_HEADER_LEN, STATE_LEN, STATUS_DISABLED,
     STATUS_OK, STATUS_STALE, JointStateSample, PredictorState, PushEvent, check_layout,
     pack_features, pack_measurement, pack_state, push_from_wire, unpack_features,
     unpack_measurement, unpack_state)
-from fall_predictor.data.topics import time_to_ns, time_to_stamp
+from fall_predictor.contract.topics import time_to_ns, time_to_stamp
 from random_records import make_measurement
 
 

@@ -1,5 +1,5 @@
-"""The lab's data: the topic contract and the array layouts on the wire, rosbag2 (MCAP) bag
-I/O, push-trajectory datasets (generation, index, derived-data cache, import of recordings) and
+"""The lab's data: rosbag2 (MCAP) bag I/O (in the message contract of
+:mod:`fall_predictor.contract`), push-trajectory datasets (generation, index, derived-data cache, import of recordings) and
 dataset statistics.
 
 May import: fall_predictor.monitor, rosbags, numpy; fall_predictor.sim only lazily, inside the

@@ -26,7 +26,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional, Union
 
-from fall_predictor.data.bagio import BagError, BagWriter, typestore
+from fall_predictor.data.bag_writer import BagWriter
+from fall_predictor.data.bagio import BagError, typestore
 
 if sys.version_info >= (3, 14):
     from compression import zstd

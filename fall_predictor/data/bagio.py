@@ -1,60 +1,42 @@
-"""Write and read rosbag2 bags (MCAP storage) with the topics of :mod:`fall_predictor.data.wire`.
+"""Reading rosbag2 bags (MCAP storage) in the message contract of :mod:`fall_predictor.contract`.
 
-Uses the pure-Python ``rosbags`` library (no rclpy), with the ROS 2 Jazzy type store. Bags are
-rosbag2 directories (``metadata.yaml`` + one ``.mcap`` file), metadata version 9 as written by
-Jazzy's rosbag2, so ``ros2 bag info/play`` reads them. Chunks are zstd-compressed inside the
-MCAP file (MCAP's own compression, transparent to readers), with a zstd content checksum so
-that damaged chunks are detected rather than decoded into wrong numbers.
+Uses the pure-Python ``rosbags`` library (no rclpy), with the ROS 2 Jazzy type store and this
+package's own messages (:func:`typestore`); writing is :mod:`fall_predictor.data.bag_writer`. The
+per-sample topics are read in both forms: the typed messages, and the ``Float64MultiArray``
+layouts of bags recorded before them (:mod:`fall_predictor.contract.wire`).
 
-Log time of every message = simulation time [ns]. Any failure to read (missing, truncated or
-corrupt bag, malformed message, missing required topic) raises :class:`BagError` naming the
-bag; library exceptions never escape.
+Log time of every message = its stamp [ns]. Any failure to read (missing, truncated or corrupt
+bag, malformed message, missing required topic) raises :class:`BagError` naming the bag; library
+exceptions never escape.
 """
 from __future__ import annotations
 
 import heapq
 import os
-import sys
 import warnings
-from collections.abc import Callable, Collection, Iterator, Sequence
-from contextlib import ExitStack, contextmanager, suppress
+from collections.abc import Collection, Iterator
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
-from functools import lru_cache, partial
+from functools import lru_cache
 from pathlib import Path
-from types import TracebackType
-from typing import Any, Literal, Optional, cast
+from typing import Any, Literal, NamedTuple, Optional, cast
 
 import numpy as np
-from numpy.typing import ArrayLike
-from rosbags.interfaces import (
-    Connection,
-    Qos,
-    QosDurability,
-    QosHistory,
-    QosLiveliness,
-    QosReliability,
-    QosTime,
-)
-from rosbags.rosbag2 import Reader, Writer
-from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
-from rosbags.rosbag2.storage_mcap import McapWriter
-from rosbags.typesys import Stores, get_typestore
+from rosbags.rosbag2 import Reader
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
+from fall_predictor.contract import messages
+from fall_predictor.contract.definitions import message_definitions
+from fall_predictor.contract.topics import (FEATURES, FEATURES_LABEL, JOINT_STATES, MEASUREMENT,
+                                            MEASUREMENT_LABEL, PUSH, STATE, STATE_LABEL,
+                                            TOPICS_BY_NAME, WireFormatError, ns_to_time,
+                                            stamp_to_ns)
+from fall_predictor.contract.wire import (FeatureSample, JointStateSample, PushEvent, check_layout,
+                                          push_from_wire, unpack_features, unpack_measurement,
+                                          unpack_state)
+from fall_predictor.monitor.fall_monitor import MonitorState
 from fall_predictor.monitor.records import Measurement
-from fall_predictor.data.topics import (FEATURES, FEATURES_LABEL, JOINT_STATES, MEASUREMENT,
-                                        MEASUREMENT_LABEL, PUSH, STATE, STATE_LABEL,
-                                        TOPICS_BY_NAME, WORLD_FRAME, QosSpec, WireFormatError)
-from fall_predictor.data.wire import (FeatureSample, JointStateSample, PredictorState, PushEvent,
-                                      check_layout, pack_features, pack_measurement, pack_state,
-                                      push_from_wire, unpack_features, unpack_measurement,
-                                      unpack_state)
-from fall_predictor.data.topics import ns_to_time, stamp_to_ns, time_to_ns, time_to_stamp
-
-if sys.version_info >= (3, 14):
-    from compression import zstd
-else:
-    from backports import zstd
 
 #: rosbag2 metadata version written by ROS 2 Jazzy (rosbag2 0.26).
 ROSBAG2_VERSION: Literal[9] = 9
@@ -69,176 +51,17 @@ class BagError(Exception):
 
 @lru_cache(maxsize=1)
 def typestore() -> Typestore:
-    """The ROS 2 Jazzy message type store (built once, ~0.15 s)."""
-    return get_typestore(Stores.ROS2_JAZZY)
+    """The ROS 2 Jazzy message type store with this package's own messages (built once)."""
+    store = get_typestore(Stores.ROS2_JAZZY)
+    types = {}
+    for name, text in message_definitions().items():
+        types.update(get_types_from_msg(text, name))
+    store.register(types)
+    return store
 
 
-def _describe(exc: BaseException) -> str:
+def describe(exc: BaseException) -> str:
     return f'{type(exc).__name__}: {exc}'
-
-
-def _rosbags_qos(spec: QosSpec) -> Qos:
-    zero = QosTime(0, 0)
-    return Qos(
-        history=QosHistory.KEEP_LAST, depth=spec.depth,
-        reliability=(QosReliability.RELIABLE if spec.reliability == 'reliable'
-                     else QosReliability.BEST_EFFORT),
-        durability=(QosDurability.TRANSIENT_LOCAL if spec.durability == 'transient_local'
-                    else QosDurability.VOLATILE),
-        deadline=zero, lifespan=zero, liveliness=QosLiveliness.SYSTEM_DEFAULT,
-        liveliness_lease_duration=zero, avoid_ros_namespace_conventions=False)
-
-
-# The zstd frames of MCAP chunks carry a content checksum (xxhash64), verified by every zstd
-# decoder, including the one in ros2 bag's MCAP plugin.
-_compress_with_checksum = partial(
-    zstd.compress, options={zstd.CompressionParameter.checksum_flag: 1})
-
-
-# --------------------------------------------------------------------------------------------
-# Writing
-# --------------------------------------------------------------------------------------------
-
-class BagWriter:
-    """Context manager writing one rosbag2 bag directory in MCAP storage.
-
-    ``path`` must not exist. With ``compress`` (default) MCAP chunks are zstd-compressed with
-    a checksum; without it chunks carry no checksum (rosbags writes none), so damage inside a
-    chunk may go unnoticed.
-    Topics are registered on first use, with the QoS of their :data:`~fall_predictor.data.wire.TOPICS`
-    row (so ``ros2 bag play`` offers the same QoS). If the ``with`` block raises, the bag is
-    left without ``metadata.yaml`` (``fall-predictor repair-bag`` recovers it).
-    """
-
-    def __init__(self, path: str | os.PathLike[str], *, compress: bool = True) -> None:
-        self.path = Path(path)
-        self._compress = compress
-        self._writer: Optional[Writer] = None
-        self._connections: dict[str, Connection] = {}
-        self._types = typestore().types
-
-    def __enter__(self) -> BagWriter:
-        try:
-            writer = Writer(self.path, version=ROSBAG2_VERSION, storage_plugin=StoragePlugin.MCAP)
-            if self._compress:
-                writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
-            writer.open()
-        except Exception as exc:
-            raise BagError(f'{self.path}: cannot create bag: {_describe(exc)}') from exc
-        if self._compress and isinstance(writer.storage, McapWriter):
-            # rosbags 0.11 compresses chunks with this attribute; the checksum flag is
-            # checked by test_mcap_chunks_are_zstd_with_checksum.
-            writer.storage.compressor = _compress_with_checksum
-        self._writer = writer
-        return self
-
-    def __exit__(self, exc_type: Optional[type[BaseException]], exc: Optional[BaseException],
-                 tb: Optional[TracebackType]) -> None:
-        writer, self._writer = self._writer, None
-        assert writer is not None
-        if exc_type is not None:
-            with suppress(Exception):       # keep the caller's exception
-                writer.abort()
-            return
-        try:
-            writer.close()
-        except Exception as error:
-            raise BagError(f'{self.path}: cannot finish bag: {_describe(error)}') from error
-
-    def write(self, topic: str, msg_type: str, t_ns: int, msg: object) -> None:
-        """Write a rosbags message object ``msg`` of ``msg_type`` at log time ``t_ns`` [ns]."""
-        self._write(topic, msg_type, t_ns, lambda: typestore().serialize_cdr(msg, msg_type))
-
-    def write_raw(self, topic: str, msg_type: str, t_ns: int, data: bytes) -> None:
-        """Write the CDR-serialized message ``data`` of ``msg_type`` at log time ``t_ns`` [ns]."""
-        self._write(topic, msg_type, t_ns, lambda: data)
-
-    def _write(self, topic: str, msg_type: str, t_ns: int, serialized: Callable[[], bytes]) -> None:
-        if self._writer is None:
-            raise BagError(f'{self.path}: bag is not open (use BagWriter as a context manager)')
-        spec = TOPICS_BY_NAME.get(topic)
-        if spec is not None and spec.msg_type != msg_type:
-            raise BagError(f'{self.path}: topic {topic} has type {spec.msg_type}, not {msg_type}')
-        if t_ns < 0:
-            raise BagError(f'{self.path}: log time must be >= 0 ns, got {t_ns}')
-        connection = self._connections.get(topic)
-        if connection is not None and connection.msgtype != msg_type:
-            raise BagError(f'{self.path}: topic {topic} was written as {connection.msgtype}, '
-                           f'not {msg_type}')
-        try:
-            if connection is None:
-                qos = [] if spec is None else [_rosbags_qos(spec.qos)]
-                connection = self._writer.add_connection(
-                    topic, msg_type, typestore=typestore(), offered_qos_profiles=qos)
-                self._connections[topic] = connection
-            self._writer.write(connection, t_ns, serialized())
-        except Exception as exc:
-            raise BagError(f'{self.path}: cannot write {topic}: {_describe(exc)}') from exc
-
-    def set_custom_data(self, key: str, value: str) -> None:
-        """A key-value pair in the bag's ``metadata.yaml`` (``custom_data``)."""
-        if self._writer is None:
-            raise BagError(f'{self.path}: bag is not open (use BagWriter as a context manager)')
-        self._writer.set_custom_data(key, value)
-
-    def _stamp(self, t: float) -> RosbagsMsg:
-        sec, nanosec = time_to_stamp(t)
-        return self._types['builtin_interfaces/msg/Time'](sec=sec, nanosec=nanosec)
-
-    def _header(self, t: float, frame_id: str = '') -> RosbagsMsg:
-        return self._types['std_msgs/msg/Header'](stamp=self._stamp(t), frame_id=frame_id)
-
-    def _float64_array(self, values: np.ndarray, label: str) -> RosbagsMsg:
-        types = self._types
-        n = len(values)
-        layout = types['std_msgs/msg/MultiArrayLayout'](
-            dim=[types['std_msgs/msg/MultiArrayDimension'](label=label, size=n, stride=n)],
-            data_offset=0)
-        return types['std_msgs/msg/Float64MultiArray'](layout=layout, data=values)
-
-    def write_measurement(self, m: Measurement) -> None:
-        """One Measurement on ``/fall_predictor/measurement`` at log time ``m.t``.
-
-        Raises WireFormatError (not BagError) if ``m`` itself violates the wire contract.
-        """
-        msg = self._float64_array(pack_measurement(m), MEASUREMENT_LABEL)
-        self.write(MEASUREMENT.name, MEASUREMENT.msg_type, time_to_ns(m.t), msg)
-
-    def write_features(self, t: float, x: ArrayLike, mode: int) -> None:
-        """Features (t [s], 15 values, contact mode index) on ``/fall_predictor/features``."""
-        msg = self._float64_array(pack_features(t, x, mode), FEATURES_LABEL)
-        self.write(FEATURES.name, FEATURES.msg_type, time_to_ns(t), msg)
-
-    def write_state(self, state: PredictorState) -> None:
-        """A PredictorState on ``/fall_predictor/state`` (layout v2) at log time ``state.t``."""
-        msg = self._float64_array(pack_state(state), STATE_LABEL)
-        self.write(STATE.name, STATE.msg_type, time_to_ns(state.t), msg)
-
-    def write_joint_state(self, t: float, names: Sequence[str], positions: ArrayLike,
-                          velocities: ArrayLike = (), efforts: ArrayLike = (),
-                          topic: str = JOINT_STATES.name) -> None:
-        """Joint values at sim time ``t`` [s] ([rad], [rad/s], [N m]) as a JointState.
-
-        ``topic`` may also be ``/fall_predictor/joint_commands``.
-        """
-        sample = JointStateSample(t, tuple(names), np.asarray(positions, dtype=np.float64),
-                                  np.asarray(velocities, dtype=np.float64),
-                                  np.asarray(efforts, dtype=np.float64))
-        msg = self._types['sensor_msgs/msg/JointState'](
-            header=self._header(t), name=list(sample.names), position=sample.position,
-            velocity=sample.velocity, effort=sample.effort)
-        self.write(topic, JOINT_STATES.msg_type, time_to_ns(t), msg)
-
-    def write_push(self, t: float, force_xyz: ArrayLike) -> None:
-        """A push with onset ``t`` [s] and world force [N] on ``/fall_predictor/push``."""
-        push = PushEvent(t, np.asarray(force_xyz, dtype=np.float64))
-        types = self._types
-        vector = types['geometry_msgs/msg/Vector3']
-        wrench = types['geometry_msgs/msg/Wrench'](
-            force=vector(*(float(v) for v in push.force)), torque=vector(0.0, 0.0, 0.0))
-        msg = types['geometry_msgs/msg/WrenchStamped'](
-            header=self._header(t, WORLD_FRAME), wrench=wrench)
-        self.write(PUSH.name, PUSH.msg_type, time_to_ns(t), msg)
 
 
 # --------------------------------------------------------------------------------------------
@@ -264,7 +87,7 @@ def _open_reader(path: Path) -> Iterator[Reader]:
         reader.open()
     except Exception as exc:
         raise BagError(f'{path}: cannot open bag (missing part, truncated or corrupt): '
-                       f'{_describe(exc)}') from exc
+                       f'{describe(exc)}') from exc
     try:
         yield reader
     finally:
@@ -284,12 +107,12 @@ def _messages(reader: Reader, path: Path,
         except StopIteration:
             return
         except Exception as exc:
-            raise BagError(f'{path}: damaged bag: {_describe(exc)}') from exc
+            raise BagError(f'{path}: damaged bag: {describe(exc)}') from exc
         try:
             msg = store.deserialize_cdr(raw, connection.msgtype)
         except Exception as exc:
             raise BagError(f'{path}: {connection.topic} message at {t_ns} ns does not decode '
-                           f'as {connection.msgtype}: {_describe(exc)}') from exc
+                           f'as {connection.msgtype}: {describe(exc)}') from exc
         yield BagMessage(connection.topic, connection.msgtype, t_ns, msg)
 
 
@@ -336,14 +159,35 @@ def _header_ns(msg: RosbagsMsg) -> int:
     return stamp_to_ns(msg.header.stamp.sec, msg.header.stamp.nanosec)
 
 
+#: The type of the per-sample topics in bags recorded before the typed messages.
+LEGACY_ARRAY_TYPE = 'std_msgs/msg/Float64MultiArray'
+
+
+class BagState(NamedTuple):
+    """A ``/fall_predictor/state`` message of a bag: sample time [s] and the monitor's state."""
+
+    t: float
+    state: MonitorState
+
+
 def _decode_measurement(msg: RosbagsMsg) -> Measurement:
-    check_layout(msg.layout, MEASUREMENT_LABEL, len(msg.data))
-    return unpack_measurement(msg.data)
+    if hasattr(msg, 'layout'):              # a bag recorded before the typed messages
+        check_layout(msg.layout, MEASUREMENT_LABEL, len(msg.data))
+        return unpack_measurement(msg.data)
+    decoded = messages.measurement_from_msg(msg)
+    if decoded.measurement is None:
+        raise WireFormatError(f'measurement carries a fault: {decoded.fault}')
+    return decoded.measurement
 
 
 def _decode_features(msg: RosbagsMsg) -> FeatureSample:
-    check_layout(msg.layout, FEATURES_LABEL, len(msg.data))
-    return unpack_features(msg.data)
+    if hasattr(msg, 'layout'):
+        check_layout(msg.layout, FEATURES_LABEL, len(msg.data))
+        return unpack_features(msg.data)
+    decoded = messages.features_from_msg(msg)
+    if decoded.x is None:
+        raise WireFormatError(f'features carry a fault: {decoded.fault}')
+    return FeatureSample(decoded.stamp_ns / 1e9, decoded.x, decoded.mode)
 
 
 def _decode_joint_state(msg: RosbagsMsg) -> JointStateSample:
@@ -356,9 +200,12 @@ def _decode_push(msg: RosbagsMsg) -> PushEvent:
     return push_from_wire(_header_ns(msg), msg.header.frame_id, (force.x, force.y, force.z))
 
 
-def _decode_state(msg: RosbagsMsg) -> PredictorState:
-    check_layout(msg.layout, STATE_LABEL, len(msg.data))
-    return unpack_state(msg.data)
+def _decode_state(msg: RosbagsMsg) -> object:
+    if hasattr(msg, 'layout'):              # v2 array: the legacy PredictorState record
+        check_layout(msg.layout, STATE_LABEL, len(msg.data))
+        return unpack_state(msg.data)
+    stamp_ns, state = messages.fall_state_from_msg(msg)
+    return BagState(stamp_ns / 1e9, state)
 
 
 _DECODERS = {
@@ -400,7 +247,7 @@ class RecordedTrajectory:
     topics: dict[str, str]
     measurements: Optional[list[Measurement]]
     features: Optional[list[FeatureSample]]
-    states: Optional[list[PredictorState]]
+    states: Optional[list[object]]         #: BagState (legacy bags: PredictorState)
     joint_states: Optional[JointStateSeries]
     pushes: Optional[list[PushEvent]]
 
@@ -447,7 +294,9 @@ def read_trajectory(path: str | os.PathLike[str], *,
                                    f'{topics[c.topic]} in an earlier part')
                 declared[c.topic] = declared.get(c.topic, 0) + c.msgcount
                 spec = TOPICS_BY_NAME.get(c.topic)
-                if spec is not None and spec.msg_type != c.msgtype:
+                if spec is not None and spec.msg_type != c.msgtype and not (
+                        spec.layout is None and c.msgtype == LEGACY_ARRAY_TYPE
+                        and c.topic in (MEASUREMENT.name, FEATURES.name, STATE.name)):
                     raise BagError(f'{part}: topic {c.topic} has type {c.msgtype}, expected '
                                    f'{spec.msg_type}')
                 if c.topic in _DECODERS:
@@ -473,7 +322,7 @@ def read_trajectory(path: str | os.PathLike[str], *,
         topics=topics,
         measurements=cast('Optional[list[Measurement]]', decoded.get(MEASUREMENT.name)),
         features=cast('Optional[list[FeatureSample]]', decoded.get(FEATURES.name)),
-        states=cast('Optional[list[PredictorState]]', decoded.get(STATE.name)),
+        states=decoded.get(STATE.name),
         joint_states=(None if joint_samples is None
                       else _joint_series(bag, cast('list[JointStateSample]', joint_samples))),
         pushes=cast('Optional[list[PushEvent]]', decoded.get(PUSH.name)),

@@ -1,12 +1,13 @@
 """The state estimator over recorded bags, and its error against the recorded ground truth.
 
 A bag made with sensors (``generate --sensor-noise``, data/sensorbag.py) holds the robot's
-sensor topics and, on ``/fall_predictor/measurement``, the simulator's exact state. The
-estimator (:class:`~fall_predictor.monitor.estimator.StateEstimator`, the same class the live
-node runs) is started at the bag's first sample with its world frame aligned to the truth's
-there (the frame the robot starts in, as any
-comparison against motion capture aligns it: the truth's heading, and the horizontal offset
-of the first estimated CoM); it then runs on the sensors alone.
+sensor topics and, on ``/fall_predictor/measurement``, the simulator's exact state. Its sensor
+messages go, in the order they were received, through
+:class:`~fall_predictor.monitor.sensor_pipeline.SensorPipeline`: the same code the live
+``state_estimator_node`` runs, so the offline estimates are the live ones. For the error against
+the truth the estimator's world frame is aligned with the truth's at its first estimate (the
+frame the robot starts in, as any comparison against motion capture aligns it: the truth's
+heading, and the horizontal offset of the first estimated CoM); it then runs on the sensors alone.
 """
 from __future__ import annotations
 
@@ -18,10 +19,12 @@ from typing import Optional
 import numpy as np
 
 from fall_predictor.data.bagio import BagError, read_trajectory
-from fall_predictor.data.sensorbag import read_robot_description, read_sensor_samples
+from fall_predictor.data.sensorbag import read_robot_description, read_sensor_messages
 from fall_predictor.monitor.contact_modes import classify_contact_mode
-from fall_predictor.monitor.estimator import EstimatorConfig, StateEstimator
+from fall_predictor.monitor.estimator import EstimatorConfig
 from fall_predictor.monitor.records import Measurement
+from fall_predictor.monitor.robot_description import DescriptionError, SensorLayout
+from fall_predictor.monitor.sensor_pipeline import Estimate, PipelineConfig, SensorPipeline
 
 #: Window after the push onset of the post-push statistics [s].
 POST_PUSH_WINDOW_S = 0.5
@@ -30,39 +33,65 @@ QUANTITIES = {'com_m': 'com', 'linear_momentum_kg_m_s': 'lin_mom',
               'angular_momentum_kg_m2_s': 'ang_mom', 'cop_m': 'cop'}
 
 
-def aligned_config(urdf: str, samples: list, truth: dict, config: EstimatorConfig = EstimatorConfig()
-                   ) -> EstimatorConfig:
-    """``config`` with its world frame aligned to the truth's at the first estimate: the truth's
-    heading, and the horizontal offset that puts the first estimated CoM on the true one."""
-    first = truth.get(round(samples[0].t * 1000))
-    config = replace(config, initial_yaw_rad=float(first.heading) if first is not None else 0.0)
-    probe = StateEstimator(urdf, config)
-    for s in samples[:50]:
-        m = probe.update(s)
-        ref = truth.get(round(s.t * 1000))
-        if m is not None and ref is not None:
-            dx, dy = (ref.com - m.com)[:2]
-            return replace(config, initial_xy_m=(config.initial_xy_m[0] + float(dx),
-                                                 config.initial_xy_m[1] + float(dy)))
-    return config
+def default_layout() -> SensorLayout:
+    """The simulated robot's sensor layout (its soles, IMU frame and foot sensors)."""
+    from fall_predictor.sim.sensors import SENSOR_LAYOUT
+    return SENSOR_LAYOUT
+
+
+def run_pipeline(path: str | os.PathLike[str], urdf: Optional[str] = None,
+                 config: EstimatorConfig = EstimatorConfig(),
+                 layout: Optional[SensorLayout] = None) -> list[Estimate]:
+    """Every estimate of a bag's sensor messages, as the live node makes them (``urdf``
+    replaces the bag's ``/robot_description``, for recordings without one)."""
+    bag = Path(path)
+    urdf = urdf if urdf is not None else read_robot_description(bag)
+    if urdf is None:
+        raise BagError(f'{bag}: no /robot_description (was it generated with --sensor-noise?)')
+    layout = layout or default_layout()
+    try:
+        pipeline = SensorPipeline(layout.description(urdf), layout.imu_frame, layout.force_sensors,
+                                  PipelineConfig(estimator=config))
+    except DescriptionError as error:
+        raise BagError(f'{bag}: /robot_description: {error}') from error
+    estimates: list[Estimate] = []
+    for stream, reading in read_sensor_messages(bag):
+        if stream == 'joints':
+            estimates.extend(pipeline.joint_state(reading)[0])
+        elif stream == 'imu':
+            estimates.extend(pipeline.imu(reading))
+        else:
+            estimates.extend(pipeline.wrench(stream, reading))
+    return estimates + pipeline.flush()
+
+
+def _stamped(e: Estimate) -> Measurement:
+    """The estimate's measurement at its stamp's time (simulation time in generated bags)."""
+    return replace(e.measurement, t=e.stamp_ns / 1e9)
 
 
 def estimated_measurements(path: str | os.PathLike[str], config: EstimatorConfig = EstimatorConfig(),
                            urdf: Optional[str] = None) -> list[Measurement]:
     """The state the estimator gives from a bag's sensor topics alone, as the live node runs it:
-    default configuration, the world frame the robot starts in, no ground truth (samples the
-    estimator refuses are left out, as the node publishes nothing for them). ``urdf`` replaces
-    the bag's ``/robot_description`` (for recordings without one)."""
-    bag = Path(path)
-    urdf = urdf if urdf is not None else read_robot_description(bag)
-    if urdf is None:
-        raise BagError(f'{bag}: no /robot_description (was it generated with --sensor-noise?)')
-    try:
-        estimator = StateEstimator(urdf, config)
-    except ValueError as error:
-        raise BagError(f'{bag}: /robot_description: {error}') from error
-    estimates = (estimator.update(s) for s in read_sensor_samples(bag))
-    return [m for m in estimates if m is not None]
+    default configuration, the world frame the robot starts in, no ground truth (samples without
+    an estimate are left out, as the node publishes a fault for them)."""
+    return [_stamped(e) for e in run_pipeline(path, urdf, config) if e.measurement is not None]
+
+
+def aligned_config(path: str | os.PathLike[str], urdf: str, truth: dict,
+                   config: EstimatorConfig = EstimatorConfig()) -> EstimatorConfig:
+    """``config`` with its world frame aligned to the truth's at the first estimate: the truth's
+    heading, and the horizontal offset that puts the first estimated CoM on the true one."""
+    first_ns = next(r.stamp_ns for stream, r in read_sensor_messages(path) if stream == 'joints')
+    first = truth.get(round(first_ns / 1e6))
+    config = replace(config, initial_yaw_rad=float(first.heading) if first is not None else 0.0)
+    for e in run_pipeline(path, urdf, config)[:50]:
+        ref = truth.get(round(e.stamp_ns / 1e6))
+        if e.measurement is not None and ref is not None:
+            dx, dy = (ref.com - e.measurement.com)[:2]
+            return replace(config, initial_xy_m=(config.initial_xy_m[0] + float(dx),
+                                                 config.initial_xy_m[1] + float(dy)))
+    return config
 
 
 @dataclass
@@ -81,19 +110,18 @@ def estimate_bag(path: str | os.PathLike[str], config: EstimatorConfig = Estimat
     if urdf is None:
         raise BagError(f'{bag}: no /robot_description (was it generated with --sensor-noise?)')
     truth = read_trajectory(bag).measurements or []
-    samples = read_sensor_samples(bag)
-    if not samples or not truth:
-        raise BagError(f'{bag}: no sensor samples or no ground truth')
+    if not truth:
+        raise BagError(f'{bag}: no ground truth')
     by_ms = {round(m.t * 1000): m for m in truth}
-    estimator = StateEstimator(urdf, aligned_config(urdf, samples, by_ms, config))
     t, est, tru = [], [], []
-    for s in samples:
-        m = estimator.update(s)
-        ref = by_ms.get(round(s.t * 1000))
+    for e in run_pipeline(bag, urdf, aligned_config(bag, urdf, by_ms, config)):
+        ref = by_ms.get(round(e.stamp_ns / 1e6))
         if ref is not None:
-            t.append(s.t)
-            est.append(m)
+            t.append(e.stamp_ns / 1e9)
+            est.append(None if e.measurement is None else _stamped(e))
             tru.append(ref)
+    if not t:
+        raise BagError(f'{bag}: no sensor samples')
     return BagEstimate(np.array(t), est, tru)
 
 

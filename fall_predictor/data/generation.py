@@ -21,13 +21,15 @@ from typing import TYPE_CHECKING, Any, Iterable, Optional
 
 import numpy as np
 
-from fall_predictor.data.bagio import BagError, BagWriter, read_trajectory
+from fall_predictor.data.bag_writer import BagWriter
+from fall_predictor.data.bagio import BagError, read_trajectory
 from fall_predictor.data.dataset import (FORMAT, DatasetError, IndexRow, read_index, trajectory_id,
                                          write_index_csv)
 from fall_predictor.data.generation_cost import (COSTS_DIR, GENERATION_COST_KEY,
                                                  record_generation_cost, trajectory_cost)
 from fall_predictor.data.outcomes import height_drop_time
-from fall_predictor.data.sensorbag import write_robot_description, write_sensor_params, write_sensor_reading
+from fall_predictor.data.sensorbag import (write_robot_description, write_sensor_message,
+                                           write_sensor_params)
 from fall_predictor.data.parallel import (PerThread, compute_backend, compute_parallel, machine,
                                           progress_bar)
 from fall_predictor.monitor.fileio import atomic_write_text
@@ -64,6 +66,10 @@ class GenerationConfig:
     #: Record the robot's sensor topics (sim/sensors.py model at this noise scale; 1 kHz
     #: /joint_states instead of the exact ones); None records none (data/sensorbag.py).
     sensor_noise_scale: Optional[float] = None
+    #: How the robot's drivers publish the sensors (sim/drivers.py ``DriverTiming`` fields:
+    #: rates, stamp offsets, split joint states; simulation-time stamps); None: the simulator's
+    #: own timing (every stream at 1 kHz, one stamp per step).
+    sensor_timing: Optional[dict] = None
 
     def manifest(self) -> dict:
         out = {'format': FORMAT, 'seed': self.seed, 'horizon_after_push_s': self.horizon_after_push_s,
@@ -73,7 +79,14 @@ class GenerationConfig:
         if self.sensor_noise_scale is not None:
             from fall_predictor.sim.sensors import SensorParams
             out['sensors'] = SensorParams(noise_scale=self.sensor_noise_scale).to_dict()
+            if self.sensor_timing is not None:
+                out['sensor_timing'] = self.timing().to_dict()
         return out
+
+    def timing(self):
+        """The drivers' timing of the sensor topics (:class:`fall_predictor.sim.drivers.DriverTiming`)."""
+        from fall_predictor.sim.drivers import DriverTiming
+        return DriverTiming.from_dict(self.sensor_timing or {})
 
 
 def _settings(manifest: dict) -> dict:
@@ -181,10 +194,12 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
             applied = next((m.push_force for m in measurements if m.push_force.any()), np.zeros(3))
             bag.write_push(push.t_push, applied)
             readings = _sensor_readings(config, index, result, bag, first)
+            drivers = None if readings is None else _driver_streams(config)
             for k, m in enumerate(measurements):
                 bag.write_measurement(m)
-                if readings is not None:
-                    write_sensor_reading(bag, readings[first + k])
+                if drivers is not None:
+                    for stream, reading in drivers.push(readings[first + k]):
+                        write_sensor_message(bag, stream, reading)
                 elif k % joint_every == 0:
                     i = first + k
                     bag.write_joint_state(m.t, ROBOT_JOINT_NAMES, result.joint_positions[i],
@@ -199,6 +214,11 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
     return SimulatedTrajectory(row, files, cost)
 
 
+def _driver_streams(config: GenerationConfig):
+    from fall_predictor.sim.drivers import DriverStreams
+    return DriverStreams(config.timing())
+
+
 def _sensor_readings(config: GenerationConfig, index: int, result, bag: BagWriter, first: int):
     """The run's sensor readings (noise seeded by dataset seed and index), with the sensor
     parameters and the robot description written into ``bag``; None without sensors."""
@@ -207,7 +227,7 @@ def _sensor_readings(config: GenerationConfig, index: int, result, bag: BagWrite
     from fall_predictor.sim.sensors import SensorParams, apply_sensors, robot_description
 
     params = SensorParams(noise_scale=config.sensor_noise_scale)
-    write_sensor_params(bag, params.to_dict())
+    write_sensor_params(bag, {**params.to_dict(), 'timing': config.timing().to_dict()})
     write_robot_description(bag, result.measurements[first].t, robot_description())
     seed = int(np.random.SeedSequence([config.seed, index, 10]).generate_state(1)[0])
     return apply_sensors(result.sensor_truths, params, seed=seed)
@@ -294,7 +314,7 @@ class ImportReport:
 def _recorded_row(bag: Path, tid: str) -> IndexRow:
     from fall_predictor.data.bagio import iter_messages
     from fall_predictor.data.outcomes import first_fallen_time
-    from fall_predictor.data.topics import CONTROLLER_MODE
+    from fall_predictor.contract.topics import CONTROLLER_MODE
 
     recorded = read_trajectory(bag)
     if not recorded.pushes or len(recorded.pushes) != 1:

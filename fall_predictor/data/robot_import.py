@@ -126,7 +126,7 @@ def import_robot_recordings(bags: Iterable[str | os.PathLike], out: str | os.Pat
 def is_robot_recording(bag: str | os.PathLike) -> bool:
     """Whether a bag is a robot's recording: an IMU topic and no simulator measurement topic."""
     from fall_predictor.data.bagio import iter_messages
-    from fall_predictor.data.topics import IMU, MEASUREMENT
+    from fall_predictor.contract.topics import IMU, MEASUREMENT
 
     def has(topic: str) -> bool:
         return next(iter(iter_messages(Path(bag), (topic,))), None) is not None

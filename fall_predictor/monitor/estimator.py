@@ -1,42 +1,45 @@
-"""State estimator: the monitor's :class:`Measurement` from the robot's own sensors.
+"""State estimator: the monitor's :class:`Measurement` from the robot's own sensors (method §10).
 
-ROS-free (numpy + Pinocchio). From the URDF (with ``l_sole`` / ``r_sole`` frames) and one
-sample of joint encoders, torso IMU and ankle F/T sensors (:class:`SensorSample`) it
-estimates, at 1 kHz:
+ROS-free (numpy + Pinocchio). From the robot description (:class:`RobotDescription`: the URDF with
+the sole frames) and one synchronised sample of joint encoders, IMU and foot force/torque sensors
+(:class:`~fall_predictor.monitor.sensor_records.SensorSample`) it estimates:
 
-* **torso orientation**: the gyroscope integrated, pulled towards the IMU's attitude output
-  with gain ``attitude_gain`` per sample (a complementary filter: the attitude output's
-  white noise is averaged out, its bias is not); yaw relative to the first sample plus
-  ``initial_yaw_rad`` (the world frame is the frame the robot started in, its origin at
-  ``initial_xy_m`` on the loaded soles' centres at the first sample);
-* **floating-base position and velocity**: the part of each loaded sole on the ground (its
+* **base orientation**: the IMU may sit on any link (the sample's ``imu_frame``, resolved in the
+  description; empty: the description's default IMU frame); its attitude and angular velocity are
+  carried to the floating base through the leg and torso kinematics. The base's angular velocity
+  is integrated and pulled towards the IMU's attitude output with gain ``attitude_gain`` per sample
+  (a complementary filter: the attitude output's white noise is averaged out, its bias is not); yaw
+  relative to the first sample plus ``initial_yaw_rad`` (the world frame is the frame the robot
+  started in, its origin at ``initial_xy_m`` on the loaded soles' centres at the first sample);
+* **the IMU point's position and velocity**: the accelerometer measures the specific force of the
+  IMU point, so the filter runs on that point: it integrates the accelerometer and corrects with
+  the force-weighted kinematic position and velocity of the point (gains ``position_gain``,
+  ``velocity_gain``) from the soles on the ground: the part of each loaded sole on the ground (its
   corners within ``tilt_tolerance_m`` of the lowest: the whole sole, an edge or a corner) is
-  anchored where it touched down (z = 0), re-anchored when that part changes; leg kinematics
-  from the anchor gives the base position, and the contact point's velocity with the base
-  held still gives the base velocity (a still contact moves the base by minus that). A complementary filter integrates the accelerometer and
-  corrects with the force-weighted kinematic position and velocity (gains ``position_gain``,
-  ``velocity_gain``); with no loaded sole it integrates the IMU alone. A sole whose kinematic
-  velocity is more than ``slip_velocity_m_s`` from the IMU prediction is taken as slipping:
-  left out and re-anchored (if all slip for ``max_slip_samples``, the closest is used);
-* **CoM and centroidal momentum**: ``pinocchio.centerOfMass`` and
-  ``pinocchio.computeCentroidalMomentum`` (linear momentum, angular momentum about the CoM);
-* **contacts and CoP**: a sole with normal force above ``contact_force_n`` is loaded; its
-  CoP in the sole frame is (-ty / fz, tx / fz); the whole-body CoP is the force-weighted
-  mean. The contacts handed to the feature code are the sole's corners that lie within
-  ``tilt_tolerance_m`` of its lowest corner (a tilted sole rests on an edge or a corner),
-  with the normal force split between them so that their weighted mean is the sole's CoP
-  (bilinear on a flat sole, linear along an edge).
+  anchored where it touched down (z = 0), re-anchored when that part changes; a still contact moves
+  the IMU point by minus the contact's velocity relative to it. With no loaded sole it integrates
+  the IMU alone. A sole whose kinematic velocity is more than ``slip_velocity_m_s`` from the IMU
+  prediction is taken as slipping: left out and re-anchored (if all slip for
+  ``max_slip_samples``, the closest is used). The base follows from the point by kinematics;
+* **CoM and centroidal momentum**: ``pinocchio.computeCentroidalMomentum`` (linear momentum,
+  angular momentum about the CoM);
+* **contacts and CoP**: a sole with normal force above ``contact_force_n`` is loaded; each foot's
+  wrench is taken in its sensor's frame (the sample's ``wrench_frames``; empty: the sole frame) and
+  carried to the sole frame, where the CoP is (-ty / fz, tx / fz); the whole-body CoP is the
+  force-weighted mean. The contacts handed to the feature code are the sole's corners that lie
+  within ``tilt_tolerance_m`` of its lowest corner, with the normal force split between them so
+  that their weighted mean is the sole's CoP (bilinear on a flat sole, linear along an edge).
 
 What the sensors cannot tell: ``non_foot_contact`` is always False (no skin sensors; a fall is
 then seen from the CoM height alone) and ``push_force`` is zero.
 
-Bad input never raises from :meth:`StateEstimator.update`: a sample with NaN joints or IMU,
-a stamp not after the previous one, or a stamp more than ``max_gap_s`` after it is rejected
-(``None`` returned, the reason in :attr:`StateEstimator.last_issue`; a large gap re-anchors the
-soles); so is every sample before the first loaded sole (the base position is unknown
-until a sole anchors it); a missing or NaN foot sensor makes that foot unloaded (``degraded`` lists it). A URDF
-without the sole frames, or joint names the URDF lacks, raise ``ValueError`` at construction
-or on the first sample.
+Bad input never raises from :meth:`StateEstimator.update`: a sample with missing joints, NaN joints
+or IMU, a frame the description lacks, a time not after the previous one, or a foot wrench missing
+where the robot has that sensor is rejected (``None`` returned, the reason in
+:attr:`StateEstimator.last_issue`); a time more than ``max_gap_s`` after the previous re-anchors the
+soles; so is every sample before the first loaded sole (the base position is unknown until a sole
+anchors it). A URDF without the sole frames, or one the estimator cannot model, raises
+:class:`~fall_predictor.monitor.robot_description.DescriptionError` at construction.
 """
 from __future__ import annotations
 
@@ -48,11 +51,11 @@ import numpy as np
 import pinocchio as pin
 
 from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2, Measurement
+from fall_predictor.monitor.robot_description import SIDES, DescriptionError, RobotDescription
+from fall_predictor.monitor.sensor_records import SensorSample
 
-SOLE_FRAMES = {'l': 'l_sole', 'r': 'r_sole'}
-#: Sole size of the shipped robot (SPEC §1) [m]; another robot passes its own.
-DEFAULT_SOLE_LENGTH_M = 0.225
-DEFAULT_SOLE_WIDTH_M = 0.157
+_LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+_GRAVITY = np.array([0.0, 0.0, STANDARD_GRAVITY_M_S2])
 
 
 @dataclass(frozen=True)
@@ -62,36 +65,14 @@ class EstimatorConfig:
     position_gain: float = 0.05
     velocity_gain: float = 0.05
     tilt_tolerance_m: float = 0.002
-    #: A sole whose kinematic base velocity is this far from the IMU prediction slips [m/s].
+    #: A sole whose kinematic velocity is this far from the IMU prediction slips [m/s].
     slip_velocity_m_s: float = 0.25
     #: After this many samples with every loaded sole slipping, the closest one is trusted.
     max_slip_samples: int = 20
     max_gap_s: float = 0.05
-    sole_length_m: float = DEFAULT_SOLE_LENGTH_M
-    sole_width_m: float = DEFAULT_SOLE_WIDTH_M
     initial_yaw_rad: float = 0.0
     #: World xy of the loaded soles' midpoint at the first sample [m].
     initial_xy_m: tuple[float, float] = (0.0, 0.0)
-
-
-@dataclass(slots=True)
-class SensorSample:
-    """One sample of the robot's sensors (what the ROS topics carry).
-
-    Wrenches (fx, fy, fz, tx, ty, tz) are the ground's on each sole, in the sole frame;
-    None where that sensor is missing. ``gyro_rad_s`` and ``accel_m_s2`` (specific force) are
-    in the torso (IMU) frame; ``imu_quat_xyzw`` is the IMU's attitude output.
-    """
-
-    t: float
-    joint_names: Sequence[str]
-    q: np.ndarray
-    dq: np.ndarray
-    imu_quat_xyzw: np.ndarray
-    gyro_rad_s: np.ndarray
-    accel_m_s2: np.ndarray
-    left_wrench: Optional[np.ndarray]
-    right_wrench: Optional[np.ndarray]
 
 
 def quat_xyzw_to_matrix(q: np.ndarray) -> np.ndarray:
@@ -109,6 +90,10 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def _rot_z(a: float) -> np.ndarray:
     c, s = math.cos(a), math.sin(a)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _yaw(rot: np.ndarray) -> float:
+    return math.atan2(rot[1, 0], rot[0, 0])
 
 
 def split_force_to_corners(corners: np.ndarray, cop: np.ndarray, fz: float) -> np.ndarray:
@@ -131,56 +116,66 @@ def split_force_to_corners(corners: np.ndarray, cop: np.ndarray, fz: float) -> n
     return np.full(k, fz / k)
 
 
+@dataclass
+class _Kinematics:
+    """One sample's kinematics relative to the floating base (base at the origin, world-aligned
+    axes, not translating, turning at the estimated rate)."""
+
+    q: np.ndarray                   #: full configuration (base part filled in later)
+    v: np.ndarray                   #: full velocity (base part filled in later)
+    rot: np.ndarray                 #: estimated base orientation in the world
+    omega_b: np.ndarray             #: base angular velocity, base frame [rad/s]
+    sole_pos: dict                  #: per side: sole origin relative to the base origin (world axes)
+    sole_rot: dict                  #: per side: sole orientation in the world
+    sole_vel: dict                  #: per side: (linear velocity of the sole origin, angular velocity)
+    imu_pos: np.ndarray             #: IMU point relative to the base origin (world axes)
+    imu_vel: np.ndarray             #: IMU point velocity relative to the base origin (world axes)
+    imu_rot: np.ndarray             #: IMU frame orientation in the world
+
+
 class StateEstimator:
     """Streams :class:`SensorSample` in, :class:`Measurement` out (see the module docstring)."""
 
-    def __init__(self, urdf_xml: str, config: EstimatorConfig = EstimatorConfig()):
+    def __init__(self, robot: RobotDescription, config: EstimatorConfig = EstimatorConfig(),
+                 imu_frame: str = '') -> None:
+        self.robot = robot
         self.config = config
-        try:
-            self.model = pin.buildModelFromXML(urdf_xml, pin.JointModelFreeFlyer())
-        except Exception as exc:  # Pinocchio raises its own types on malformed XML
-            raise ValueError(f'cannot build a model from the URDF: {exc}') from exc
-        self.data = self.model.createData()
-        missing = [f for f in SOLE_FRAMES.values() if not self.model.existFrame(f)]
-        if missing:
-            raise ValueError(f'the URDF has no frame {missing}: the estimator needs sole frames '
-                             f'{tuple(SOLE_FRAMES.values())} at the soles\' underside centres')
-        self.sole_ids = {s: self.model.getFrameId(f) for s, f in SOLE_FRAMES.items()}
-        self.total_mass_kg = float(sum(inert.mass for inert in self.model.inertias))
-        half_l, half_w = config.sole_length_m / 2, config.sole_width_m / 2
-        self.sole_corners = np.array([[half_l, half_w, 0.0], [half_l, -half_w, 0.0],
-                                      [-half_l, -half_w, 0.0], [-half_l, half_w, 0.0]])
-        self._joint_map: Optional[tuple[tuple[str, ...], np.ndarray, np.ndarray]] = None
+        self.model, self.data = robot.model, robot.data
+        #: The IMU frame of samples that do not name one (the robot profile's IMU link).
+        self.imu_frame = imu_frame
+        self.total_mass_kg = robot.total_mass_kg
+        self.sole_corners = {side: robot.soles[side].corners() for side in SIDES}
+        self._orders: dict[tuple[str, ...], Optional[np.ndarray]] = {}
         self.reset()
 
     def reset(self) -> None:
         """Forget the state: the next sample initialises it."""
         self.t: Optional[float] = None
         self.rot: Optional[np.ndarray] = None
-        self.p = np.zeros(3)
-        self.v = np.zeros(3)
+        self.p = np.zeros(3)        # the IMU point, world [m]
+        self.v = np.zeros(3)        # its velocity, world [m/s]
         self._yaw_offset = 0.0
         #: Per sole: (which corners touch, world position of their centre), or None.
         self.anchors: dict[str, Optional[tuple]] = {'l': None, 'r': None}
         self.last_issue: Optional[str] = None
-        self.degraded: tuple[str, ...] = ()
         self.n_rejected = 0
-        self._have_fix = False      # a sole has anchored the base position
+        self._have_fix = False      # a sole has anchored the position
         self._slipping = 0          # consecutive samples with every loaded sole slipping
 
     # -- helpers ---------------------------------------------------------------------
-    def _indices(self, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    def _order(self, names: Sequence[str]) -> Optional[np.ndarray]:
+        """Indices mapping a sample's joints onto the description's order (None: the same order)."""
         key = tuple(names)
-        if self._joint_map is None or self._joint_map[0] != key:
-            iq, iv = [], []
-            for n in key:
-                if not self.model.existJointName(n):
-                    raise ValueError(f'joint {n!r} is not in the URDF')
-                j = self.model.joints[self.model.getJointId(n)]
-                iq.append(j.idx_q)
-                iv.append(j.idx_v)
-            self._joint_map = (key, np.array(iq), np.array(iv))
-        return self._joint_map[1], self._joint_map[2]
+        if key not in self._orders:
+            if key == self.robot.joint_names:
+                self._orders[key] = None
+            else:
+                missing = set(self.robot.joint_names) - set(key)
+                if missing:
+                    raise DescriptionError(f'joints {sorted(missing)} of the robot description are '
+                                           'missing from the sample')
+                self._orders[key] = np.array([key.index(n) for n in self.robot.joint_names])
+        return self._orders[key]
 
     def _reject(self, why: str) -> None:
         self.last_issue = why
@@ -193,145 +188,198 @@ class StateEstimator:
         w = np.asarray(w, dtype=float)
         return w if w.shape == (6,) and np.all(np.isfinite(w)) else None
 
+    def _sole_wrench(self, side: str, w: np.ndarray, frame: str) -> np.ndarray:
+        """A wrench measured in ``frame`` (a sensor frame of the description; empty: the sole
+        frame), carried to the sole frame (the ground reaction about the sole origin)."""
+        sole_id = self.robot.sole_ids[side]
+        if not frame:
+            return w
+        fid = self.robot.frame_id(frame, f'{"left" if side == "l" else "right"} foot force sensor')
+        if fid == sole_id:
+            return w
+        placement = self.data.oMf[sole_id].actInv(self.data.oMf[fid])     # sensor in the sole frame
+        f = placement.rotation @ w[:3]
+        tau = placement.rotation @ w[3:] + _cross(placement.translation, f)
+        return np.concatenate([f, tau])
+
+    def _kinematics(self, s: SensorSample, q_j: np.ndarray, dq_j: np.ndarray, dt: float,
+                    first: bool) -> _Kinematics:
+        robot, model, data, cfg = self.robot, self.model, self.data, self.config
+        q = robot.configuration(q_j)
+        v = np.zeros(model.nv)
+        v[robot.idx_v] = dq_j
+        # Kinematics of the joints alone: every frame relative to a still, upright base.
+        pin.forwardKinematics(model, data, q, v)
+        pin.updateFramePlacements(model, data)
+        imu_id = robot.frame_id(s.imu_frame or self.imu_frame, 'IMU')
+        imu_b = data.oMf[imu_id]
+        imu_vel = pin.getFrameVelocity(model, data, imu_id, _LWA)
+        # The IMU's attitude and rate, carried to the base.
+        r_wi = quat_xyzw_to_matrix(s.imu_quat_xyzw)
+        if first:
+            self._yaw_offset = cfg.initial_yaw_rad - _yaw(r_wi @ imu_b.rotation.T)
+        r_meas = _rot_z(self._yaw_offset) @ r_wi @ imu_b.rotation.T
+        omega_b = imu_b.rotation @ np.asarray(s.gyro_rad_s, dtype=float) - imu_vel.angular
+        if first or self.rot is None:
+            rot = r_meas
+        else:
+            rot = self.rot @ pin.exp3(omega_b * dt)
+            rot = pin.exp3(cfg.attitude_gain * pin.log3(r_meas @ rot.T)) @ rot
+        sole_pos, sole_rot, sole_vel = {}, {}, {}
+        for side in SIDES:
+            frame = data.oMf[robot.sole_ids[side]]
+            vel = pin.getFrameVelocity(model, data, robot.sole_ids[side], _LWA)
+            sole_pos[side] = rot @ frame.translation
+            sole_rot[side] = rot @ frame.rotation
+            # Relative to the base origin, with the base turning at omega_b.
+            sole_vel[side] = (rot @ (vel.linear + _cross(omega_b, frame.translation)),
+                              rot @ (vel.angular + omega_b))
+        imu_pos = rot @ imu_b.translation
+        imu_v = rot @ (imu_vel.linear + _cross(omega_b, imu_b.translation))
+        return _Kinematics(q, v, rot, omega_b, sole_pos, sole_rot, sole_vel, imu_pos, imu_v,
+                           rot @ imu_b.rotation)
+
     # -- the filter ------------------------------------------------------------------
     def update(self, s: SensorSample) -> Optional[Measurement]:
         """One sensor sample in; the estimated measurement, or None if the sample is rejected."""
         cfg = self.config
-        iq, iv = self._indices(s.joint_names)
-        q_j, dq_j = np.asarray(s.q, dtype=float), np.asarray(s.dq, dtype=float)
-        imu = [np.asarray(a, dtype=float) for a in (s.imu_quat_xyzw, s.gyro_rad_s, s.accel_m_s2)]
-        if (q_j.shape != (len(iq),) or dq_j.shape != (len(iq),) or imu[0].shape != (4,)
-                or imu[1].shape != (3,) or imu[2].shape != (3,) or not math.isfinite(s.t)
-                or not np.isfinite(np.concatenate([q_j, dq_j, *imu])).all()
-                or float(imu[0] @ imu[0]) < 1e-12):
-            self._reject('non-finite or malformed joint or IMU data')
-            return None
-        if self.t is not None and s.t <= self.t:
-            self._reject(f'stamp {s.t:.6f} s not after the previous {self.t:.6f} s')
+        try:
+            order = self._order(s.joint_names)
+            q_j, dq_j = np.asarray(s.q, dtype=float), np.asarray(s.dq, dtype=float)
+            imu = [np.asarray(a, dtype=float) for a in (s.imu_quat_xyzw, s.gyro_rad_s, s.accel_m_s2)]
+            if (q_j.shape != (len(s.joint_names),) or dq_j.shape != q_j.shape
+                    or imu[0].shape != (4,) or imu[1].shape != (3,) or imu[2].shape != (3,)
+                    or not math.isfinite(s.t)
+                    or not np.isfinite(np.concatenate([q_j, dq_j, *imu])).all()
+                    or float(imu[0] @ imu[0]) < 1e-12):
+                self._reject('non-finite or malformed joint or IMU data')
+                return None
+            if order is not None:
+                q_j, dq_j = q_j[order], dq_j[order]
+            if self.t is not None and s.t <= self.t:
+                self._reject(f'time {s.t:.6f} s not after the previous {self.t:.6f} s')
+                return None
+            first = self.t is None or self.rot is None
+            dt = 0.0 if first else min(s.t - self.t, cfg.max_gap_s)
+            kin = self._kinematics(s, q_j, dq_j, dt, first)
+            wrenches = {}
+            for side, w, frame in (('l', s.left_wrench, s.wrench_frames[0]),
+                                   ('r', s.right_wrench, s.wrench_frames[1])):
+                w = self._wrench(w)
+                wrenches[side] = None if w is None else self._sole_wrench(side, w, frame)
+        except DescriptionError as error:
+            self._reject(str(error))
             return None
         if self.t is not None and s.t - self.t > cfg.max_gap_s:
             self.last_issue = f'gap of {s.t - self.t:.3f} s: soles re-anchored'
             self.anchors = {'l': None, 'r': None}
         else:
             self.last_issue = None
-        wrenches = {'l': self._wrench(s.left_wrench), 'r': self._wrench(s.right_wrench)}
-        self.degraded = tuple(f'{side}_foot_sensor' for side, w in wrenches.items() if w is None)
-        quat, gyro, accel = imu
-        r_imu = quat_xyzw_to_matrix(quat)
-        first = self.t is None or self.rot is None
-        dt = 0.0 if first else min(s.t - self.t, cfg.max_gap_s)
-        if first:
-            yaw0 = math.atan2(r_imu[1, 0], r_imu[0, 0])
-            self._yaw_offset = cfg.initial_yaw_rad - yaw0
-        r_meas = _rot_z(self._yaw_offset) @ r_imu
-        if first:
-            rot = r_meas
-        else:
-            rot = self.rot @ pin.exp3(gyro * dt)
-            rot = pin.exp3(cfg.attitude_gain * pin.log3(r_meas @ rot.T)) @ rot
-        self.rot = rot
-
-        # Kinematics with the base at the origin and still (linear), turning at the gyro rate.
-        nq = self.model.nq
-        qp = np.zeros(nq)
-        qp[3:7] = pin.Quaternion(rot).coeffs()
-        qp[iq] = q_j
-        vp = np.zeros(self.model.nv)
-        vp[3:6] = gyro
-        vp[iv] = dq_j
-        pin.forwardKinematics(self.model, self.data, qp, vp)
-        pin.updateFramePlacements(self.model, self.data)
+        self.rot = kin.rot
         loaded = {}
         for side, w in wrenches.items():
             if w is not None and w[2] > cfg.contact_force_n:
                 loaded[side] = w
             else:
                 self.anchors[side] = None
-        poses = {side: self.data.oMf[self.sole_ids[side]] for side in ('l', 'r')}
-        rel = {side: poses[side].translation.copy() for side in ('l', 'r')}
-        rot_sole = {side: poses[side].rotation.copy() for side in ('l', 'r')}
         # The part of each loaded sole on the ground: the corners within the tolerance of the
-        # lowest one (all four on a flat sole, an edge or a corner on a tilted one), and its
-        # centre (sole frame) and position relative to the base.
-        touch, point_local, point_rel = {}, {}, {}
+        # lowest one (all four on a flat sole, an edge or a corner on a tilted one), its centre
+        # (sole frame), its position relative to the base origin and its velocity.
+        touch, point_local, point_rel, point_vel = {}, {}, {}, {}
         for side in loaded:
-            corners = (rot_sole[side] @ self.sole_corners.T).T
+            corners = (kin.sole_rot[side] @ self.sole_corners[side].T).T
             touch[side] = corners[:, 2] <= corners[:, 2].min() + cfg.tilt_tolerance_m
-            point_local[side] = self.sole_corners[touch[side]].mean(axis=0)
-            point_rel[side] = rel[side] + rot_sole[side] @ point_local[side]
+            point_local[side] = self.sole_corners[side][touch[side]].mean(axis=0)
+            offset = kin.sole_rot[side] @ point_local[side]
+            point_rel[side] = kin.sole_pos[side] + offset
+            v_origin, w_sole = kin.sole_vel[side]
+            point_vel[side] = v_origin + _cross(w_sole, offset)
         if first:
             if loaded:
                 # The world frame goes on the soles' centres (the sole frames' origins), not on
                 # the part judged on the ground: that part hangs on the first, unfiltered tilt
                 # (0.5 deg of IMU error makes an edge of a flat sole: half a sole's shift).
-                mid = np.mean([rel[side] for side in loaded], axis=0)
+                mid = np.mean([kin.sole_pos[side] for side in loaded], axis=0)
                 ground = np.mean([point_rel[side][2] for side in loaded])
-                self.p = np.array([cfg.initial_xy_m[0] - mid[0], cfg.initial_xy_m[1] - mid[1], -ground])
+                base = np.array([cfg.initial_xy_m[0] - mid[0], cfg.initial_xy_m[1] - mid[1], -ground])
+                self.p = base + kin.imu_pos
             self.v = np.zeros(3)
         else:
-            a_world = rot @ accel - np.array([0.0, 0.0, STANDARD_GRAVITY_M_S2])
+            a_world = kin.imu_rot @ np.asarray(s.accel_m_s2, dtype=float) - _GRAVITY
             self.v = self.v + a_world * dt
             self.p = self.p + self.v * dt
         if loaded:
-            per_side = {}
-            for side, w in loaded.items():
-                # A sole's ground contact stays where it touched down (z = 0); when the part on
-                # the ground changes (flat -> edge on tilting), it is re-anchored there.
-                key = tuple(touch[side])
-                if self.anchors[side] is None or self.anchors[side][0] != key:
-                    anchor = self.p + point_rel[side]
-                    anchor[2] = 0.0
-                    self.anchors[side] = (key, anchor)
-                vel = pin.getFrameVelocity(self.model, self.data, self.sole_ids[side], pin.LOCAL_WORLD_ALIGNED)
-                v_point = vel.linear + _cross(vel.angular, point_rel[side] - rel[side])
-                per_side[side] = (w[2], self.anchors[side][1] - point_rel[side], -v_point)
-            if self._have_fix and not first:
-                # Slip: a sole whose kinematic base velocity disagrees with the IMU prediction
-                # by more than slip_velocity_m_s is sliding; it is left out and re-anchored.
-                # If every sole slips for max_slip_samples samples, the closest one is trusted.
-                residual = {side: float(np.linalg.norm(v - self.v)) for side, (_, _, v) in per_side.items()}
-                keep = {side for side, r in residual.items() if r <= cfg.slip_velocity_m_s}
-                self._slipping = 0 if keep else self._slipping + 1
-                if not keep and self._slipping > cfg.max_slip_samples:
-                    keep = {min(residual, key=residual.get)}
-                for side in set(per_side) - keep:
-                    self.anchors[side] = None
-                per_side = {side: per_side[side] for side in keep}
-            if per_side:
-                weights = sum(f for f, _, _ in per_side.values())
-                p_meas = sum(f * p for f, p, _ in per_side.values()) / weights
-                v_meas = sum(f * v for f, _, v in per_side.values()) / weights
-                if first or not self._have_fix:
-                    self.p, self.v = p_meas, v_meas
-                    self._have_fix = True
-                else:
-                    self.p = self.p + cfg.position_gain * (p_meas - self.p)
-                    self.v = self.v + cfg.velocity_gain * (v_meas - self.v)
+            self._correct(kin, loaded, touch, point_rel, point_vel, first)
         self.t = s.t
         if not self._have_fix:
             self.last_issue = 'no loaded sole yet: the base position is unknown'
             return None
-        return self._measurement(s.t, qp, vp, rot, rel, rot_sole, loaded, touch)
+        return self._measurement(s.t, kin, loaded, touch)
 
-    def _measurement(self, t: float, qp: np.ndarray, vp: np.ndarray, rot: np.ndarray,
-                     rel: dict, rot_sole: dict, loaded: dict, touch: dict) -> Measurement:
-        qp[0:3] = self.p
-        vp[0:3] = rot.T @ self.v
+    def _correct(self, kin: _Kinematics, loaded: dict, touch: dict, point_rel: dict,
+                 point_vel: dict, first: bool) -> None:
+        """The kinematic correction of the IMU point from the soles on the ground."""
+        cfg = self.config
+        per_side = {}
+        base_now = self.p - kin.imu_pos
+        for side, w in loaded.items():
+            # A sole's ground contact stays where it touched down (z = 0); when the part on
+            # the ground changes (flat -> edge on tilting), it is re-anchored there.
+            key = tuple(touch[side])
+            if self.anchors[side] is None or self.anchors[side][0] != key:
+                anchor = base_now + point_rel[side]
+                anchor[2] = 0.0
+                self.anchors[side] = (key, anchor)
+            p_meas = self.anchors[side][1] - point_rel[side] + kin.imu_pos
+            v_meas = kin.imu_vel - point_vel[side]
+            per_side[side] = (w[2], p_meas, v_meas)
+        if self._have_fix and not first:
+            # Slip: a sole whose kinematic velocity disagrees with the IMU prediction by more
+            # than slip_velocity_m_s is sliding; it is left out and re-anchored. If every sole
+            # slips for max_slip_samples samples, the closest one is trusted.
+            residual = {side: float(np.linalg.norm(v - self.v)) for side, (_, _, v) in per_side.items()}
+            keep = {side for side, r in residual.items() if r <= cfg.slip_velocity_m_s}
+            self._slipping = 0 if keep else self._slipping + 1
+            if not keep and self._slipping > cfg.max_slip_samples:
+                keep = {min(residual, key=residual.get)}
+            for side in set(per_side) - keep:
+                self.anchors[side] = None
+            per_side = {side: per_side[side] for side in keep}
+        if per_side:
+            weights = sum(f for f, _, _ in per_side.values())
+            p_meas = sum(f * p for f, p, _ in per_side.values()) / weights
+            v_meas = sum(f * v for f, _, v in per_side.values()) / weights
+            if first or not self._have_fix:
+                self.p, self.v = p_meas, v_meas
+                self._have_fix = True
+            else:
+                self.p = self.p + cfg.position_gain * (p_meas - self.p)
+                self.v = self.v + cfg.velocity_gain * (v_meas - self.v)
+
+    def _measurement(self, t: float, kin: _Kinematics, loaded: dict, touch: dict) -> Measurement:
+        rot = kin.rot
+        base = self.p - kin.imu_pos
+        q, v = kin.q, kin.v
+        q[0:3] = base
+        q[3:7] = pin.Quaternion(rot).coeffs()
+        v[0:3] = rot.T @ (self.v - kin.imu_vel)
+        v[3:6] = kin.omega_b
         # Forward kinematics, CoM (data.com[0]) and the centroidal momentum h_G in one pass.
-        h = pin.computeCentroidalMomentum(self.model, self.data, qp, vp)
+        h = pin.computeCentroidalMomentum(self.model, self.data, q, v)
         com = self.data.com[0].copy()
         contacts, feet, cops, forces = {}, {}, [], []
-        for side in ('l', 'r'):
-            r_s, o_s = rot_sole[side], rel[side] + self.p
-            feet[side] = np.array([o_s[0], o_s[1], math.atan2(r_s[1, 0], r_s[0, 0])])
+        for side in SIDES:
+            r_s, o_s = kin.sole_rot[side], kin.sole_pos[side] + base
+            feet[side] = np.array([o_s[0], o_s[1], _yaw(r_s)])
             if side not in loaded:
                 contacts[side] = np.zeros((0, 3))
                 continue
             w = loaded[side]
+            corners = self.sole_corners[side]
             cop_local = np.array([-w[4] / w[2], w[3] / w[2]])
-            world = (r_s @ self.sole_corners.T).T + o_s
+            world = (r_s @ corners.T).T + o_s
             touching = touch[side]
-            f = split_force_to_corners(self.sole_corners[touching, :2], cop_local, float(w[2]))
+            f = split_force_to_corners(corners[touching, :2], cop_local, float(w[2]))
             contacts[side] = np.column_stack([world[touching, 0], world[touching, 1], f])
             cop_w = r_s @ np.array([cop_local[0], cop_local[1], 0.0]) + o_s
             cops.append(cop_w[:2])
@@ -343,7 +391,7 @@ class StateEstimator:
         else:
             cop = np.full(3, np.nan)
         return Measurement(t=t, com=com, lin_mom=np.array(h.linear), ang_mom=np.array(h.angular),
-                           heading=math.atan2(rot[1, 0], rot[0, 0]), cop=cop,
+                           heading=_yaw(rot), cop=cop,
                            left_contacts=contacts['l'], right_contacts=contacts['r'],
                            left_foot=feet['l'], right_foot=feet['r'], non_foot_contact=False,
                            torso_rotation=rot.copy())

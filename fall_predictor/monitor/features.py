@@ -8,8 +8,9 @@ Frame: origin at the CoP on the ground (z = 0), or at the CoM's ground projectio
 OUTSIDE (no foot contact); x along the pelvis heading, y to its left, z up. Positions are taken
 relative to the origin; momenta and their rates are free vectors and are only rotated.
 
-Rates are backward differences of the WORLD-frame momenta over ``rate_window_s``, rotated into
-the current heading frame afterwards: differentiating the heading-frame momenta instead would
+Rates are backward differences of the WORLD-frame momenta over ``rate_window_s`` seconds (the
+oldest sample at most that long ago, whatever the sample rate: 1 kHz and 200 Hz streams give the
+same rates), rotated into the current heading frame afterwards: differentiating the heading-frame momenta instead would
 add a spurious term from the turning frame, whereas the world-frame rates are, by Newton and
 Euler, the net external force and the net external moment about the CoM.
 """
@@ -92,11 +93,13 @@ def _finite_vector3(a: object, name: str) -> list[float]:
 class FeatureExtractor:
     """Streaming feature computation for one trajectory (or one live run).
 
-    ``rate_window_s`` [s] is the backward-difference window of the momentum rates,
-    ``dt_s`` [s] the nominal sample period (it sizes the history: ``round(rate_window_s /
-    dt_s)`` samples; the difference itself divides by the measured time span), and
-    ``edge_tolerance_m`` [m] is passed to the contact mode classification. Call
-    :meth:`reset` before feeding a new trajectory.
+    ``rate_window_s`` [s] is the backward-difference window of the momentum rates: the rate at
+    ``t`` is the difference to the oldest sample no more than ``rate_window_s`` (plus a quarter of
+    ``dt_s``, for stamp jitter) before ``t``, divided by the measured time span; when no earlier
+    sample lies within the window (a slow stream, a gap), the newest one within twice the window
+    serves; with none (the first sample, a long gap) the rates are zero. ``dt_s`` [s] is
+    the nominal sample period (jitter tolerance only) and ``edge_tolerance_m`` [m] is passed to the
+    contact mode classification. Call :meth:`reset` before feeding a new trajectory.
     """
 
     def __init__(self, rate_window_s: float = 0.01, dt_s: float = 0.001,
@@ -107,10 +110,10 @@ class FeatureExtractor:
         self.rate_window_s = rate_window_s
         self.dt_s = dt_s
         self.edge_tolerance_m = edge_tolerance_m
-        self.window_samples = max(1, round(rate_window_s / dt_s))
-        # Past samples as (t, world linear momentum xyz, world angular momentum xyz); the
-        # oldest entry is the sample window_samples steps back once the buffer is full.
-        self._history: deque[tuple[float, ...]] = deque(maxlen=self.window_samples)
+        self._window_s = rate_window_s + 0.25 * dt_s
+        # Past samples within the window as (t, world linear momentum xyz, world angular
+        # momentum xyz), oldest first.
+        self._history: deque[tuple[float, ...]] = deque()
         #: Rejects samples that jump further than physics allows (glitches), see
         #: :mod:`fall_predictor.monitor.plausibility`.
         self.continuity = ContinuityCheck()
@@ -147,9 +150,20 @@ class FeatureExtractor:
         if mode == _OUTSIDE:
             ox, oy = cx, cy
 
+        horizon = t - self._window_s
+        while len(history) > 1 and history[1][0] <= horizon:
+            history.popleft()           # the next one is older than the window too, or at its edge
+        reference = None
         if history:
-            # Oldest sample in the window; at the start, the first sample available.
-            t0, px0, py0, pz0, lx0, ly0, lz0 = history[0]
+            # The oldest sample within the window, else the newest within twice the window.
+            if history[0][0] >= horizon:
+                reference = history[0]
+            elif len(history) > 1:
+                reference = history[1]
+            elif t - history[0][0] <= 2.0 * self._window_s:
+                reference = history[0]
+        if reference is not None:
+            t0, px0, py0, pz0, lx0, ly0, lz0 = reference
             inv = 1.0 / (t - t0)
             fx, fy, fz = (px - px0) * inv, (py - py0) * inv, (pz - pz0) * inv
             mx, my, mz = (lx - lx0) * inv, (ly - ly0) * inv, (lz - lz0) * inv

@@ -6,7 +6,7 @@ Such values overflow later arithmetic (squared distances, nanosecond stamps) or 
 predictor (a CoM at height 0 is "certainly fallen"). Every input is therefore checked twice:
 
 * **bounds, per sample** (:func:`check_measurement_bounds`, :func:`check_feature_bounds`): each
-  field within a stated range (table below). The wire layer (:mod:`fall_predictor.data.wire`)
+  field within a stated range (table below). The wire layer (:mod:`fall_predictor.contract.wire`)
   applies them to every decoded message, so the live nodes and the offline bag readers reject
   the same samples.
 * **continuity, between samples** (:class:`ContinuityCheck`): a sample that moved the CoM or
@@ -28,6 +28,18 @@ heading                   within [-1e3, 1e3] rad (any yaw, unwrapped)
 joint states              |position| <= 100 rad, |velocity| <= 1e3 rad/s, |effort| <= 1e5 N m
 ========================  ===================================================================
 
+The robot's raw sensors (the state estimator's input, :class:`SensorBounds`) are bounded by what a
+humanoid and its sensors can do:
+
+========================  ===================================================================
+joint position            within the URDF's limits, +- 0.2 rad (continuous joints: any)
+joint velocity            at most 3 x the URDF's velocity limit (none given: 100 rad/s)
+IMU angular velocity      norm <= 35 rad/s (2000 deg/s, the widest range of MEMS gyroscopes)
+IMU specific force        norm <= 300 m/s^2 (30 g: a torso's impact on the ground stays below)
+IMU orientation           a quaternion of norm 1 +- 0.1
+foot force / torque       norm <= 20 body weights [N]; torque norm <= 20 body weights x 0.5 m
+========================  ===================================================================
+
 Continuity limits between consecutive accepted samples ``dt`` apart: CoM speed 20 m/s, rate of
 linear momentum 5e5 N, rate of angular momentum 2e5 N m. They are generous on purpose: over 60
 trajectories of the simulated dataset the largest sample-to-sample values were 2.7 m/s, 4.3e4 N
@@ -41,7 +53,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Optional, Sequence
 
 import numpy as np
 
@@ -68,6 +80,18 @@ MAX_LINEAR_MOMENTUM_RATE_N = 5e5
 MAX_ANGULAR_MOMENTUM_RATE_N_M = 2e5
 #: Continuity: fastest CoM motion [m/s] between accepted samples.
 MAX_COM_SPEED_M_S = 20.0
+
+
+#: Raw sensor bounds (see the second table): joint position margin beyond the URDF limits [rad],
+#: joint velocity as a multiple of the URDF's limit and without one [rad/s], IMU, foot sensors.
+JOINT_LIMIT_MARGIN_RAD = 0.2
+JOINT_VELOCITY_LIMIT_FACTOR = 3.0
+MAX_JOINT_VELOCITY_RAD_S = 100.0
+MAX_IMU_ANGULAR_VELOCITY_RAD_S = 35.0
+MAX_IMU_SPECIFIC_FORCE_M_S2 = 300.0
+IMU_QUATERNION_NORM_TOLERANCE = 0.1
+MAX_FOOT_FORCE_BODY_WEIGHTS = 20.0
+FOOT_TORQUE_ARM_M = 0.5
 
 
 class ImplausibleSample(ValueError):
@@ -105,16 +129,18 @@ def _check_point(point: Sequence[float], com: Sequence[float], what: str,
             raise ImplausibleSample(f'{what} z = {float(point[2])!r} m is outside [{low}, {high}] m')
 
 
-def check_measurement_bounds(t: float, com: Sequence[float], lin_mom: Sequence[float],
+def check_measurement_bounds(t: Optional[float], com: Sequence[float], lin_mom: Sequence[float],
                              ang_mom: Sequence[float], heading: float, cop: Sequence[float],
                              left_foot: Sequence[float], right_foot: Sequence[float],
                              push_force: Sequence[float], contacts: np.ndarray) -> None:
     """Raise :class:`ImplausibleSample` naming the first field outside the bounds table.
 
     ``cop`` may be all NaN (no contact); ``contacts`` is (k, 3) rows of (x, y, normal force)
-    of both feet. Values are assumed finite (the wire layer checks that first).
+    of both feet. Values are assumed finite (the wire layer checks that first). ``t`` None: the
+    time is checked elsewhere (by the time rule of :mod:`~fall_predictor.monitor.timeline`).
     """
-    check_time(t)
+    if t is not None:
+        check_time(t)
     if not (abs(float(com[0])) <= MAX_WORLD_COORDINATE_M
             and abs(float(com[1])) <= MAX_WORLD_COORDINATE_M):
         raise ImplausibleSample(f'CoM x, y = {float(com[0])!r}, {float(com[1])!r} m are more '
@@ -143,12 +169,14 @@ def check_measurement_bounds(t: float, com: Sequence[float], lin_mom: Sequence[f
                                     f' N, got {forces.min():.6g} .. {forces.max():.6g}')
 
 
-def check_feature_bounds(t: float, x: Sequence[float]) -> None:
+def check_feature_bounds(t: Optional[float], x: Sequence[float]) -> None:
     """Raise :class:`ImplausibleSample` if a feature vector (SPEC §6, CoP frame) is out of bounds.
 
-    Same table as the measurements; the rates use the rate bounds of this module.
+    Same table as the measurements; the rates use the rate bounds of this module (``t`` None:
+    not checked here).
     """
-    check_time(t)
+    if t is not None:
+        check_time(t)
     if not math.hypot(float(x[0]), float(x[1])) <= MAX_HORIZONTAL_OFFSET_M:
         raise ImplausibleSample(f'CoM is {math.hypot(float(x[0]), float(x[1])):.6g} m from the '
                                 f'CoP horizontally (at most {MAX_HORIZONTAL_OFFSET_M} m)')
@@ -219,3 +247,70 @@ class ContinuityCheck:
         self.rejected_in_a_row = 0
         self._last = (float(t), values)
         return resynced
+
+
+def check_imu(orientation_xyzw: Sequence[float], angular_velocity: Sequence[float],
+              linear_acceleration: Sequence[float]) -> Optional[str]:
+    """Why an IMU reading is impossible (non-finite or beyond the sensor bounds), or None."""
+    q = [float(v) for v in orientation_xyzw]
+    w = [float(v) for v in angular_velocity]
+    a = [float(v) for v in linear_acceleration]
+    if len(q) != 4 or len(w) != 3 or len(a) != 3:
+        return f'IMU reading has {len(q)}/{len(w)}/{len(a)} values instead of 4/3/3'
+    if not all(math.isfinite(v) for v in (*q, *w, *a)):
+        return 'IMU reading is not finite'
+    norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    if not abs(norm - 1.0) <= IMU_QUATERNION_NORM_TOLERANCE:
+        return f'IMU orientation is not a unit quaternion (norm {norm:.3g})'
+    if not _norm3(w) <= MAX_IMU_ANGULAR_VELOCITY_RAD_S:
+        return (f'IMU angular velocity {_norm3(w):.4g} rad/s beyond '
+                f'{MAX_IMU_ANGULAR_VELOCITY_RAD_S:g} rad/s')
+    if not _norm3(a) <= MAX_IMU_SPECIFIC_FORCE_M_S2:
+        return (f'IMU acceleration {_norm3(a):.4g} m/s^2 beyond {MAX_IMU_SPECIFIC_FORCE_M_S2:g} m/s^2')
+    return None
+
+
+def check_wrench(wrench: Sequence[float], robot_weight_n: float) -> Optional[str]:
+    """Why a foot force/torque reading is impossible for a robot of ``robot_weight_n``, or None."""
+    w = [float(v) for v in wrench]
+    if len(w) != 6 or not all(math.isfinite(v) for v in w):
+        return 'foot wrench is not 6 finite values'
+    max_force = MAX_FOOT_FORCE_BODY_WEIGHTS * robot_weight_n
+    if not _norm3(w[:3]) <= max_force:
+        return f'foot force {_norm3(w[:3]):.4g} N beyond {max_force:.4g} N (20 body weights)'
+    if not _norm3(w[3:]) <= max_force * FOOT_TORQUE_ARM_M:
+        return f'foot torque {_norm3(w[3:]):.4g} N m beyond {max_force * FOOT_TORQUE_ARM_M:.4g} N m'
+    return None
+
+
+@dataclass(frozen=True)
+class JointBounds:
+    """Per-joint bounds of the encoders, from the URDF (arrays in one joint order).
+
+    ``lower``/``upper`` are the position limits [rad] (-inf/+inf for continuous joints), ``velocity``
+    the velocity limits [rad/s] (inf where the URDF gives none).
+    """
+
+    names: tuple[str, ...]
+    lower: np.ndarray
+    upper: np.ndarray
+    velocity: np.ndarray
+
+    def violations(self, q: np.ndarray, dq: np.ndarray) -> list[str]:
+        """Each joint whose position or velocity is impossible, in words (empty: all plausible)."""
+        low = self.lower - JOINT_LIMIT_MARGIN_RAD
+        high = self.upper + JOINT_LIMIT_MARGIN_RAD
+        v_max = np.where(np.isfinite(self.velocity), JOINT_VELOCITY_LIMIT_FACTOR * self.velocity,
+                         MAX_JOINT_VELOCITY_RAD_S)
+        with np.errstate(invalid='ignore'):
+            bad_q = ~((q >= low) & (q <= high))
+            bad_v = ~(np.abs(dq) <= v_max)
+        out = []
+        for i in np.flatnonzero(bad_q | bad_v):
+            name = self.names[i]
+            if bad_q[i]:
+                out.append(f'joint {name} at {q[i]:.4g} rad, outside its limits '
+                           f'[{self.lower[i]:.3g}, {self.upper[i]:.3g}] rad')
+            else:
+                out.append(f'joint {name} moving at {dq[i]:.4g} rad/s, beyond {v_max[i]:.3g} rad/s')
+        return out

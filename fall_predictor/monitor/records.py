@@ -46,6 +46,32 @@ PUSH_DURATION_S = 0.1
 STANDARD_GRAVITY_M_S2 = 9.81
 
 
+@dataclass(frozen=True)
+class SoleGeometry:
+    """One sole: its frame, and the rectangle of its underside (centred on the frame origin).
+
+    ``link`` and ``origin_xyz`` add the frame to the model when the URDF lacks it: fixed to
+    ``link`` at ``origin_xyz`` [m] in the link's frame, with the link's axes.
+    """
+
+    frame: str
+    length_m: float
+    width_m: float
+    link: Optional[str] = None
+    origin_xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        if not (0.0 < self.length_m < 1.0 and 0.0 < self.width_m < 1.0):
+            raise ValueError(f'sole {self.frame}: length and width must lie in (0, 1) m, got '
+                             f'{self.length_m} x {self.width_m}')
+
+    def corners(self) -> np.ndarray:
+        """(4, 3) corners of the sole in its frame: front left, front right, back right, back left."""
+        half_l, half_w = self.length_m / 2, self.width_m / 2
+        return np.array([[half_l, half_w, 0.0], [half_l, -half_w, 0.0],
+                         [-half_l, -half_w, 0.0], [-half_l, half_w, 0.0]])
+
+
 @dataclass(slots=True)
 class Measurement:
     """Everything the robot measures at one simulation step (one 1 kHz sample).

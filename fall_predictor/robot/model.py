@@ -17,6 +17,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from xml.sax.saxutils import escape
 
+from fall_predictor.monitor.records import SoleGeometry
+from fall_predictor.monitor.robot_description import SensorLayout
+
 #: The robot description (``/robot_description``, Pinocchio): with the sole frames.
 URDF_PATH = Path(__file__).with_name("asimo_like.urdf")
 #: The same robot for PyBullet, without the sole frames: PyBullet numbers joints depth-first,
@@ -52,6 +55,12 @@ FOOT_LINKS = ('l_foot', 'r_foot')
 #: centre of the sole's underside, axes parallel to the foot's. The ankle F/T sensors report
 #: their wrenches in these frames.
 SOLE_FRAMES = ('l_sole', 'r_sole')
+#: The link the torso IMU is fixed to (at its frame origin, with its axes).
+IMU_LINK = 'torso'
+#: The soles as the state estimator sees them (the frames are in the URDF).
+SOLES = {side: SoleGeometry(frame, SOLE_LENGTH_M, SOLE_WIDTH_M) for side, frame in zip(SIDES, SOLE_FRAMES)}
+#: What the monitor needs to know of this robot beyond its URDF.
+SENSOR_LAYOUT = SensorLayout(SOLES, IMU_LINK, SIDES)
 #: Sole frame origin in the foot link frame (the ankle centre) [m].
 SOLE_ORIGIN_IN_FOOT_M = (SOLE_FORWARD_OFFSET_M, 0.0, -ANKLE_HEIGHT_M)
 

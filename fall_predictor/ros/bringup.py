@@ -47,8 +47,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Optional, TextIO
 
-from fall_predictor.data.topics import PIPELINE_NODES, RECORDER_NODE
-from fall_predictor.ros.common import BringupError
+from fall_predictor.contract.topics import PIPELINE_NODES, RECORDER_NODE
+from fall_predictor.ros.errors import BringupError
 from fall_predictor.ros.share import package_share_dir
 
 if TYPE_CHECKING:
@@ -59,6 +59,7 @@ SHUTDOWN_ORDER = ('simulator_node', 'state_estimator_node', 'controller_node', '
                   'predictor_node', RECORDER_NODE)
 #: With ``sensors``: the node that turns the simulator's sensor topics into the measurement.
 ESTIMATOR_NODE = 'state_estimator_node'
+
 
 
 # --------------------------------------------------------------------------------------------

@@ -8,16 +8,19 @@ stamped with the measurement's time so that the lock-stepped simulator can match
 reads the measurements reliably (it closes the simulator's lock-step loop).
 
 It listens to the trigger ``fall_predictor/falling`` (std_msgs/Bool, latched): ``true``
-switches to C_fall. The switch is one-way until ``~/reset`` (std_srvs/Trigger), which builds a
-fresh C_bal; nothing on the wire undoes it (an old stamp, a ``false`` trigger, a new run).
+switches to C_fall. The switch is one-way until the monitor's reset (the RESET event on
+``fall_predictor/fall_event``), which builds a fresh C_bal; nothing else undoes it (an old
+stamp, a ``false`` trigger, a new run).
 ``fall_predictor/controller_mode`` (latched) carries ``'balance'`` or ``'fall'``. The switch
 takes effect from the next measurement, so its delay is the pipeline latency (measurement ->
 features -> trigger), as on a robot.
 
-Sample order as in the monitor nodes (:class:`~fall_predictor.data.sample_order.SampleIntake`):
-a new run by ``~/reset`` or the restart rule; a restarted run in C_bal gets a fresh C_bal, one
-in C_fall stays in C_fall. Malformed inputs and numeric failures are logged (throttled),
-counted and dropped.
+Sample order as in the monitor nodes (the time rule of :mod:`fall_predictor.monitor.timeline`):
+a new world of the simulator (its clock restarting) is a new run; a restarted run in C_bal gets a
+fresh C_bal, one in C_fall stays in C_fall. A measurement that carries a fault (the estimator's
+sensors degraded) is answered with the last command. Malformed inputs and numeric failures are
+logged (throttled), counted and dropped. The controller's clock is the measurements' stamps
+(simulation time).
 """
 from __future__ import annotations
 
@@ -26,20 +29,24 @@ from typing import Optional
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Bool, Float64MultiArray, String
-from std_srvs.srv import Trigger
+from std_msgs.msg import Bool, String
 
 from fall_predictor.robot import model as rm
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.robot.controllers import BalanceController, ControllerSwitch, GaitConfig, ReflexConfig
-from fall_predictor.ros.common import (HANDLED_ERRORS, SAMPLE_PERIOD_S, Diagnostics,
-                                       InputErrors, ParamSpec, Report, create_publisher,
-                                       create_subscription, declare_parameters, guarded,
-                                       run_node)
+from fall_predictor.ros.endpoints import create_publisher, create_subscription
+from fall_predictor.ros.health import HANDLED_ERRORS, Diagnostics, InputErrors, Report, guarded
+from fall_predictor.ros.parameters import ParamSpec, declare_parameters
+from fall_predictor.ros.runner import run_node
 from fall_predictor.ros.in_process import Output, connect_input
-from fall_predictor.data.sample_order import Sample, SampleIntake
-from fall_predictor.data.topics import CONTROLLER_MODE, FALLING, JOINT_COMMANDS, MEASUREMENT
-from fall_predictor.data.wire import LEVEL_OK, LEVEL_WARN
+from fall_predictor.contract import messages
+from fall_predictor.contract.topics import (CONTROLLER_MODE, FALL_EVENT, FALLING, JOINT_COMMANDS,
+                                            MEASUREMENT)
+from fall_predictor.contract.wire import LEVEL_OK, LEVEL_WARN
+from fall_predictor.monitor.fall_monitor import EVENT_RESET
+from fall_predictor.monitor.timeline import Stamp, StampTimeline
+from fall_predictor.msg import FallEvent, Measurement
+from fall_predictor.sim.simulator import DT_S
 
 NODE_NAME = 'controller_node'
 
@@ -70,17 +77,20 @@ class ControllerNode(Node):
         #: The joint commands, published and handed to in-process consumers (the simulator).
         self.output = Output(create_publisher(self, JointState, JOINT_COMMANDS))
         self._mode_pub = create_publisher(self, String, CONTROLLER_MODE)
-        inputs = [*connect_input(self, Float64MultiArray, MEASUREMENT, self._on_measurement,
+        inputs = [*connect_input(self, Measurement, MEASUREMENT, self._on_measurement,
                                  upstream, lossless=True),
                   create_subscription(self, Bool, FALLING, self._on_falling)]
+        create_subscription(self, FallEvent, FALL_EVENT, self._on_fall_event)
 
-        self._intake = SampleIntake(SAMPLE_PERIOD_S)
+        self._timeline = StampTimeline()
         self._bad_inputs = InputErrors(self)
         #: Counters by event name (reported in /diagnostics).
-        self.counts = {'commands': 0, 'modes': 0, 'resets': 0, 'triggers': 0}
+        self.counts = {'commands': 0, 'held': 0, 'modes': 0, 'resets': 0, 'triggers': 0}
         self._switch = self._new_switch()
-        self.create_service(Trigger, '~/reset', self._on_reset)
-        self._diagnostics = Diagnostics(self, self._report, lambda: self._intake.last_t or 0.0,
+        #: The last command (answers a measurement that carries a fault): the initial posture
+        #: until the first one.
+        self._command = self._switch.balance.initial_posture()[0]
+        self._diagnostics = Diagnostics(self, self._report, lambda: self._timeline.last_ns or 0,
                                         inputs, self._bad_inputs)
         self.get_logger().info(
             f'controller ready: fall_trigger_enabled={self._fall_trigger_enabled}')
@@ -93,44 +103,47 @@ class ControllerNode(Node):
     def _new_switch(self) -> ControllerSwitch:
         """A fresh C_bal for a new run, and 'balance' on the mode topic."""
         self._publish_mode('balance')
-        balance = BalanceController(GaitConfig(), self._reflex, SAMPLE_PERIOD_S,
-                                    self._walk_duration_s)
+        balance = BalanceController(GaitConfig(), self._reflex, DT_S, self._walk_duration_s)
         return ControllerSwitch(balance)
 
     def _publish_mode(self, mode: str) -> None:
         self._mode_pub.publish(ros_qos.controller_mode_msg(mode))
         self.counts['modes'] += 1
 
-    def _on_reset(self, request: Trigger.Request, response: Trigger.Response
-                  ) -> Trigger.Response:
-        self._intake.reset()
+    @guarded('fall event')
+    def _on_fall_event(self, msg: FallEvent) -> None:
+        if msg.event != EVENT_RESET:
+            return
+        self._timeline.reset()
         self._switch = self._new_switch()
         self.counts['resets'] += 1
-        self.get_logger().info('reset: fresh C_bal')
-        response.success, response.message = True, 'fresh C_bal; next sample starts a run'
-        return response
+        self.get_logger().info('monitor reset: fresh C_bal')
 
     @guarded('measurement')
-    def _on_measurement(self, msg: Float64MultiArray) -> None:
-        m = ros_qos.measurement_from_msg(msg)
-        kind = self._intake.classify(m.t)
-        if kind is Sample.NEW_RUN and self._switch.mode == 'balance':
-            self._switch = self._new_switch()   # C_fall stays until ~/reset (one-way)
-        elif kind is not Sample.NEXT and kind is not Sample.NEW_RUN:
-            return                              # duplicate, out of order: counted
-        try:
-            q = self._switch.update(m)
-            command = ros_qos.joint_state_to_msg(m.t, rm.JOINT_NAMES, q)
-        except HANDLED_ERRORS as error:
-            # A finite but implausible measurement can make the leg IK fail.
-            self._bad_inputs.reject(f'measurement at t = {m.t} s (controller)', error)
-            return
-        self.output.publish(command)
+    def _on_measurement(self, msg: Measurement) -> None:
+        decoded = messages.measurement_from_msg(msg)
+        kind = self._timeline.classify(decoded.stamp_ns)
+        if kind is Stamp.NEW_RUN and self._switch.mode == 'balance':
+            self._switch = self._new_switch()   # C_fall stays until the reset (one-way)
+        elif not kind.accepted:
+            return                              # duplicate, out of order, stray: counted
+        if decoded.measurement is None:         # the estimator's sensors failed: hold
+            q = self._command
+            self.counts['held'] += 1
+        else:
+            try:
+                q = self._switch.update(decoded.measurement)
+            except HANDLED_ERRORS as error:
+                # A finite but implausible measurement can make the leg IK fail.
+                self._bad_inputs.reject(f'measurement at {decoded.stamp_ns} ns (controller)', error)
+                return
+        self._command = q
+        self.output.publish(ros_qos.joint_state_to_msg(decoded.stamp_ns, rm.JOINT_NAMES, q))
         self.counts['commands'] += 1
 
     @guarded('trigger')
     def _on_falling(self, msg: Bool) -> None:
-        current_t = self._intake.last_t
+        current_t = self._timeline.last_ns and self._timeline.last_ns / 1e9
         if not msg.data or not self._fall_trigger_enabled or self._switch.mode == 'fall':
             return
         self.counts['triggers'] += 1
@@ -141,9 +154,10 @@ class ControllerNode(Node):
 
     def _report(self) -> Report:
         values = {'mode': self._switch.mode, 't_switch_s': self._switch.t_switch,
-                  't_s': self._intake.last_t, 'fall_trigger_enabled': self._fall_trigger_enabled,
+                  'stamp_ns': self._timeline.last_ns,
+                  'fall_trigger_enabled': self._fall_trigger_enabled,
                   'invalid_inputs': self._bad_inputs.count, 'last_error': self._bad_inputs.last,
-                  **self._intake.counters(), **self.counts}
+                  **self._timeline.counters(), **self.counts}
         dropped = self._bad_inputs.new_since_last_call()
         if dropped:
             return LEVEL_WARN, f'{self._switch.mode}; {dropped} invalid inputs dropped', values

@@ -26,7 +26,7 @@ from typing import Optional
 
 from rclpy.node import Node
 
-from fall_predictor.ros.common import run_nodes
+from fall_predictor.ros.runner import run_nodes
 from fall_predictor.ros.feature_node import FeatureNode
 from fall_predictor.ros.predictor_node import PredictorNode
 

@@ -1,45 +1,50 @@
-"""feature_node: measurements -> the 15 features and the contact mode (SPEC §6, §7).
+"""feature_node: measurements -> the 15 features, the contact mode and the base tilt (method §6, §7).
 
 The features are computed as the model was trained: the node reads the model file
-(``model_path``) for its feature settings (rate window, edge tolerance, sample period) and
-adopts them; a parameter set to another value stops the node at start with one clear error.
+(``model_path``) for its feature settings (rate window, edge tolerance) and adopts them; a
+parameter set to another value stops the node at start with one clear error. Rate windows are in
+seconds, so a model runs at any measurement rate whose period is not longer than its rate window;
+at a slower rate every features message says why (a DEGRADED state), once the rate is known.
 
-For every ``fall_predictor/measurement`` it runs
-:class:`~fall_predictor.monitor.features.FeatureExtractor` and publishes ``fall_predictor/features``
-(layout v1, stamped by the sample time in ``data[0]``).
+For every ``fall_predictor/measurement`` (``fall_predictor/msg/Measurement``) whose stamp the time
+rule accepts (:mod:`fall_predictor.monitor.timeline`: duplicates, out-of-order samples and stray
+stamps are dropped and counted; a confirmed clock jump or the monitor's RESET event on
+``fall_predictor/fall_event`` starts a new run, clearing the momentum history) it publishes
+``fall_predictor/features`` (``fall_predictor/msg/Features``) with the measurement's own stamp:
+the features of :class:`~fall_predictor.monitor.features.FeatureExtractor`, or the fault that
+prevented them (the measurement's own, or why the extractor refused it, e.g. a jump faster than
+physics allows), so that every accepted sample gets a state downstream.
 
-Sample order (:class:`~fall_predictor.data.sample_order.SampleIntake`): duplicates and
-out-of-order samples are dropped and counted, missing samples counted; ``~/reset``
-(std_srvs/Trigger) starts a new run (clears the momentum history), and so does the restart
-rule (several consecutive samples restarting near t = 0), never a single old stamp.
-
-Bad input never stops the node: a measurement that breaks the wire contract or the
-plausibility bounds, that the extractor rejects (a jump faster than physics allows), or whose
-handling raises a numeric error (overflow, conversion) is logged (throttled), counted and
-dropped. Health goes to ``/diagnostics``: OK; WARN when inputs were dropped or samples were
-missing in the last period; STALE when no measurement arrived for ``stale_timeout_s`` of wall
-time. The predictor node, not this one, owns ``fall_predictor/state``.
+Bad input never stops the node: a message that breaks the contract or the plausibility bounds is
+logged (throttled), counted and dropped. Health goes to ``/diagnostics``: OK; WARN when inputs were
+dropped or samples missing in the last period; STALE when no measurement arrived for
+``stale_timeout_s`` of wall time. The predictor node, not this one, owns ``fall_predictor/state``.
 """
 from __future__ import annotations
 
+import math
 import time
+from dataclasses import replace
 from typing import Optional
 
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from std_msgs.msg import Float64MultiArray
-from std_srvs.srv import Trigger
 
-from fall_predictor.data.sample_order import Sample, SampleIntake
+from fall_predictor.contract import messages
+from fall_predictor.contract.topics import FALL_EVENT, FEATURES, MEASUREMENT
+from fall_predictor.contract.wire import LEVEL_OK, LEVEL_STALE, LEVEL_WARN
+from fall_predictor.monitor.fall_monitor import EVENT_RESET
+from fall_predictor.monitor.timeline import Stamp, StampTimeline
+from fall_predictor.msg import FallEvent, Features, Measurement
 from fall_predictor.ros import conversions as ros_qos
-from fall_predictor.ros.common import (HANDLED_ERRORS, MAX_MODEL_BYTES, MODEL_PATH,
-                                       Diagnostics, InputErrors,
-                                       ParamSpec, Report, create_publisher,
-                                       declare_parameters, feature_setting_params, guarded,
-                                       load_model_for, run_node)
+from fall_predictor.ros.endpoints import create_publisher, create_subscription
+from fall_predictor.ros.health import (HANDLED_ERRORS, Diagnostics, FaultLog, InputErrors, Report,
+                                       guarded)
 from fall_predictor.ros.in_process import Output, connect_input
-from fall_predictor.data.topics import FEATURES, MEASUREMENT
-from fall_predictor.data.wire import LEVEL_OK, LEVEL_STALE, LEVEL_WARN
+from fall_predictor.ros.parameters import (MAX_MODEL_BYTES, MODEL_PATH, ParamSpec,
+                                           declare_parameters, feature_setting_params,
+                                           load_model_for)
+from fall_predictor.ros.runner import run_node
 
 NODE_NAME = 'feature_node'
 
@@ -51,6 +56,13 @@ PARAMS = (
     ParamSpec('stale_timeout_s', 0.5, 'wall time [s] without a measurement after which '
               '/diagnostics reports STALE', 0.01, 60.0),
 )
+#: Samples whose period is averaged before the rate is judged against the model.
+_RATE_SAMPLES = 20
+
+
+def base_tilt_rad(rotation) -> float:
+    """Angle [rad] between the base's z axis and the vertical (0 for an upright base)."""
+    return math.acos(min(1.0, max(-1.0, float(rotation[2, 2]))))
 
 
 class FeatureNode(Node):
@@ -63,21 +75,25 @@ class FeatureNode(Node):
         p = declare_parameters(self, PARAMS)
         _, _, settings = load_model_for(self, str(p['model_path']), {k: p[k] for k in SETTINGS},
                                         int(p['max_model_bytes']))
+        self._settings = settings
         self._extractor = settings.extractor()
         self._stale_timeout_s = float(p['stale_timeout_s'])
         self.add_post_set_parameters_callback(self._apply_parameters)
 
         #: The features, published and handed to in-process consumers (``fall_monitor``).
-        self.output = Output(create_publisher(self, Float64MultiArray, FEATURES))
-        inputs = connect_input(self, Float64MultiArray, MEASUREMENT, self._on_measurement, upstream)
-        self._intake = SampleIntake(settings.sample_period_s)
+        self.output = Output(create_publisher(self, Features, FEATURES))
+        inputs = connect_input(self, Measurement, MEASUREMENT, self._on_measurement, upstream)
+        create_subscription(self, FallEvent, FALL_EVENT, self._on_fall_event)
+        self._timeline = StampTimeline()
         self._bad_inputs = InputErrors(self)
+        self._faults = FaultLog(self)
+        self._rate_problem: Optional[str] = None
+        self._accepted = 0
         #: Counters by event name (reported in /diagnostics).
-        self.counts = {'measurements': 0, 'features': 0, 'resets': 0}
+        self.counts = {'measurements': 0, 'features': 0, 'faults': 0, 'resets': 0}
         self._missing_at_report = 0
         self._last_input_wall: Optional[float] = None
-        self.create_service(Trigger, '~/reset', self._on_reset)
-        self._diagnostics = Diagnostics(self, self._report, lambda: self._intake.last_t or 0.0,
+        self._diagnostics = Diagnostics(self, self._report, lambda: self._timeline.last_ns or 0,
                                         inputs, self._bad_inputs)
         self.get_logger().info('feature extractor ready')
 
@@ -86,44 +102,67 @@ class FeatureNode(Node):
             if parameter.name == 'stale_timeout_s':
                 self._stale_timeout_s = float(parameter.value)
 
-    def _on_reset(self, request: Trigger.Request, response: Trigger.Response
-                  ) -> Trigger.Response:
-        self._intake.reset()
-        self._extractor.reset()
-        self.counts['resets'] += 1
-        response.success, response.message = True, 'feature history cleared; next sample starts a run'
-        return response
+    @guarded('fall event')
+    def _on_fall_event(self, msg: FallEvent) -> None:
+        if msg.event == EVENT_RESET:
+            self._timeline.reset()
+            self._extractor.reset()
+            self.counts['resets'] += 1
 
     @guarded('measurement')
-    def _on_measurement(self, msg: Float64MultiArray) -> None:
+    def _on_measurement(self, msg: Measurement) -> None:
         self.counts['measurements'] += 1
         self._last_input_wall = time.monotonic()
-        m = ros_qos.measurement_from_msg(msg)
-        kind = self._intake.classify(m.t)
-        if kind is Sample.NEW_RUN:
+        decoded = messages.measurement_from_msg(msg)
+        kind = self._timeline.classify(decoded.stamp_ns)
+        if not kind.accepted:
+            return                          # duplicate, out of order, stray: counted
+        if kind is Stamp.NEW_RUN:
             self._extractor.reset()
-        elif kind is not Sample.NEXT:
-            return                          # duplicate, out of order: counted by the intake
-        try:
-            x, mode = self._extractor.update(m)
-            features = ros_qos.features_to_msg(m.t, x, mode)
-        except HANDLED_ERRORS as error:
-            self._bad_inputs.reject(f'measurement at t = {m.t} s', error)
-            return
+        self._check_rate()
+        own = self._rate_problem or ''      # this node's own fault, logged here (not the input's)
+        x, mode, tilt = None, None, 0.0
+        if not (decoded.fault or own):
+            m = replace(decoded.measurement, t=self._timeline.run_time(decoded.stamp_ns))
+            try:
+                x, mode = self._extractor.update(m)
+                tilt = base_tilt_rad(m.torso_rotation)
+            except HANDLED_ERRORS as error:
+                own = f'measurement refused: {error}'
+        self._faults.update(own)
+        fault = decoded.fault or own
+        features = messages.features_msg(ros_qos.TYPES, decoded.stamp_ns, x, mode, tilt, fault)
         self.output.publish(features)
-        self.counts['features'] += 1
+        self.counts['faults' if fault else 'features'] += 1
+
+    def _check_rate(self) -> None:
+        """Once the measurement rate is known: can the model's rate window run at it?"""
+        self._accepted += 1
+        if self._accepted != _RATE_SAMPLES or self._timeline.period_s is None:
+            return
+        period_s = self._timeline.period_s
+        window_s = self._settings.rate_window_s
+        if period_s > window_s * 1.25:
+            self._rate_problem = (
+                f'measurements come every {period_s * 1e3:.1f} ms ({1 / period_s:.0f} Hz): the '
+                f"model's {window_s * 1e3:.0f} ms momentum-rate window cannot be kept at this "
+                'rate (retrain with rate_window_s >= the sample period)')
+            self.get_logger().error(self._rate_problem)
 
     def _report(self) -> Report:
-        values = {'t_s': self._intake.last_t, 'invalid_measurements': self._bad_inputs.count,
-                  'last_error': self._bad_inputs.last, **self._intake.counters(), **self.counts}
+        values = {'stamp_ns': self._timeline.last_ns, 'invalid_measurements': self._bad_inputs.count,
+                  'last_error': self._bad_inputs.last, 'period_s': self._timeline.period_s,
+                  **self._timeline.counters(), **self.counts}
         dropped = self._bad_inputs.new_since_last_call()
-        missing = self._intake.missing - self._missing_at_report
-        self._missing_at_report = self._intake.missing
+        missing = self._timeline.missing - self._missing_at_report
+        self._missing_at_report = self._timeline.missing
         if self._last_input_wall is None:
             return LEVEL_STALE, 'no measurement received yet', values
         silent_s = time.monotonic() - self._last_input_wall
         if silent_s > self._stale_timeout_s:
             return LEVEL_STALE, f'no measurement for {silent_s:.1f} s', values
+        if self._rate_problem:
+            return LEVEL_WARN, self._rate_problem, values
         if dropped or missing:
             return (LEVEL_WARN, f'{dropped} invalid measurements dropped, {missing} samples '
                     'missing', values)

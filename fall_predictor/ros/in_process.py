@@ -15,8 +15,8 @@ from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.subscription import Subscription
 
-from fall_predictor.data.topics import TopicSpec
-from fall_predictor.ros.common import create_subscription
+from fall_predictor.contract.topics import TopicSpec
+from fall_predictor.ros.endpoints import create_subscription
 
 
 class Output:

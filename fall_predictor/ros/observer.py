@@ -24,17 +24,22 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from std_msgs.msg import Float64MultiArray, String
+from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
 
 from fall_predictor.ros import conversions as ros_qos
-from fall_predictor.ros.common import (BringupError, UNMATCHED_INPUTS,
-                                         create_publisher, create_subscription, spin_until)
+from fall_predictor.ros.errors import BringupError
+from fall_predictor.ros.endpoints import create_publisher, create_subscription
+from fall_predictor.ros.health import UNMATCHED_INPUTS
+from fall_predictor.ros.runner import spin_until
+from fall_predictor.contract import messages
+from fall_predictor.contract.topics import (CONTROLLER_MODE, DIAGNOSTICS, MEASUREMENT,
+                                            MONITOR_RESET_SERVICE, PAUSE_SERVICE, PUSH_REQUEST,
+                                            RESET_SERVICE, STATE, WireFormatError)
+from fall_predictor.monitor.fall_monitor import STATUS_DEGRADED, STATUS_STALE, MonitorState
 from fall_predictor.monitor.records import Measurement, PushSpec
-from fall_predictor.data.topics import (CONTROLLER_MODE, DIAGNOSTICS, MEASUREMENT,
-                                        MONITOR_RESET_SERVICES, PAUSE_SERVICE, PUSH_REQUEST,
-                                        RESET_SERVICE, STATE, WireFormatError)
-from fall_predictor.data.wire import PredictorState
+from fall_predictor.msg import FallState
+from fall_predictor.msg import Measurement as MeasurementMsg
 
 #: After a reset, samples from this time on still belong to the previous run [s].
 NEW_RUN_T_S = 0.5
@@ -58,6 +63,23 @@ class ReceivedSample(NamedTuple):
 
     t: float                                #: sample time [s]
     fallen: bool
+
+
+@dataclass(frozen=True)
+class ObservedState:
+    """One ``fall_predictor/state`` message as the observer recorded it: the sample time [s]
+    (its stamp, simulation time) and the monitor's state."""
+
+    t: float
+    state: MonitorState
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.state, name)   # status, falling, latched, ... of the state
+
+    @property
+    def unusable(self) -> bool:
+        """No prediction: a DEGRADED or STALE state."""
+        return self.state.status in (STATUS_DEGRADED, STATUS_STALE)
 
 
 class ModeChange(NamedTuple):
@@ -109,10 +131,10 @@ class RunObservation:
         if self.t_fallen is None and m.fallen:
             self.t_fallen = m.t
 
-    def add_state(self, state: PredictorState) -> None:
+    def add_state(self, state: ObservedState) -> None:
         """Take one predictor state of this run."""
         self.t_last_state = max(self.t_last_state, state.t)
-        if state.stale_reason is not None:
+        if state.unusable:
             # Degraded states before the run's first sample only say it had not started.
             self.degraded_states += self.measurements_started
         elif state.falling:
@@ -182,22 +204,21 @@ class Observer:
         node = self.node
         self.reset_client = node.create_client(Trigger, RESET_SERVICE)
         self.pause_client = node.create_client(SetBool, PAUSE_SERVICE)
-        #: ``~/reset`` of the feature, predictor and controller nodes, by node name.
-        self.monitor_reset_clients = {name.split('/')[0]: node.create_client(Trigger, name)
-                                      for name in MONITOR_RESET_SERVICES}
+        #: The monitor's one reset (its other nodes and the controller follow its RESET event).
+        self.monitor_reset_client = node.create_client(Trigger, MONITOR_RESET_SERVICE)
         self.push_pub = create_publisher(node, WrenchStamped, PUSH_REQUEST)
         #: The stream subscriptions (each must be matched before a run can be followed).
         self.subscriptions = [
-            create_subscription(node, Float64MultiArray, MEASUREMENT, self._on_measurement,
+            create_subscription(node, MeasurementMsg, MEASUREMENT, self._on_measurement,
                                 lossless=True),
-            create_subscription(node, Float64MultiArray, STATE, self._on_state, lossless=True),
+            create_subscription(node, FallState, STATE, self._on_state, lossless=True),
             create_subscription(node, String, CONTROLLER_MODE, self._on_mode),
         ] if follow_streams else []
         self._diagnostics_sub = create_subscription(node, DiagnosticArray, DIAGNOSTICS,
                                                     self._on_diagnostics)
         self._parameter_clients: dict[str, AsyncParameterClient] = {}
         self.samples: list[ReceivedSample] = []
-        self.states: list[PredictorState] = []
+        self.states: list[ObservedState] = []
         self.modes: list[ModeChange] = []
         self.controller_mode: Optional[str] = None
         self.diagnostics: dict[str, NodeStatus] = {}
@@ -212,11 +233,13 @@ class Observer:
         self.node.destroy_node()
 
     # -- recording -------------------------------------------------------------------------
-    def _on_measurement(self, msg: Float64MultiArray) -> None:
+    def _on_measurement(self, msg: MeasurementMsg) -> None:
         try:
-            m = ros_qos.measurement_from_msg(msg)
+            m = messages.measurement_from_msg(msg).measurement
         except WireFormatError:
             return                          # not a sample (e.g. the node tests' garbage)
+        if m is None:
+            return                          # a fault: no state to record
         if self._skip_old_samples:
             if m.t >= NEW_RUN_T_S:
                 return                      # still the previous run, in flight
@@ -225,11 +248,12 @@ class Observer:
         if self.run is not None:
             self.run.add_measurement(m)
 
-    def _on_state(self, msg: Float64MultiArray) -> None:
+    def _on_state(self, msg: FallState) -> None:
         try:
-            state = ros_qos.state_from_msg(msg)
+            stamp_ns, monitor_state = messages.fall_state_from_msg(msg)
         except WireFormatError:
             return
+        state = ObservedState(stamp_ns / 1e9, monitor_state)
         if self._skip_old_states:
             if state.t >= NEW_RUN_T_S:
                 return
@@ -252,8 +276,8 @@ class Observer:
         """Latest sample time [s] received since the last reset (-1 before any)."""
         return self.samples[-1].t if self.samples else -1.0
 
-    def first_state(self, predicate: Callable[[PredictorState], bool],
-                    t_from: float = -math.inf) -> Optional[PredictorState]:
+    def first_state(self, predicate: Callable[[ObservedState], bool],
+                    t_from: float = -math.inf) -> Optional[ObservedState]:
         """The first recorded state at or after ``t_from`` [s] for which ``predicate`` holds."""
         return next((s for s in self.states if s.t >= t_from and predicate(s)), None)
 
@@ -265,12 +289,11 @@ class Observer:
 
     def connected(self, node_names: Iterable[str]) -> bool:
         """Every named node reports all its inputs matched, and so is this node (including
-        the ``~/reset`` services of the named monitor and controller nodes)."""
+        the monitor's reset service when the predictor node is named)."""
         node_names = list(node_names)
-        resets = [client for name, client in self.monitor_reset_clients.items()
-                  if name in (n.lstrip('/') for n in node_names)]
+        monitor = any(n.lstrip('/').endswith('predictor_node') for n in node_names)
         return (self.all_inputs_matched(node_names)
-                and all(client.service_is_ready() for client in resets)
+                and (not monitor or self.monitor_reset_client.service_is_ready())
                 and self.reset_client.service_is_ready() and self.pause_client.service_is_ready()
                 and self.push_pub.get_subscription_count() >= 1
                 and all(s.get_publisher_count() >= 1 for s in self.subscriptions))
@@ -302,8 +325,8 @@ class Observer:
             raise ObserverError(f'{client.srv_name} failed: {future.result().message}')
 
     def reset_world(self) -> None:
-        """Start a new run: pause the simulator, reset the monitor and controller nodes that
-        are up (their ``~/reset``: the only way to undo a fall), then reset the simulator (a
+        """Start a new run: pause the simulator, reset the monitor if it is up (its one reset,
+        the only way to undo a fall; the controller follows it), then reset the simulator (a
         fresh world at t = 0), and start a new record."""
         self.samples.clear()
         self.states.clear()
@@ -312,9 +335,8 @@ class Observer:
         if self.pause_client.service_is_ready():
             self.call(self.pause_client, SetBool.Request(data=True))
             self.spin_for(0.05)             # let the last samples of the old run arrive
-        for client in self.monitor_reset_clients.values():
-            if client.service_is_ready():
-                self.call(client, Trigger.Request())
+        if self.monitor_reset_client.service_is_ready():
+            self.call(self.monitor_reset_client, Trigger.Request())
         self.call(self.reset_client, Trigger.Request())
 
     def pause_world(self) -> None:

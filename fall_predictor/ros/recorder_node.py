@@ -1,8 +1,8 @@
 """recorder_node: the live topics into rosbag2 (MCAP) bags, one bag per run, losing nothing.
 
-Subscribes (QoS of :mod:`fall_predictor.data.wire`) to the measurement, features, state,
+Subscribes (QoS of :mod:`fall_predictor.contract.wire`) to the measurement, features, state,
 joint states, joint commands, push and controller mode topics, and writes them with
-:class:`~fall_predictor.data.bagio.BagWriter`: same topics, types, QoS metadata and log times
+:class:`~fall_predictor.data.bag_writer.BagWriter`: same topics, types, QoS metadata and log times
 (simulation time) as the generated datasets, so a recorded bag is read by
 :func:`~fall_predictor.data.bagio.read_trajectory` and the dataset/training code like a generated
 one.
@@ -55,16 +55,18 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64MultiArray, String
 
 from fall_predictor.data import bagio
+from fall_predictor.data.bag_writer import BagWriter
 from fall_predictor.monitor.fileio import atomic_write_text
 from fall_predictor.data.sample_order import RunTracker, Sample
-from fall_predictor.ros.common import (Diagnostics, InputErrors, NodeStartupError, ParamSpec,
-                                         Report, create_subscription, declare_parameters,
-                                         run_node)
-from fall_predictor.data.topics import (CONTROLLER_MODE, FALL_DIRECTION, FALLING, FEATURES,
+from fall_predictor.ros.endpoints import create_subscription
+from fall_predictor.ros.health import Diagnostics, InputErrors, Report
+from fall_predictor.ros.parameters import NodeStartupError, ParamSpec, declare_parameters
+from fall_predictor.ros.runner import run_node
+from fall_predictor.contract.topics import (CONTROLLER_MODE, FALL_DIRECTION, FALLING, FEATURES,
                                         JOINT_COMMANDS, JOINT_STATES, MEASUREMENT, PUSH, STATE,
                                         TopicSpec, WireFormatError, check_controller_mode)
-from fall_predictor.data.wire import LEVEL_OK, LEVEL_WARN, JointStateSample
-from fall_predictor.data.topics import ns_to_time, stamp_to_ns, time_to_ns
+from fall_predictor.contract.wire import LEVEL_OK, LEVEL_WARN, JointStateSample
+from fall_predictor.contract.topics import ns_to_time, stamp_to_ns, time_to_ns
 
 NODE_NAME = 'recorder_node'
 #: Recorded topics and their rclpy message classes.
@@ -150,7 +152,7 @@ class RecorderNode(Node):
         self._topic_run = dict.fromkeys(_RUN_SPLIT, 0)
         self._seen: set[str] = set()
         #: Open part of each run: (part index, first log time [ns], exit stack, writer).
-        self._open: dict[int, tuple[int, int, ExitStack, bagio.BagWriter]] = {}
+        self._open: dict[int, tuple[int, int, ExitStack, BagWriter]] = {}
         self._parts: dict[int, list[str]] = {}
         self._split_ns = round(float(p['split_duration_s']) * 1e9)
         #: Samples missing on the 1 ms grid: per topic in total, and per run and topic.
@@ -237,7 +239,7 @@ class RecorderNode(Node):
         run_written[topic] = run_written.get(topic, 0) + 1
         self._close_finished_runs()
 
-    def _bag(self, run: int, t_ns: int) -> bagio.BagWriter:
+    def _bag(self, run: int, t_ns: int) -> BagWriter:
         """The open part of ``run`` for a message at ``t_ns``; a new part once the open one
         spans ``split_duration_s``."""
         current = self._open.get(run)
@@ -249,7 +251,7 @@ class RecorderNode(Node):
             parts = self._parts.setdefault(run, [])
             part = path / f'part_{len(parts):03d}'
             stack = ExitStack()
-            self._open[run] = (len(parts), t_ns, stack, stack.enter_context(bagio.BagWriter(part)))
+            self._open[run] = (len(parts), t_ns, stack, stack.enter_context(BagWriter(part)))
             parts.append(part.name)
             self.bags[run] = path
             self._write_run_record(run, complete=False)

@@ -21,8 +21,8 @@ from typing import Optional
 
 from rclpy.node import Node
 
-from fall_predictor.data.topics import MEASUREMENT
-from fall_predictor.ros.common import run_nodes
+from fall_predictor.contract.topics import MEASUREMENT
+from fall_predictor.ros.runner import run_nodes
 from fall_predictor.ros.controller_node import ControllerNode
 from fall_predictor.ros.simulator_node import SimulatorNode
 

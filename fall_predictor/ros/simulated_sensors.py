@@ -1,5 +1,7 @@
 """The simulator node's sensor publishers (``publish_sensors``): the sensor model of
-:mod:`fall_predictor.sim.sensors` on the robot's standard topics."""
+:mod:`fall_predictor.sim.sensors` on the robot's standard topics, each stream at the rate and stamp
+offset of :class:`~fall_predictor.sim.drivers.DriverTiming` (as a robot's drivers publish them),
+stamped with simulation time."""
 from __future__ import annotations
 
 from geometry_msgs.msg import WrenchStamped
@@ -8,33 +10,45 @@ from rclpy.publisher import Publisher
 from sensor_msgs.msg import Imu
 from std_msgs.msg import String
 
-from fall_predictor.data.topics import IMU, LEFT_FOOT_WRENCH, RIGHT_FOOT_WRENCH, ROBOT_DESCRIPTION
-from fall_predictor.ros.common import create_publisher
-from fall_predictor.ros.sensor_conversions import reading_to_msgs
+from fall_predictor.contract import messages
+from fall_predictor.contract.topics import IMU, LEFT_FOOT_WRENCH, RIGHT_FOOT_WRENCH, ROBOT_DESCRIPTION
+from fall_predictor.ros import conversions as ros_qos
+from fall_predictor.ros.endpoints import create_publisher
+from fall_predictor.sim.drivers import DriverStreams, DriverTiming
 from fall_predictor.sim.sensors import SensorParams, SensorSuite, robot_description, sensor_truth
 
 
 class SimulatedSensors:
-    """Publishes the robot description once and one sensor sample per simulation step."""
+    """Publishes the robot description once and the sensor messages of every simulation step."""
 
-    def __init__(self, node: Node, noise_scale: float, seed: int) -> None:
+    def __init__(self, node: Node, noise_scale: float, seed: int,
+                 timing: DriverTiming = DriverTiming()) -> None:
         self.params = SensorParams(noise_scale=noise_scale)
         self.seed = seed
+        self.timing = timing
         self._imu = create_publisher(node, Imu, IMU)
-        self._left = create_publisher(node, WrenchStamped, LEFT_FOOT_WRENCH)
-        self._right = create_publisher(node, WrenchStamped, RIGHT_FOOT_WRENCH)
+        self._wrenches = {'l': create_publisher(node, WrenchStamped, LEFT_FOOT_WRENCH),
+                          'r': create_publisher(node, WrenchStamped, RIGHT_FOOT_WRENCH)}
         self._description = create_publisher(node, String, ROBOT_DESCRIPTION)
         self._description.publish(String(data=robot_description()))
-        self._suite = SensorSuite(self.params, seed)
+        self.new_world(0)
 
     def new_world(self, world: int) -> None:
-        """Fresh biases and delay lines for a new world (seeded by the seed and world count)."""
+        """Fresh biases, delay lines and driver clocks for a new world (seeded by the seed and
+        the world count)."""
         self._suite = SensorSuite(self.params, self.seed * 100003 + world)
+        self._drivers = DriverStreams(self.timing)
 
-    def publish(self, sim, joint_state_pub: Publisher) -> None:
-        """The readings of ``sim``'s current step (joint states on ``joint_state_pub``)."""
-        joints, imu, left, right = reading_to_msgs(self._suite.read(sensor_truth(sim)))
-        joint_state_pub.publish(joints)
-        self._imu.publish(imu)
-        self._left.publish(left)
-        self._right.publish(right)
+    def publish(self, sim, joint_state_pub: Publisher) -> int:
+        """The messages of ``sim``'s current step (joint states on ``joint_state_pub``); returns
+        how many joint state messages went out."""
+        joint_messages = 0
+        for stream, reading in self._drivers.push(self._suite.read(sensor_truth(sim))):
+            if stream == 'joints':
+                joint_state_pub.publish(messages.joint_state_msg(ros_qos.TYPES, reading))
+                joint_messages += 1
+            elif stream == 'imu':
+                self._imu.publish(messages.imu_msg(ros_qos.TYPES, reading))
+            else:
+                self._wrenches[stream].publish(messages.wrench_msg(ros_qos.TYPES, reading))
+        return joint_messages

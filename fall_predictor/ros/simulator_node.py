@@ -7,15 +7,19 @@ Publishes, all stamped with simulation time:
 * ``/fall_predictor/push`` once per applied push (onset stamp, world force);
 * ``/diagnostics`` once per wall second.
 
-With ``publish_sensors`` the node publishes what a robot publishes instead (issue 10): every
-step ``/joint_states`` (with efforts), ``/imu/data``, ``/left_foot/wrench`` and
-``/right_foot/wrench`` from the sensor model of :mod:`fall_predictor.sim.sensors` (noise x
-``sensor_noise_scale``, seeded by ``sensor_seed`` and the world count), ``/robot_description``
-once (transient local), and its exact state on ``/fall_predictor/ground_truth`` (evaluation
-only): ``/fall_predictor/measurement`` is then the state_estimator_node's.
+With ``publish_sensors`` the node publishes what a robot publishes instead: ``/joint_states``
+(with efforts), ``/imu/data``, ``/left_foot/wrench`` and ``/right_foot/wrench`` from the sensor
+model of :mod:`fall_predictor.sim.sensors` (noise x ``sensor_noise_scale``, seeded by
+``sensor_seed`` and the world count), each stream at its own rate and stamp offset as a robot's
+drivers publish them (``sensor_joint_rate_hz``, ``sensor_imu_offset_s``, ...; joint states split
+into legs and upper body with ``sensor_split_joints``, :mod:`fall_predictor.sim.drivers`),
+``/robot_description`` once (transient local), and its exact state on
+``/fall_predictor/ground_truth`` (evaluation only): ``/fall_predictor/measurement`` is then the
+state_estimator_node's. Every stamp is simulation time, the time of ``/clock``: the other nodes
+run with ``use_sim_time``.
 
 Subscribes to ``/fall_predictor/joint_commands`` (the controller node's joint targets) and to
-``/fall_predictor/push_request`` (see :data:`~fall_predictor.ros.common.PUSH_REQUEST`).
+``/fall_predictor/push_request`` (see :data:`~fall_predictor.ros.health.PUSH_REQUEST`).
 
 **Lock-step** (``lockstep``, default true): after publishing sample k the node waits for the
 joint command stamped with sample k's time, applies it and steps, so the robot obeys the
@@ -59,25 +63,27 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import SetBool, Trigger
 
 from fall_predictor.robot import model as rm
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.robot.controllers import BalanceController
-from fall_predictor.ros.common import (Diagnostics,
-                                         InputErrors, NodeStartupError, ParamSpec, ParamValue,
-                                         Report, create_publisher, create_subscription,
-                                         declare_parameters, run_node, steady_clock)
+from fall_predictor.ros.endpoints import create_publisher, create_subscription
+from fall_predictor.ros.health import Diagnostics, InputErrors, Report, steady_clock
+from fall_predictor.ros.parameters import (NodeStartupError, ParamSpec, ParamValue, declare_parameters)
+from fall_predictor.ros.runner import run_node
 from fall_predictor.ros.in_process import Output, take_from
 from fall_predictor.sim.pushes import PushDistribution
 from fall_predictor.monitor.records import Measurement, PushSpec
 from fall_predictor.sim.simulator import DT_S, Simulator
 from fall_predictor.ros.simulated_sensors import SimulatedSensors
-from fall_predictor.data.topics import GROUND_TRUTH
-from fall_predictor.data.topics import (CLOCK, JOINT_COMMANDS, JOINT_STATES, MEASUREMENT, PUSH, PUSH_REQUEST,
-                                        SIM_RATE_HZ, WireFormatError, stamp_to_ns, time_to_ns)
-from fall_predictor.data.wire import LEVEL_OK, LEVEL_WARN
+from fall_predictor.contract import messages
+from fall_predictor.contract.topics import (CLOCK, GROUND_TRUTH, JOINT_COMMANDS, JOINT_STATES,
+                                            MEASUREMENT, ODOM_FRAME, PUSH, PUSH_REQUEST, SIM_RATE_HZ,
+                                            WireFormatError)
+from fall_predictor.msg import Measurement as MeasurementMsg
+from fall_predictor.sim.drivers import DriverTiming
+from fall_predictor.contract.wire import LEVEL_OK, LEVEL_WARN
 
 NODE_NAME = 'simulator_node'
 #: Period of the wall-clock check for a run start and for lock-step command timeouts [s].
@@ -112,7 +118,30 @@ PARAMS = (
     ParamSpec('sensor_noise_scale', 1.0, 'multiplier of every sensor noise and bias (0 = ideal)',
               0.0, 100.0, read_only=True),
     ParamSpec('sensor_seed', 0, 'seed of the sensor noise', 0, 2**31 - 1, read_only=True),
+    ParamSpec('sensor_joint_rate_hz', 1000.0, 'rate of the sensors\' /joint_states [Hz]', 1.0,
+              1000.0, read_only=True),
+    ParamSpec('sensor_imu_rate_hz', 1000.0, 'rate of /imu/data [Hz]', 1.0, 1000.0, read_only=True),
+    ParamSpec('sensor_wrench_rate_hz', 1000.0, 'rate of the foot wrenches [Hz]', 1.0, 1000.0,
+              read_only=True),
+    ParamSpec('sensor_imu_offset_s', 0.0, 'IMU stamps this much after the encoders\' [s]', 0.0,
+              0.00099, read_only=True),
+    ParamSpec('sensor_wrench_offset_s', 0.0, 'foot wrench stamps this much after the encoders\' '
+              '[s]', 0.0, 0.00099, read_only=True),
+    ParamSpec('sensor_split_joints', False, 'publish the joint states as two messages (legs, upper '
+              'body), as two controllers would', read_only=True),
 )
+
+
+def _driver_timing(p: Mapping[str, ParamValue]) -> DriverTiming:
+    """How the simulated robot's drivers publish its sensors (the ``sensor_*`` parameters)."""
+    legs = tuple(f'{s}_{j}' for s in rm.SIDES for j in rm.LEG_JOINTS)
+    groups = (legs, tuple(n for n in rm.JOINT_NAMES if n not in legs)) \
+        if p['sensor_split_joints'] else ()
+    return DriverTiming(joint_rate_hz=float(p['sensor_joint_rate_hz']),
+                        imu_rate_hz=float(p['sensor_imu_rate_hz']),
+                        wrench_rate_hz=float(p['sensor_wrench_rate_hz']),
+                        imu_offset_s=float(p['sensor_imu_offset_s']),
+                        wrench_offset_s=float(p['sensor_wrench_offset_s']), joint_groups=groups)
 
 
 def _check_pacing(values: Mapping[str, ParamValue]) -> Optional[str]:
@@ -146,11 +175,11 @@ class SimulatorNode(Node):
         except RuntimeError as error:
             raise NodeStartupError(str(error)) from error
 
-        self._sensors = SimulatedSensors(self, float(p['sensor_noise_scale']), int(p['sensor_seed'])) \
-            if p['publish_sensors'] else None
+        self._sensors = SimulatedSensors(self, float(p['sensor_noise_scale']), int(p['sensor_seed']),
+                                         _driver_timing(p)) if p['publish_sensors'] else None
         #: The measurement (the exact state on ground_truth with sensors), published and handed
         #: to in-process consumers (the controller in ``simulated_robot``).
-        self.output = Output(create_publisher(self, Float64MultiArray,
+        self.output = Output(create_publisher(self, MeasurementMsg,
                                               MEASUREMENT if self._sensors is None else GROUND_TRUTH))
         self._clock_pub = create_publisher(self, Clock, CLOCK)
         self._joint_state_pub = create_publisher(self, JointState, JOINT_STATES)
@@ -191,7 +220,7 @@ class SimulatorNode(Node):
         if not self._lockstep:
             self._step_timer = self.create_timer(DT_S / self._real_time_factor,
                                                  self._on_step_timer, clock=steady_clock())
-        self._diagnostics = Diagnostics(self, self._report, lambda: self._m.t,
+        self._diagnostics = Diagnostics(self, self._report, lambda: ros_qos.sim_ns(self._m.t),
                                         [s for s in (self._command_sub,) if s is not None])
         self._begin_run(None if p['autostart'] else 'waiting for ~/reset')
         self.get_logger().info(
@@ -280,7 +309,9 @@ class SimulatorNode(Node):
     # -- inputs ----------------------------------------------------------------------------
     def _on_command(self, msg: JointState) -> None:
         try:
-            sample = ros_qos.joint_state_from_msg(msg)
+            sample = messages.joint_state_reading(msg)
+            if not np.isfinite(sample.position).all():
+                raise WireFormatError('joint command positions are not finite')
             if sample.names != rm.JOINT_NAMES:
                 raise WireFormatError(f'joint names {list(sample.names)} are not the robot\'s '
                                       f'{len(rm.JOINT_NAMES)} joints in URDF order')
@@ -290,7 +321,7 @@ class SimulatorNode(Node):
         if not self._lockstep:
             self._command = sample.position
             return
-        stamp_ns = stamp_to_ns(msg.header.stamp.sec, msg.header.stamp.nanosec)
+        stamp_ns = messages.stamp_ns(msg)
         if stamp_ns != self._awaiting_ns or self._command_ready:
             self.counts['late_commands'] += 1
             return
@@ -396,23 +427,24 @@ class SimulatorNode(Node):
     def _publish_sample(self, m: Measurement) -> None:
         # Await sample k's command before publishing it: in process it arrives during publish.
         self._published = True
-        self._awaiting_ns = time_to_ns(m.t)
+        stamp_ns = ros_qos.sim_ns(m.t)
+        self._awaiting_ns = stamp_ns
         self._command_ready = False
         self._published_wall = time.monotonic()
+        # /clock first: a node reading this sample's stamp against its ROS clock sees its time.
+        self._clock_pub.publish(Clock(clock=ros_qos.stamp(stamp_ns)))
         self._in_publish = True
         try:
-            self.output.publish(ros_qos.measurement_to_msg(m))
+            self.output.publish(messages.measurement_msg(ros_qos.TYPES, stamp_ns, ODOM_FRAME, m))
         finally:
             self._in_publish = False
-        self._clock_pub.publish(Clock(clock=ros_qos.stamp(m.t)))
         self.counts['measurements'] += 1
         if self._sensors is not None:
-            self._sensors.publish(self._sim, self._joint_state_pub)
-            self.counts['joint_states'] += 1
+            self.counts['joint_states'] += self._sensors.publish(self._sim, self._joint_state_pub)
         elif self._sim.tick % self._joint_state_every == 0:
             q, dq, effort = self._sim.joint_states()
             self._joint_state_pub.publish(
-                ros_qos.joint_state_to_msg(m.t, rm.JOINT_NAMES, q, dq, effort))
+                ros_qos.joint_state_to_msg(stamp_ns, rm.JOINT_NAMES, q, dq, effort))
             self.counts['joint_states'] += 1
         if self._t_fallen is None and m.fallen:
             self._t_fallen = m.t

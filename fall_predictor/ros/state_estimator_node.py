@@ -1,21 +1,30 @@
-"""state_estimator_node: the robot's sensor topics -> the measurement the feature node reads.
+"""state_estimator_node: the robot's own sensor topics -> the measurement the monitor reads.
 
-Subscribes to ``/robot_description`` (the URDF with ``l_sole`` / ``r_sole`` frames, transient
-local), ``/joint_states``, ``/imu/data``, ``/left_foot/wrench`` and ``/right_foot/wrench``
-(:data:`fall_predictor.data.topics.SENSOR_TOPICS`); groups the messages by header stamp, and
-for each complete sample runs :class:`~fall_predictor.monitor.estimator.StateEstimator` (the
-same class the offline ``estimation-error`` runs over bags) and publishes
-``/fall_predictor/measurement`` (layout v1). A stamp still missing a message when
-``max_pending_samples`` newer stamps wait is processed without it (a missing foot sensor makes
-that foot unloaded) or, without joints or IMU, dropped.
+Subscribes to what a robot already publishes, as its drivers publish it (method §12):
 
-Bad input never stops the node: a URDF the estimator cannot use is logged and the node waits
-for another; samples the estimator rejects (NaN, out-of-order or stale stamps, unknown joints)
-are logged (throttled), counted and dropped; numeric failures are caught the same way. Sample
-order as in the monitor nodes (:class:`~fall_predictor.data.sample_order.SampleIntake`): a
-new run by ``~/reset`` (std_srvs/Trigger) or the restart rule, never by one old stamp. Health
-goes to ``/diagnostics``: OK, WARN when samples were dropped, missing or degraded in the last
-period, STALE when no description or no sample arrived for ``stale_timeout_s`` of wall time.
+* ``robot_description`` (``std_msgs/String``, transient local: the URDF; the sole frames come from
+  it or from the robot profile, ``robot``);
+* ``joint_states`` (``sensor_msgs/JointState``): any order, split over several messages or
+  publishers, names the URDF does not know ignored (logged once), velocity optional, each
+  publisher on its own clock and rate;
+* ``imu/data`` (``sensor_msgs/Imu``): on any link of the URDF (its ``header.frame_id``);
+* ``left_foot/wrench`` and ``right_foot/wrench`` (``geometry_msgs/WrenchStamped``), in any frame
+  of the URDF, when the robot profile says the robot has foot force/torque sensors.
+
+Each message of the driving topic (``driving_topic``: ``joint_states`` by default, or ``imu/data``)
+is one estimate (:class:`~fall_predictor.monitor.sensor_pipeline.SensorPipeline`, the same code
+the offline tools run over recordings): the newest IMU and wrench readings within
+``sync_tolerance_s`` of its stamp, interpolated where they bracket it. It publishes
+``fall_predictor/measurement`` (``fall_predictor/msg/Measurement``) stamped with the driving
+message's own stamp, or, when a sensor is missing, stale, stuck or implausible, a measurement that
+carries only the fault in words ("no /imu/data within 5 ms of /joint_states", "joint l_knee_pitch
+never received"): the monitor then publishes a DEGRADED state, never a prediction from a sensor
+taken as zero. The same reason goes to ``/diagnostics`` and to a throttled log line with how long
+it has lasted.
+
+Stamps follow the time rule of :mod:`fall_predictor.monitor.timeline` (ROS time; one stray stamp
+is dropped, a confirmed clock jump starts a new run). The RESET event on
+``fall_predictor/fall_event`` (the monitor's one reset) starts a new run too.
 """
 from __future__ import annotations
 
@@ -25,152 +34,187 @@ from typing import Optional
 from geometry_msgs.msg import WrenchStamped
 from rclpy.node import Node
 from sensor_msgs.msg import Imu, JointState
-from std_msgs.msg import Float64MultiArray, String
-from std_srvs.srv import Trigger
+from std_msgs.msg import String
 
-from fall_predictor.data.sample_order import Sample, SampleIntake
-from fall_predictor.data.topics import (IMU, LEFT_FOOT_WRENCH, MEASUREMENT, RIGHT_FOOT_WRENCH,
-                                        ROBOT_DESCRIPTION, SENSOR_JOINT_STATES)
-from fall_predictor.data.wire import LEVEL_OK, LEVEL_STALE, LEVEL_WARN
-from fall_predictor.monitor.estimator import EstimatorConfig, SensorSample, StateEstimator
+from fall_predictor.contract import messages
+from fall_predictor.contract.topics import (FALL_EVENT, IMU, LEFT_FOOT_WRENCH, MEASUREMENT,
+                                            ODOM_FRAME, RIGHT_FOOT_WRENCH, ROBOT_DESCRIPTION,
+                                            SENSOR_JOINT_STATES)
+from fall_predictor.contract.wire import LEVEL_ERROR, LEVEL_OK, LEVEL_STALE, LEVEL_WARN
+from fall_predictor.monitor.estimator import EstimatorConfig
+from fall_predictor.monitor.fall_monitor import EVENT_RESET
+from fall_predictor.monitor.robot_description import DescriptionError
+from fall_predictor.monitor.sensor_pipeline import Estimate, PipelineConfig, SensorPipeline
+from fall_predictor.monitor.sensor_sync import SyncConfig
+from fall_predictor.monitor.timeline import TimelineConfig
+from fall_predictor.msg import FallEvent
+from fall_predictor.msg import Measurement as MeasurementMsg
 from fall_predictor.ros import conversions as ros_qos
-from fall_predictor.ros.common import (HANDLED_ERRORS, SAMPLE_PERIOD_S, Diagnostics, InputErrors,
-                                       ParamSpec, Report, create_publisher, create_subscription,
-                                       declare_parameters, guarded, run_node)
+from fall_predictor.ros.endpoints import create_publisher, create_subscription
+from fall_predictor.ros.health import (HANDLED_ERRORS, Diagnostics, FaultLog, InputErrors, Report,
+                                       guarded)
 from fall_predictor.ros.in_process import Output
-from fall_predictor.ros.sensor_conversions import imu_from_msg, stamp_ns, wrench_from_msg
+from fall_predictor.ros.parameters import ParamSpec, declare_parameters
+from fall_predictor.ros.robots import ROBOT_PARAM, sensor_layout_for
+from fall_predictor.ros.runner import run_node
 
 NODE_NAME = 'state_estimator_node'
+_DEFAULT_SYNC = SyncConfig()
 PARAMS = (
-    ParamSpec('contact_force_n', EstimatorConfig().contact_force_n,
-              'F/T normal force above which a foot is loaded [N]', 0.0, 10000.0, read_only=True),
-    ParamSpec('max_pending_samples', 5, 'newer stamps waiting before a sample missing a message '
-              'is processed without it', 1, 1000, read_only=True),
-    ParamSpec('stale_timeout_s', 0.5, 'wall time [s] without a sample after which /diagnostics '
-              'reports STALE', 0.01, 60.0),
+    ROBOT_PARAM,
+    ParamSpec('driving_topic', 'joint_states', "the topic whose messages drive the estimates: "
+              "'joint_states' or 'imu/data'", read_only=True),
+    ParamSpec('driving_joints', [''], 'joint state messages drive an estimate only if they carry '
+              'one of these joints (split messages: the legs); empty: any joint', read_only=True),
+    ParamSpec('sync_tolerance_s', _DEFAULT_SYNC.tolerance_s, 'IMU and wrench readings are used '
+              'within this of the driving stamp [s]', 1e-4, 0.1, read_only=True),
+    ParamSpec('joint_timeout_s', _DEFAULT_SYNC.joint_timeout_s, 'a joint not updated for this '
+              'long [s] before the driving stamp is missing (a degraded state)', 1e-3, 1.0,
+              read_only=True),
+    ParamSpec('max_step_s', TimelineConfig().max_step_s, 'time rule: the largest step between '
+              'samples of one run [s]; a longer one is a clock jump if confirmed', 0.01, 60.0,
+              read_only=True),
+    ParamSpec('contact_force_n', 10.0, 'foot normal force above which a foot is loaded [N]',
+              0.0, 10000.0, read_only=True),
+    ParamSpec('stale_timeout_s', 0.5, 'wall time [s] without a sensor message after which '
+              '/diagnostics reports STALE', 0.01, 60.0),
 )
-_PARTS = ('joints', 'imu', 'left', 'right')
+_DRIVING = {'joint_states': 'joints', 'imu/data': 'imu'}
 
 
 class StateEstimatorNode(Node):
-    """Wraps :class:`~fall_predictor.monitor.estimator.StateEstimator`; see the module docs."""
+    """Wraps :class:`~fall_predictor.monitor.sensor_pipeline.SensorPipeline`; see the module docs."""
 
     def __init__(self, **kwargs: object) -> None:
         super().__init__(NODE_NAME, **kwargs)
-        p = declare_parameters(self, PARAMS)
-        self._config = EstimatorConfig(contact_force_n=float(p['contact_force_n']))
-        self._max_pending = int(p['max_pending_samples'])
+        p = declare_parameters(self, PARAMS, _check_driving)
+        self._layout = sensor_layout_for(str(p['robot']))
+        sync = SyncConfig(tolerance_s=float(p['sync_tolerance_s']),
+                          joint_timeout_s=float(p['joint_timeout_s']))
+        self._config = PipelineConfig(
+            driving=_DRIVING[str(p['driving_topic'])],
+            driving_joints=tuple(n for n in p['driving_joints'] if n), sync=sync,
+            estimator=EstimatorConfig(contact_force_n=float(p['contact_force_n'])),
+            timeline=TimelineConfig(max_step_s=float(p['max_step_s'])))
         self._stale_timeout_s = float(p['stale_timeout_s'])
-        self._estimator: Optional[StateEstimator] = None
-        self._pending: dict[int, dict] = {}
-        self._runs = SampleIntake(SAMPLE_PERIOD_S)
+        self._pipeline: Optional[SensorPipeline] = None
         self._bad_inputs = InputErrors(self)
-        self.counts = {'samples': 0, 'measurements': 0, 'rejected': 0, 'degraded': 0, 'incomplete': 0,
-                       'resets': 0}
-        self._missing_at_report = 0
+        self._faults = FaultLog(self)
+        self.counts = {'joint_messages': 0, 'imu_messages': 0, 'wrench_messages': 0,
+                       'measurements': 0, 'faults': 0, 'resets': 0}
         self._last_input_wall: Optional[float] = None
         #: The measurements, published and handed to in-process consumers (``fall_monitor``).
-        self.output = Output(create_publisher(self, Float64MultiArray, MEASUREMENT))
+        self.output = Output(create_publisher(self, MeasurementMsg, MEASUREMENT))
+        self._topics = {'joints': self.resolve_topic_name(SENSOR_JOINT_STATES.ros_name),
+                        'imu': self.resolve_topic_name(IMU.ros_name),
+                        'l': self.resolve_topic_name(LEFT_FOOT_WRENCH.ros_name),
+                        'r': self.resolve_topic_name(RIGHT_FOOT_WRENCH.ros_name)}
         inputs = [
             create_subscription(self, String, ROBOT_DESCRIPTION, self._on_description),
-            create_subscription(self, JointState, SENSOR_JOINT_STATES,
-                                lambda m: self._on_part('joints', m, (tuple(m.name), m.position, m.velocity))),
-            create_subscription(self, Imu, IMU, lambda m: self._on_part('imu', m, imu_from_msg(m))),
-            create_subscription(self, WrenchStamped, LEFT_FOOT_WRENCH,
-                                lambda m: self._on_part('left', m, wrench_from_msg(m))),
-            create_subscription(self, WrenchStamped, RIGHT_FOOT_WRENCH,
-                                lambda m: self._on_part('right', m, wrench_from_msg(m))),
+            create_subscription(self, JointState, SENSOR_JOINT_STATES, self._on_joint_state),
+            create_subscription(self, Imu, IMU, self._on_imu),
         ]
-        self.create_service(Trigger, '~/reset', self._on_reset)
-        self._diagnostics = Diagnostics(self, self._report, lambda: self._runs.last_t or 0.0, inputs,
-                                        self._bad_inputs)
-        self.get_logger().info('state estimator waiting for /robot_description')
+        for side, spec in (('l', LEFT_FOOT_WRENCH), ('r', RIGHT_FOOT_WRENCH)):
+            if side in self._layout.force_sensors:
+                inputs.append(create_subscription(
+                    self, WrenchStamped, spec, lambda msg, side=side: self._on_wrench(side, msg)))
+        create_subscription(self, FallEvent, FALL_EVENT, self._on_fall_event)
+        self._diagnostics = Diagnostics(self, self._report, self._last_stamp, inputs, self._bad_inputs)
+        self.get_logger().info(f'state estimator waiting for {self.resolve_topic_name(ROBOT_DESCRIPTION.ros_name)}')
 
-    def _on_reset(self, request: Trigger.Request, response: Trigger.Response
-                  ) -> Trigger.Response:
-        self._runs.reset()
-        self._pending.clear()
-        if self._estimator is not None:
-            self._estimator.reset()
-        self.counts['resets'] += 1
-        response.success, response.message = True, 'estimator reset; next sample starts a run'
-        return response
+    def _last_stamp(self) -> int:
+        return 0 if self._pipeline is None else self._pipeline.timeline.last_ns or 0
 
+    # -- inputs ----------------------------------------------------------------------------
     @guarded('robot description')
     def _on_description(self, msg: String) -> None:
         try:
-            self._estimator = StateEstimator(msg.data, self._config)
-        except HANDLED_ERRORS as error:
+            robot = self._layout.description(msg.data)
+        except DescriptionError as error:
             self._bad_inputs.reject('robot description', error)
             return
-        self._pending.clear()
-        self.get_logger().info(f'robot description: {self._estimator.total_mass_kg:.2f} kg, '
-                               f'{self._estimator.model.nv - 6} joints')
+        self._pipeline = SensorPipeline(robot, self._layout.imu_frame, self._layout.force_sensors,
+                                        self._config, self._topics)
+        self.get_logger().info(f'robot description: {robot.total_mass_kg:.2f} kg, '
+                               f'{len(robot.joint_names)} joints; estimates driven by '
+                               f'{self._topics[self._config.driving]}')
 
-    @guarded('sensor sample')
-    def _on_part(self, part: str, msg, value) -> None:
+    @guarded('joint state')
+    def _on_joint_state(self, msg: JointState) -> None:
+        self._touch('joint_messages')
+        if self._pipeline is None:
+            return
+        estimates, unknown = self._pipeline.joint_state(messages.joint_state_reading(msg))
+        if unknown:
+            self.get_logger().info(f'ignoring joints the robot description does not have: '
+                                   f'{", ".join(unknown)}')
+        self._publish(estimates)
+
+    @guarded('IMU reading')
+    def _on_imu(self, msg: Imu) -> None:
+        self._touch('imu_messages')
+        if self._pipeline is not None:
+            self._publish(self._pipeline.imu(messages.imu_reading(msg)))
+
+    @guarded('foot wrench')
+    def _on_wrench(self, side: str, msg: WrenchStamped) -> None:
+        self._touch('wrench_messages')
+        if self._pipeline is not None:
+            self._publish(self._pipeline.wrench(side, messages.wrench_reading(msg)))
+
+    @guarded('fall event')
+    def _on_fall_event(self, msg: FallEvent) -> None:
+        if msg.event == EVENT_RESET and self._pipeline is not None:
+            self._pipeline.reset()
+            self.counts['resets'] += 1
+
+    def _touch(self, what: str) -> None:
+        self.counts[what] += 1
         self._last_input_wall = time.monotonic()
-        if self._estimator is None:
-            return
-        self._pending.setdefault(stamp_ns(msg), {})[part] = value
-        self._flush()
 
-    def _flush(self) -> None:
-        for ns in sorted(self._pending):
-            parts = self._pending[ns]
-            complete = len(parts) == len(_PARTS)
-            if not complete and len(self._pending) <= self._max_pending:
-                return
-            del self._pending[ns]
-            if 'joints' not in parts or 'imu' not in parts:
-                self.counts['incomplete'] += 1
+    def _publish(self, estimates: list[Estimate]) -> None:
+        for e in estimates:
+            try:
+                msg = messages.measurement_msg(ros_qos.TYPES, e.stamp_ns, ODOM_FRAME, e.measurement,
+                                               e.fault)
+            except HANDLED_ERRORS as error:
+                self._bad_inputs.reject(f'estimate at {e.stamp_ns} ns', error)
                 continue
-            self._process(ns, parts)
+            self._faults.update(e.fault)
+            self.counts['faults' if e.fault else 'measurements'] += 1
+            self.output.publish(msg)
 
-    def _process(self, ns: int, parts: dict) -> None:
-        assert self._estimator is not None
-        t = ns / 1e9
-        kind = self._runs.classify(t)
-        if kind is Sample.NEW_RUN:
-            self._estimator.reset()
-        elif kind is not Sample.NEXT:
-            return                          # duplicate, out of order: counted by the intake
-        names, q, dq = parts['joints']
-        quat, gyro, acc = parts['imu']
-        sample = SensorSample(t=t, joint_names=names, q=q, dq=dq, imu_quat_xyzw=quat, gyro_rad_s=gyro,
-                              accel_m_s2=acc, left_wrench=parts.get('left'), right_wrench=parts.get('right'))
-        self.counts['samples'] += 1
-        try:
-            rejected_before = self._estimator.n_rejected
-            m = self._estimator.update(sample)
-            if m is None:        # rejected, or no loaded sole has anchored the base yet
-                if self._estimator.n_rejected > rejected_before:
-                    self.counts['rejected'] += 1
-                    self._bad_inputs.reject(f'sample at t = {t} s', ValueError(self._estimator.last_issue))
-                return
-            self.counts['degraded'] += bool(self._estimator.degraded)
-            self.output.publish(ros_qos.measurement_to_msg(m))
-        except HANDLED_ERRORS as error:
-            self._bad_inputs.reject(f'sample at t = {t} s', error)
-            return
-        self.counts['measurements'] += 1
-
+    # -- health ----------------------------------------------------------------------------
     def _report(self) -> Report:
-        values = {'t_s': self._runs.last_t, 'invalid_inputs': self._bad_inputs.count,
-                  'last_error': self._bad_inputs.last, **self._runs.counters(), **self.counts}
-        dropped = self._bad_inputs.new_since_last_call()
-        missing = self._runs.missing - self._missing_at_report
-        self._missing_at_report = self._runs.missing
-        if self._estimator is None:
-            return LEVEL_STALE, 'no usable /robot_description yet', values
+        values: dict[str, object] = {'invalid_inputs': self._bad_inputs.count,
+                                     'last_error': self._bad_inputs.last, **self.counts}
+        pipeline = self._pipeline
+        if pipeline is not None:
+            period = pipeline.timeline.period_s
+            values.update(pipeline.timeline.counters())
+            values.update(pipeline.sync.counts)
+            values['driving_rate_hz'] = None if not period else round(1.0 / period, 1)
+            values['joints_never_received'] = ' '.join(pipeline.sync.joints.never_received())
+        if pipeline is None:
+            return LEVEL_STALE, 'no usable robot description yet', values
         if self._last_input_wall is None:
-            return LEVEL_STALE, 'no sensor sample received yet', values
+            return LEVEL_STALE, 'no sensor message received yet', values
         silent_s = time.monotonic() - self._last_input_wall
         if silent_s > self._stale_timeout_s:
-            return LEVEL_STALE, f'no sensor sample for {silent_s:.1f} s', values
-        if dropped or missing:
-            return LEVEL_WARN, f'{dropped} samples dropped, {missing} samples missing', values
-        return LEVEL_OK, 'running', values
+            return LEVEL_STALE, f'no sensor message for {silent_s:.1f} s', values
+        fault = self._faults.current()
+        if fault:
+            return LEVEL_ERROR, fault, values
+        dropped = self._bad_inputs.new_since_last_call()
+        if dropped:
+            return LEVEL_WARN, f'{dropped} invalid sensor messages dropped', values
+        return LEVEL_OK, 'estimating', values
+
+
+def _check_driving(values) -> Optional[str]:
+    if values['driving_topic'] not in _DRIVING:
+        return f"driving_topic must be one of {sorted(_DRIVING)}, got {values['driving_topic']!r}"
+    return None
 
 
 def main(args: Optional[list[str]] = None) -> int:

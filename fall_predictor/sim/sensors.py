@@ -42,12 +42,15 @@ from typing import Optional
 import numpy as np
 import pybullet as pb
 
+from fall_predictor.monitor.sensor_records import SensorSample
 from fall_predictor.robot import model as rm
 
 SAMPLE_RATE_HZ = 1000.0
 _NYQUIST_SQRT = math.sqrt(SAMPLE_RATE_HZ / 2.0)
 _DEG = math.pi / 180.0
 _G = 9.81
+#: What the monitor needs to know of the simulated robot's sensors beyond its URDF.
+SENSOR_LAYOUT = rm.SENSOR_LAYOUT
 #: IMU position in the torso link frame [m] (at the torso frame origin).
 IMU_POSITION_IN_TORSO_M = (0.0, 0.0, 0.0)
 
@@ -116,28 +119,6 @@ class SensorParams:
     def to_dict(self) -> dict:
         """JSON-ready parameters (recorded in bag and dataset metadata)."""
         return asdict(self)
-
-
-@dataclass(slots=True)
-class SensorReading:
-    """One sample of every sensor, as the robot's drivers publish it.
-
-    ``imu_quat_xyzw`` is the torso orientation in the world (x, y, z, w); ``gyro_rad_s`` and
-    ``accel_m_s2`` (specific force: reads +9.81 m/s^2 up at rest) are in the torso frame.
-    Wrenches are (fx, fy, fz, tx, ty, tz) of the ground on the sole, in the sole frame;
-    ``None`` where a sensor is missing (the estimator then degrades).
-    """
-
-    t: float
-    joint_names: tuple[str, ...]
-    q: np.ndarray
-    dq: np.ndarray
-    tau: np.ndarray
-    imu_quat_xyzw: np.ndarray
-    gyro_rad_s: np.ndarray
-    accel_m_s2: np.ndarray
-    left_wrench: Optional[np.ndarray]
-    right_wrench: Optional[np.ndarray]
 
 
 @dataclass(slots=True)
@@ -252,7 +233,7 @@ class SensorSuite:
         buf.append(value)
         return buf[0]
 
-    def read(self, truth: SensorTruth) -> SensorReading:
+    def read(self, truth: SensorTruth) -> SensorSample:
         """The readings published at ``truth.t`` (the delayed, noisy sensor values)."""
         p, rng, k = self.params, self.rng, self.params.noise_scale
         e, i, f = p.encoders, p.imu, p.force_torque
@@ -283,13 +264,14 @@ class SensorSuite:
         enc = self._delayed('enc', (q, dq, tau))
         imu = self._delayed('imu', (quat, gyro, accel))
         ft = self._delayed('ft', (wrenches['l'], wrenches['r']))
-        return SensorReading(t=truth.t, joint_names=rm.JOINT_NAMES, q=enc[0], dq=enc[1], tau=enc[2],
-                             imu_quat_xyzw=imu[0], gyro_rad_s=imu[1], accel_m_s2=imu[2],
-                             left_wrench=ft[0], right_wrench=ft[1])
+        return SensorSample(t=truth.t, joint_names=rm.JOINT_NAMES, q=enc[0], dq=enc[1], tau=enc[2],
+                            imu_quat_xyzw=imu[0], gyro_rad_s=imu[1], accel_m_s2=imu[2],
+                            left_wrench=ft[0], right_wrench=ft[1], imu_frame=rm.IMU_LINK,
+                            wrench_frames=rm.SOLE_FRAMES)
 
 
 def apply_sensors(truths: list[SensorTruth], params: SensorParams = SensorParams(),
-                  seed: int = 0) -> list[SensorReading]:
+                  seed: int = 0) -> list[SensorSample]:
     """Readings of a whole recorded run (the same :class:`SensorSuite` a live node steps)."""
     suite = SensorSuite(params, seed)
     return [suite.read(t) for t in truths]

@@ -1,6 +1,6 @@
 """The array layouts on the wire: what the contract's per-sample messages hold, and time stamps.
 
-Topic names, types and QoS are in :mod:`fall_predictor.data.topics`. This module has no
+Topic names, types and QoS are in :mod:`fall_predictor.contract.topics`. This module has no
 ROS imports: the rclpy nodes (through :mod:`fall_predictor.ros.conversions`) and the bag tools
 (:mod:`fall_predictor.data.bagio`) both map these definitions onto their own message objects.
 
@@ -45,7 +45,7 @@ from typing import NamedTuple, Optional, Protocol
 import numpy as np
 from numpy.typing import ArrayLike
 
-from fall_predictor.data.topics import WORLD_FRAME, WireFormatError, ns_to_time, time_to_ns
+from fall_predictor.contract.topics import WORLD_FRAME, WireFormatError, ns_to_time, time_to_ns
 from fall_predictor.monitor.plausibility import (JOINT_VALUE_BOUNDS, MAX_PUSH_FORCE_N,
                                                  ImplausibleSample, check_feature_bounds,
                                                  check_measurement_bounds)
@@ -309,7 +309,7 @@ def unpack_features(data: ArrayLike) -> FeatureSample:
 # --------------------------------------------------------------------------------------------
 
 #: ``diagnostic_msgs/DiagnosticStatus`` levels used on ``/diagnostics``.
-LEVEL_OK, LEVEL_WARN, LEVEL_STALE = 0, 1, 3
+LEVEL_OK, LEVEL_WARN, LEVEL_ERROR, LEVEL_STALE = 0, 1, 2, 3
 #: State status codes (slot ``I_STATE_STATUS``): predicted on a fresh sample; the monitor is
 #: disabled (``~/enable`` false: no trigger); stale (the sample was too old, invalid, or no
 #: input arrived for ``stale_timeout_s``: no prediction, the latch is kept).

@@ -3,7 +3,7 @@
 The single place where the ROS interface of the package is named. It has no ROS imports: the
 rclpy nodes (through :mod:`fall_predictor.ros.conversions`) and the bag tools
 (:mod:`fall_predictor.data.bagio`) map these definitions onto their own message objects. The
-array layouts carried by some of these topics are in :mod:`fall_predictor.data.wire`.
+array layouts carried by some of these topics are in :mod:`fall_predictor.contract.wire`.
 """
 from __future__ import annotations
 
@@ -108,16 +108,24 @@ class TopicSpec:
         return self.qos if self.sub_qos is None else self.sub_qos
 
 
+#: Frame of the state estimator's world-fixed vectors (REP 105).
+ODOM_FRAME = 'odom'
+
 MEASUREMENT = TopicSpec(
-    '/fall_predictor/measurement', 'std_msgs/msg/Float64MultiArray', STREAM_QOS, SIM_RATE_HZ,
-    None, MEASUREMENT_LABEL, 'one simulation sample (Measurement), layout v1', SENSOR_SUB_QOS)
+    '/fall_predictor/measurement', 'fall_predictor/msg/Measurement', STREAM_QOS, SIM_RATE_HZ,
+    ODOM_FRAME, None, 'the whole-body state per sensor sample (state estimator), or its fault',
+    SENSOR_SUB_QOS)
 FEATURES = TopicSpec(
-    '/fall_predictor/features', 'std_msgs/msg/Float64MultiArray', STREAM_QOS, SIM_RATE_HZ,
-    None, FEATURES_LABEL, 't, the 15 features, contact mode index', SENSOR_SUB_QOS)
+    '/fall_predictor/features', 'fall_predictor/msg/Features', STREAM_QOS, SIM_RATE_HZ,
+    '', None, 'the 15 features, the contact mode and the base tilt per sample, or its fault',
+    SENSOR_SUB_QOS)
 STATE = TopicSpec(
-    '/fall_predictor/state', 'std_msgs/msg/Float64MultiArray', STREAM_QOS, SIM_RATE_HZ,
-    None, STATE_LABEL, 'predictor output per sample: status, falling, latch, mode, window, '
-    'time to fall, direction', SENSOR_SUB_QOS)
+    '/fall_predictor/state', 'fall_predictor/msg/FallState', STREAM_QOS, SIM_RATE_HZ,
+    'base_footprint', None, 'the monitor per sample: status and reason, falling, latched, '
+    'contact mode, time to fall, fall direction', SENSOR_SUB_QOS)
+FALL_EVENT = TopicSpec(
+    '/fall_predictor/fall_event', 'fall_predictor/msg/FallEvent', LATCHED_QOS, None,
+    'base_footprint', None, 'the last change of the fall state: falling, fallen, standing, reset')
 FALLING = TopicSpec(
     '/fall_predictor/falling', 'std_msgs/msg/Bool', LATCHED_QOS, None, None, None,
     'the trigger: true from the first falling prediction until ~/reset (latched)')
@@ -156,7 +164,7 @@ DIAGNOSTICS = TopicSpec(
 
 #: The interface table, in README order.
 TOPICS: tuple[TopicSpec, ...] = (
-    MEASUREMENT, FEATURES, STATE, FALLING, FALL_DIRECTION, JOINT_STATES, PUSH, PUSH_REQUEST,
+    MEASUREMENT, FEATURES, STATE, FALL_EVENT, FALLING, FALL_DIRECTION, JOINT_STATES, PUSH, PUSH_REQUEST,
     CONTROLLER_MODE, JOINT_COMMANDS, CLOCK, DIAGNOSTICS,
 )
 TOPICS_BY_NAME: dict[str, TopicSpec] = {spec.name: spec for spec in TOPICS}
@@ -225,12 +233,12 @@ RECORDER_NODE = 'recorder_node'
 RESET_SERVICE = 'simulator_node/reset'
 #: ``std_srvs/srv/SetBool``: pause (true) or resume (false) the simulation.
 PAUSE_SERVICE = 'simulator_node/pause'
-#: ``std_srvs/srv/Trigger`` of the monitor and controller nodes: start a new run (clear the
-#: history and the latch; the controller goes back to C_bal). The only way to undo a fall.
-MONITOR_RESET_SERVICES = ('state_estimator_node/reset', 'feature_node/reset',
-                          'predictor_node/reset', 'controller_node/reset')
+#: ``std_srvs/srv/Trigger``: the one reset of the whole monitor (history, latch, trigger; the
+#: monitor's other nodes and the controller follow the RESET event on FALL_EVENT). The only way
+#: to undo a fall.
+MONITOR_RESET_SERVICE = 'fall_predictor/reset'
 #: ``std_srvs/srv/SetBool``: enable (true) or disable (false) the fall trigger.
-ENABLE_SERVICE = 'predictor_node/enable'
+ENABLE_SERVICE = 'fall_predictor/enable'
 
 
 def check_controller_mode(mode: str) -> str:
@@ -269,8 +277,8 @@ ROBOT_DESCRIPTION = TopicSpec(
 #: The estimator's output and the simulator's exact state: both carry the measurement layout.
 #: With sensors on, MEASUREMENT is the estimate and this topic the ground truth (evaluation only).
 GROUND_TRUTH = TopicSpec(
-    '/fall_predictor/ground_truth', 'std_msgs/msg/Float64MultiArray', STREAM_QOS, SIM_RATE_HZ,
-    None, MEASUREMENT_LABEL, 'simulator exact state (evaluation only), measurement layout v1')
+    '/fall_predictor/ground_truth', 'fall_predictor/msg/Measurement', STREAM_QOS, SIM_RATE_HZ,
+    ODOM_FRAME, None, 'simulator exact state (evaluation only)')
 SENSOR_TOPICS: tuple[TopicSpec, ...] = (
     SENSOR_JOINT_STATES, IMU, LEFT_FOOT_WRENCH, RIGHT_FOOT_WRENCH, ROBOT_DESCRIPTION, GROUND_TRUTH)
 SENSOR_TOPICS_BY_NAME: dict[str, TopicSpec] = {spec.name: spec for spec in SENSOR_TOPICS}

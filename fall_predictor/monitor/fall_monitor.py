@@ -1,0 +1,206 @@
+"""The monitor's decision per sample: the prediction, the trigger, the fall direction and time to
+fall, and whether the robot is down (method §8, §12).
+
+:class:`FallMonitor` is the predictor node's logic without ROS (the node only converts messages),
+and it runs the same offline. Per sample of features it gives a :class:`MonitorState` (what
+``fall_predictor/state`` carries) and, when the robot's fall state changes, a :class:`FallEvent`:
+
+* **prediction**: :class:`~fall_predictor.monitor.predictor.OnlinePredictor` (per-mode decision
+  lists, the ``tau_his`` window, the CoM guard);
+* **trigger**: ``latched`` from the first falling prediction until :meth:`FallMonitor.reset`, the
+  only way to undo it; a new run (a clock jump), a degraded or stale sample never undoes it;
+* **direction**: the heading-frame direction of the horizontal momentum at each falling sample
+  (:func:`~fall_predictor.monitor.fall_direction.momentum_direction`); **time to fall** from the
+  model's regressor when it has one, clamped to [0, 1000] s (NaN otherwise);
+* **fallen**: the robot is down when its CoM is below ``fallen_com_height_m`` above the support or
+  its floating base is tilted beyond ``fallen_tilt_rad`` (method §4); it stands again when the CoM
+  is back above ``standing_com_height_m`` with the base within ``standing_tilt_rad`` of upright,
+  for ``standing_time_s``. While down the state says FALLEN and nothing is predicted;
+* **disabled** (:meth:`FallMonitor.enable`): states say DISABLED and nothing triggers;
+* **degraded / stale** samples (:meth:`FallMonitor.unusable`): no prediction, the reason in words;
+  the history window restarts after them (no window spans a hole in the data), the latch stays.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Optional, Sequence
+
+from fall_predictor.monitor.decision_list import PerModeDecisionLists
+from fall_predictor.monitor.fall_direction import momentum_direction
+from fall_predictor.monitor.predictor import COM_HEIGHT_FEATURE, OnlinePredictor
+
+#: ``MonitorState.status`` values (``fall_predictor/msg/FallState`` STATUS_*).
+STATUS_OK, STATUS_DEGRADED, STATUS_STALE, STATUS_DISABLED, STATUS_FALLEN = range(5)
+STATUS_NAMES = ('ok', 'degraded', 'stale', 'disabled', 'fallen')
+#: ``FallEvent.kind`` values (``fall_predictor/msg/FallEvent`` EVENT_*).
+EVENT_FALLING, EVENT_FALLEN, EVENT_STANDING, EVENT_RESET = range(4)
+EVENT_NAMES = ('falling', 'fallen', 'standing', 'reset')
+#: Largest time to fall reported [s].
+MAX_TIME_TO_FALL_S = 1e3
+_NAN2 = (math.nan, math.nan)
+
+
+@dataclass(frozen=True, slots=True)
+class MonitorState:
+    """The monitor's output for one input sample (``fall_predictor/state``)."""
+
+    status: int
+    reason: str = ''                    #: why status is not OK, in words
+    falling: bool = False               #: the prediction (history window applied)
+    latched: bool = False               #: falling predicted since the last reset: the trigger
+    atomic: bool = False                #: the contact mode's decision list alone said falling
+    guard: bool = False                 #: the CoM was below the guard height
+    contact_mode: Optional[int] = None  #: index into CONTACT_MODE_NAMES; None if unknown
+    time_to_fall_s: float = math.nan    #: predicted time left until fallen [s]
+    fall_direction: tuple[float, float] = _NAN2     #: unit (x, y), heading frame
+    tau_his_s: float = 0.0              #: history window in use [s]
+
+    @property
+    def word(self) -> str:
+        """One word for logs: falling, balanced, or the status."""
+        if self.status != STATUS_OK:
+            return STATUS_NAMES[self.status]
+        return 'falling' if self.falling else 'balanced'
+
+
+@dataclass(frozen=True, slots=True)
+class FallEvent:
+    """A change of the robot's fall state (``fall_predictor/fall_event``)."""
+
+    kind: int
+    direction: tuple[float, float] = _NAN2
+    time_to_fall_s: float = math.nan
+    contact_mode: Optional[int] = None
+
+
+@dataclass(frozen=True)
+class FallenConfig:
+    """When the robot is down and when it stands again (robot-specific heights: its profile)."""
+
+    fallen_com_height_m: float
+    standing_com_height_m: float
+    fallen_tilt_rad: float = math.radians(60.0)
+    standing_tilt_rad: float = math.radians(30.0)
+    standing_time_s: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.fallen_com_height_m < self.standing_com_height_m:
+            raise ValueError(f'need 0 < fallen_com_height_m < standing_com_height_m, got '
+                             f'{self.fallen_com_height_m} and {self.standing_com_height_m}')
+        if not 0.0 < self.standing_tilt_rad < self.fallen_tilt_rad <= math.pi:
+            raise ValueError('need 0 < standing_tilt_rad < fallen_tilt_rad <= pi')
+        if not (math.isfinite(self.standing_time_s) and self.standing_time_s >= 0.0):
+            raise ValueError(f'standing_time_s must be >= 0, got {self.standing_time_s}')
+
+
+class FallMonitor:
+    """Features in, :class:`MonitorState` (and :class:`FallEvent` s) out; see the module docs.
+
+    ``time_to_fall``: an object with ``predict_one(x, mode)`` (the model's regressor) or None;
+    ``mass_kg``: the robot's mass (the momentum's direction does not depend on it, its capture
+    point would).
+    """
+
+    def __init__(self, lists: PerModeDecisionLists, tau_his_s: float, fallen: FallenConfig,
+                 dt_s: float = 0.001, guard_com_height_m: Optional[float] = None,
+                 mass_kg: float = 1.0, time_to_fall: Optional[object] = None) -> None:
+        kwargs = {} if guard_com_height_m is None else {'guard_com_height_m': guard_com_height_m}
+        self.predictor = OnlinePredictor(lists, tau_his_s, dt_s, **kwargs)
+        self.fallen_config = fallen
+        self.mass_kg = float(mass_kg)
+        self.time_to_fall = time_to_fall
+        self.enabled = True
+        self.reset()
+
+    @property
+    def tau_his_s(self) -> float:
+        return self.predictor.tau_his_s
+
+    @tau_his_s.setter
+    def tau_his_s(self, value: float) -> None:
+        self.predictor.tau_his_s = value
+
+    @property
+    def latched(self) -> bool:
+        return self._latched
+
+    @property
+    def fallen(self) -> bool:
+        return self._fallen
+
+    def reset(self) -> FallEvent:
+        """Start over: no history, no latch, not fallen (the only way to undo a fall)."""
+        self.predictor.reset()
+        self._latched = False
+        self._fallen = False
+        self._standing_since: Optional[float] = None
+        return FallEvent(EVENT_RESET)
+
+    def new_run(self) -> None:
+        """The input's clock jumped (a new run): the window restarts; latch and fallen stay."""
+        self.predictor.reset()
+        self._standing_since = None
+
+    def enable(self, enabled: bool) -> None:
+        """Switch the trigger on or off; either way the window restarts and, off, the latch goes."""
+        if enabled != self.enabled:
+            self.enabled = enabled
+            self.predictor.reset()
+            if not enabled:
+                self._latched = False
+
+    def unusable(self, reason: str, stale: bool = False) -> MonitorState:
+        """The state of a sample that cannot be used (degraded sensors, or stale)."""
+        self.predictor.reset()
+        self._standing_since = None
+        return MonitorState(STATUS_STALE if stale else STATUS_DEGRADED, reason,
+                            latched=self._latched, tau_his_s=self.predictor.tau_his_s)
+
+    def step(self, t: float, x: Sequence[float], mode: int, base_tilt_rad: float = 0.0
+             ) -> tuple[MonitorState, Optional[FallEvent]]:
+        """One sample at run time ``t`` [s]: features ``x`` (15), contact mode, base tilt [rad]."""
+        values = x.tolist() if hasattr(x, 'tolist') else list(x)
+        event = self._update_fallen(t, values[COM_HEIGHT_FEATURE], base_tilt_rad, mode)
+        tau = self.predictor.tau_his_s
+        if self._fallen:
+            self.predictor.reset()
+            return MonitorState(STATUS_FALLEN, 'the robot is down', latched=self._latched,
+                                contact_mode=mode, tau_his_s=tau), event
+        if not self.enabled:
+            return MonitorState(STATUS_DISABLED, 'the fall trigger is disabled', contact_mode=mode,
+                                tau_his_s=tau), event
+        out = self.predictor.step(t, values, mode)
+        direction, time_to_fall_s = _NAN2, math.nan
+        if out.falling:
+            d = momentum_direction(values, self.mass_kg)
+            direction = (float(d[0]), float(d[1]))
+            if self.time_to_fall is not None:
+                time_to_fall_s = min(max(float(self.time_to_fall.predict_one(values, mode)), 0.0),
+                                     MAX_TIME_TO_FALL_S)
+            if not self._latched:
+                self._latched = True
+                event = FallEvent(EVENT_FALLING, direction, time_to_fall_s, mode)
+        return MonitorState(STATUS_OK, '', out.falling, self._latched, out.atomic, out.guard, mode,
+                            time_to_fall_s, direction, tau), event
+
+    def _update_fallen(self, t: float, com_height_m: float, tilt_rad: float, mode: int
+                       ) -> Optional[FallEvent]:
+        cfg = self.fallen_config
+        if not self._fallen:
+            if com_height_m < cfg.fallen_com_height_m or tilt_rad > cfg.fallen_tilt_rad:
+                self._fallen = True
+                self._standing_since = None
+                return FallEvent(EVENT_FALLEN, contact_mode=mode)
+            return None
+        upright = com_height_m > cfg.standing_com_height_m and tilt_rad < cfg.standing_tilt_rad
+        if not upright:
+            self._standing_since = None
+            return None
+        if self._standing_since is None:
+            self._standing_since = t
+        if t - self._standing_since >= cfg.standing_time_s:
+            self._fallen = False
+            self._standing_since = None
+            return FallEvent(EVENT_STANDING, contact_mode=mode)
+        return None

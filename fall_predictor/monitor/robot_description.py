@@ -1,0 +1,128 @@
+"""The robot description as the state estimator uses it: a Pinocchio model of the URDF with the
+sole frames, the joints and their limits, and the frames named by the sensors' messages.
+
+The sole frames (origin at the centre of the sole's underside, x forward, z up, method §10) come
+from the URDF when it has them, else from the robot profile: a frame fixed to a link at a given
+offset, added to the model. A sensor names its frame in its messages (``header.frame_id``); the
+frame must be a frame of the description (a link, a joint or a fixed frame), else the sensor cannot
+be used and :meth:`RobotDescription.frame_id` says so.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+import pinocchio as pin
+
+from fall_predictor.monitor.plausibility import JointBounds
+from fall_predictor.monitor.records import SoleGeometry
+
+SIDES = ('l', 'r')
+
+
+@dataclass(frozen=True)
+class SensorLayout:
+    """What the monitor needs to know of a robot beyond its URDF (from its robot profile): the
+    soles, the IMU frame of readings that name none, and the feet with a force/torque sensor."""
+
+    soles: dict[str, SoleGeometry]
+    imu_frame: str
+    force_sensors: tuple[str, ...] = SIDES
+
+    def description(self, urdf_xml: str) -> 'RobotDescription':
+        """The robot description of ``urdf_xml`` with these soles."""
+        return RobotDescription(urdf_xml, self.soles)
+
+
+class DescriptionError(ValueError):
+    """The robot description cannot serve the estimator; the message says why."""
+
+
+class RobotDescription:
+    """Pinocchio model and data of one robot, with the frames and joints the estimator needs.
+
+    ``urdf_xml``: the URDF text (``/robot_description``); ``soles``: per side ('l', 'r');
+    ``package_dirs``: where ``package://`` mesh paths resolve (meshes are not needed: only the
+    kinematic tree and the inertias are read).
+    """
+
+    def __init__(self, urdf_xml: str, soles: dict[str, SoleGeometry]) -> None:
+        try:
+            self.model = pin.buildModelFromXML(urdf_xml, pin.JointModelFreeFlyer())
+        except Exception as exc:  # Pinocchio raises its own types on malformed XML
+            raise DescriptionError(f'cannot build a model from the URDF: {exc}') from exc
+        self.soles = dict(soles)
+        for side in SIDES:
+            self._ensure_sole_frame(side)
+        self.data = self.model.createData()
+        self.sole_ids = {side: self.model.getFrameId(self.soles[side].frame) for side in SIDES}
+        self.total_mass_kg = float(sum(inertia.mass for inertia in self.model.inertias))
+        self.joint_names, iq, iv, continuous = [], [], [], []
+        lower, upper, velocity = [], [], []
+        for j in range(2, self.model.njoints):     # 0: universe, 1: the floating base
+            joint = self.model.joints[j]
+            if joint.nv != 1:
+                raise DescriptionError(f'joint {self.model.names[j]!r} has {joint.nv} degrees of '
+                                       'freedom: only revolute, continuous and prismatic joints are '
+                                       'supported')
+            self.joint_names.append(self.model.names[j])
+            iq.append(joint.idx_q)
+            iv.append(joint.idx_v)
+            is_continuous = joint.nq == 2          # cos/sin parametrisation
+            continuous.append(is_continuous)
+            lower.append(-np.inf if is_continuous else self.model.lowerPositionLimit[joint.idx_q])
+            upper.append(np.inf if is_continuous else self.model.upperPositionLimit[joint.idx_q])
+            v_max = self.model.velocityLimit[joint.idx_v]
+            velocity.append(v_max if 0.0 < v_max < 1e10 else np.inf)
+        self.joint_names = tuple(self.joint_names)
+        self.idx_q = np.array(iq, dtype=np.int64)
+        self.idx_v = np.array(iv, dtype=np.int64)
+        self.continuous = np.array(continuous, dtype=bool)
+        self.joint_bounds = JointBounds(self.joint_names, np.array(lower), np.array(upper),
+                                        np.array(velocity))
+        self._frame_cache: dict[str, int] = {}
+
+    def _ensure_sole_frame(self, side: str) -> None:
+        sole = self.soles[side]
+        if self.model.existFrame(sole.frame):
+            return
+        if sole.link is None or not self.model.existFrame(sole.link):
+            raise DescriptionError(
+                f'the URDF has no frame {sole.frame!r} and the robot profile gives no link of the '
+                f'URDF to put it on (link {sole.link!r}): the estimator needs both sole frames')
+        parent = self.model.frames[self.model.getFrameId(sole.link)]
+        placement = parent.placement * pin.SE3(np.eye(3), np.asarray(sole.origin_xyz, dtype=float))
+        self.model.addFrame(pin.Frame(sole.frame, parent.parentJoint, self.model.getFrameId(sole.link),
+                                      placement, pin.FrameType.OP_FRAME))
+
+    def frame_id(self, name: str, sensor: str) -> int:
+        """The model's id of the frame ``name`` a ``sensor`` reports in; DescriptionError if the
+        description has no such frame."""
+        cached = self._frame_cache.get(name)
+        if cached is not None:
+            return cached
+        if not name or not self.model.existFrame(name):
+            raise DescriptionError(f'{sensor} frame {name!r} is not a frame of the robot description')
+        self._frame_cache[name] = frame = self.model.getFrameId(name)
+        return frame
+
+    def joint_order(self, names: Sequence[str]) -> np.ndarray:
+        """Indices into :attr:`joint_names` of ``names`` (DescriptionError for an unknown one)."""
+        index = {n: i for i, n in enumerate(self.joint_names)}
+        unknown = [n for n in names if n not in index]
+        if unknown:
+            raise DescriptionError(f'joints {unknown} are not in the robot description')
+        return np.array([index[n] for n in names], dtype=np.int64)
+
+    def configuration(self, q_joints: np.ndarray) -> np.ndarray:
+        """The full configuration (base at the origin, identity orientation) for joint positions in
+        :attr:`joint_names` order (continuous joints as cos, sin)."""
+        q = pin.neutral(self.model)
+        regular = ~self.continuous
+        q[self.idx_q[regular]] = q_joints[regular]
+        if self.continuous.any():
+            angles = q_joints[self.continuous]
+            q[self.idx_q[self.continuous]] = np.cos(angles)
+            q[self.idx_q[self.continuous] + 1] = np.sin(angles)
+        return q

@@ -1,0 +1,160 @@
+"""Sample stamps as a robot publishes them: ROS time in, run time out (method §12).
+
+A robot stamps its sensor messages with ROS time: integer nanoseconds since 1970 on a real robot,
+simulation time under ``use_sim_time``; each sensor on its own clock and rate. Inside, the monitor
+works on **run time**: float seconds since the anchor of the current run (small numbers, full float
+precision; the sample-time bounds of :mod:`~fall_predictor.monitor.plausibility` apply to it). Every
+stamp the monitor publishes is its input's own integer stamp, never a value converted back from run
+time.
+
+:class:`StampTimeline` is the one rule every node applies to its input stream (live and offline):
+
+* **next**: a stamp after the previous accepted one by at most ``max_step_s`` is accepted; samples
+  missing on the stream's period (estimated from the stream itself) are counted;
+* **duplicate**: the same stamp again is dropped;
+* **out of order**: a stamp before the previous accepted one, by at most ``max_step_s``, is dropped;
+* **jump**: a stamp further than ``max_step_s`` after the previous accepted one, or any stamp
+  before it (a stray stamp: far future, far past, ``sec = 2^31 - 1``; an old sample; or the first
+  sample after a clock jump or a simulator's restart) is held as a candidate and dropped.
+  ``jump_samples`` consecutive candidates that are consistent with each other (each after the one
+  before by at most ``max_step_s``) are a real clock jump: the timeline re-anchors there and a new
+  run starts (:data:`Stamp.NEW_RUN`), without a reset call. A sample of the current run in between
+  discards the candidates (counted as strays, or as out of order when they were less than
+  ``max_step_s`` old): one stray stamp neither blinds the monitor nor starts a new run.
+
+The first sample after construction or :meth:`StampTimeline.reset` anchors a run whatever its stamp;
+if it was a stray, the stream re-anchors after ``jump_samples`` samples.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import Enum
+from typing import Optional
+
+#: Nanoseconds per second.
+NS_PER_S = 1_000_000_000
+
+
+class Stamp(Enum):
+    """How one stamp relates to the stream so far."""
+
+    NEXT = 'next'                   #: accepted: later than the previous accepted stamp
+    NEW_RUN = 'new_run'             #: accepted: a clock jump was confirmed; a new run starts here
+    DUPLICATE = 'duplicate'         #: dropped: the previous accepted stamp again
+    OUT_OF_ORDER = 'out_of_order'   #: dropped: slightly older than the previous accepted stamp
+    JUMP_PENDING = 'jump_pending'   #: dropped: far from the run; a clock jump if more follow
+
+    @property
+    def accepted(self) -> bool:
+        return self is Stamp.NEXT or self is Stamp.NEW_RUN
+
+
+@dataclass(frozen=True)
+class TimelineConfig:
+    """The time rule's two numbers (see the module docstring)."""
+
+    #: Largest step between consecutive samples of one run [s]; a longer step is a jump.
+    max_step_s: float = 0.5
+    #: Consecutive, mutually consistent samples that confirm a clock jump.
+    jump_samples: int = 5
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.max_step_s) and self.max_step_s > 0.0):
+            raise ValueError(f'max_step_s must be a finite number > 0 [s], got {self.max_step_s!r}')
+        if not (isinstance(self.jump_samples, int) and self.jump_samples >= 1):
+            raise ValueError(f'jump_samples must be an integer >= 1, got {self.jump_samples!r}')
+
+
+class StampTimeline:
+    """Classifies a stream of integer stamps [ns] and gives each accepted one its run time [s]."""
+
+    def __init__(self, config: TimelineConfig = TimelineConfig()) -> None:
+        self.config = config
+        self._max_step_ns = round(config.max_step_s * NS_PER_S)
+        self.duplicates = 0         #: dropped: the same stamp again
+        self.out_of_order = 0       #: dropped: slightly older than the previous
+        self.strays = 0             #: dropped: jump candidates discarded by a sample of the run
+        self.jumps = 0              #: clock jumps confirmed (new runs without a reset)
+        self.missing = 0            #: samples missing on the stream's estimated period
+        self.reset()
+
+    def reset(self) -> None:
+        """Explicit new run: the next stamp anchors it, whatever its value."""
+        self.anchor_ns: Optional[int] = None
+        self.last_ns: Optional[int] = None
+        self._candidates: list[int] = []
+        self._period_ns: Optional[float] = None
+
+    @property
+    def period_s(self) -> Optional[float]:
+        """The stream's sample period as estimated so far [s], or None."""
+        return None if self._period_ns is None else self._period_ns / NS_PER_S
+
+    def run_time(self, stamp_ns: int) -> float:
+        """Run time [s] of an accepted stamp: seconds since the current run's anchor."""
+        assert self.anchor_ns is not None, 'no run yet'
+        return (stamp_ns - self.anchor_ns) / NS_PER_S
+
+    def last_run_time(self) -> Optional[float]:
+        """Run time [s] of the latest accepted stamp, or None before the first."""
+        return None if self.last_ns is None else self.run_time(self.last_ns)
+
+    def classify(self, stamp_ns: int) -> Stamp:
+        """Classify ``stamp_ns`` (an integer, ROS time in nanoseconds) and remember it."""
+        last = self.last_ns
+        if last is None:
+            self._anchor(stamp_ns)
+            return Stamp.NEXT
+        step = stamp_ns - last
+        if 0 < step <= self._max_step_ns:
+            if self._candidates:
+                self._discard_candidates()
+            self._count_missing(step)
+            self.last_ns = stamp_ns
+            return Stamp.NEXT
+        if step == 0:
+            self.duplicates += 1
+            return Stamp.DUPLICATE
+        return self._jump_candidate(stamp_ns, -self._max_step_ns <= step < 0)
+
+    def _jump_candidate(self, stamp_ns: int, out_of_order: bool) -> Stamp:
+        candidates = self._candidates
+        if candidates and not 0 < stamp_ns - candidates[-1] <= self._max_step_ns:
+            self._discard_candidates()          # not consistent with the ones before: start over
+        candidates.append(stamp_ns)
+        if len(candidates) < self.config.jump_samples:
+            if out_of_order:
+                self.out_of_order += 1
+                return Stamp.OUT_OF_ORDER
+            return Stamp.JUMP_PENDING
+        self.jumps += 1
+        self._anchor(stamp_ns)
+        return Stamp.NEW_RUN
+
+    def _discard_candidates(self) -> None:
+        last = self.last_ns
+        self.strays += sum(1 for c in self._candidates if not -self._max_step_ns <= c - last < 0)
+        self._candidates.clear()
+
+    def _anchor(self, stamp_ns: int) -> None:
+        self.anchor_ns = self.last_ns = stamp_ns
+        self._candidates.clear()
+        self._period_ns = None
+
+    def _count_missing(self, step_ns: int) -> None:
+        period = self._period_ns
+        if period is None:
+            self._period_ns = float(step_ns)
+            return
+        if step_ns > 1.5 * period:
+            self.missing += round(step_ns / period) - 1
+        else:
+            # A slow average of regular steps: the period of the stream (gaps left out).
+            self._period_ns = period + 0.01 * (step_ns - period)
+
+    def counters(self) -> dict[str, int]:
+        """Counts for ``/diagnostics``."""
+        return {'duplicates': self.duplicates, 'out_of_order': self.out_of_order,
+                'stray_stamps': self.strays, 'clock_jumps': self.jumps,
+                'missing_samples': self.missing}

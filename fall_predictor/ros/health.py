@@ -1,0 +1,182 @@
+"""A node's health: ``/diagnostics`` reports, counted and throttled rejections, guarded callbacks,
+and how old a sample is on the node's ROS clock."""
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+from typing import Any, Callable, Optional
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rclpy.subscription import Subscription
+
+from fall_predictor.contract.topics import DIAGNOSTICS, DIAGNOSTICS_RATE_HZ
+from fall_predictor.ros import conversions as ros_qos
+from fall_predictor.ros.endpoints import create_publisher
+from fall_predictor.ros.parameters import ParamSpec
+
+#: Exceptions a message handler catches, counts and reports instead of dying: malformed or
+#: implausible values (ValueError, WireFormatError), and numeric failures of conversions
+#: (OverflowError, FloatingPointError, ZeroDivisionError are ArithmeticErrors; rclpy raises
+#: SystemError when a value does not fit a message field).
+HANDLED_ERRORS: tuple[type[BaseException], ...] = (ValueError, ArithmeticError, SystemError)
+
+# --------------------------------------------------------------------------------------------
+# Diagnostics
+# --------------------------------------------------------------------------------------------
+
+#: /diagnostics key listing the input topics without a matched publisher (space-separated).
+UNMATCHED_INPUTS = 'unmatched_inputs'
+#: A node's health report: (level, message, key values).
+Report = tuple[int, str, Mapping[str, object]]
+
+
+def steady_clock() -> Clock:
+    """A wall clock for watchdogs: never simulation time, never jumps."""
+    return Clock(clock_type=ClockType.STEADY_TIME)
+
+
+class Diagnostics:
+    """Publishes ``report()`` on ``/diagnostics`` every ``period_s`` wall seconds.
+
+    The status is named after the node; its header stamp is the node's latest sample time
+    (the input stamp it has processed last, ROS time [ns]), from ``sample_stamp_ns()``. The value
+    ``unmatched_inputs`` lists the topics of ``inputs`` no publisher is matched with yet
+    (empty when every input is connected): a run should start only once it is empty
+    everywhere, or its first samples are lost for the unmatched subscriber.
+    """
+
+    def __init__(self, node: Node, report: Callable[[], Report],
+                 sample_stamp_ns: Callable[[], int], inputs: Sequence[Subscription] = (),
+                 errors: Optional['InputErrors'] = None,
+                 period_s: float = 1.0 / DIAGNOSTICS_RATE_HZ) -> None:
+        self._node = node
+        self._errors = errors
+        self._report = report
+        self._sample_stamp_ns = sample_stamp_ns
+        self._inputs = inputs
+        self._publisher = create_publisher(node, DiagnosticArray, DIAGNOSTICS)
+        self._timer = node.create_timer(period_s, self.publish, clock=steady_clock())
+
+    def publish(self) -> None:
+        """Publish the current report now; a numeric failure is counted, never raised."""
+        try:
+            self._publish()
+        except HANDLED_ERRORS as error:
+            if self._errors is None:
+                raise
+            self._errors.reject('diagnostics report', error)
+
+    def _publish(self) -> None:
+        level, message, values = self._report()
+        unmatched = ' '.join(s.topic_name for s in self._inputs if s.get_publisher_count() == 0)
+        status = DiagnosticStatus(
+            level=bytes((level,)), name=self._node.get_fully_qualified_name(), message=message,
+            hardware_id='fall_predictor',
+            values=[KeyValue(key=key, value=str(value)) for key, value in values.items()]
+            + [KeyValue(key=UNMATCHED_INPUTS, value=unmatched)])
+        msg = DiagnosticArray(status=[status])
+        msg.header.stamp = ros_qos.stamp(min(max(0, self._sample_stamp_ns()), ros_qos.MAX_STAMP_NS))
+        self._publisher.publish(msg)
+
+
+class InputErrors:
+    """Counts rejected inputs and logs them, throttled to one line per ``throttle_s``."""
+
+    def __init__(self, node: Node, throttle_s: float = 1.0) -> None:
+        self._node = node
+        self._throttle_s = throttle_s
+        self.count = 0
+        self.last: str = ''
+        self._reported = 0
+
+    def reject(self, what: str, error: Exception) -> None:
+        self.count += 1
+        self.last = f'{what}: {error}'
+        self._node.get_logger().warning(
+            f'dropped {self.last} ({self.count} dropped so far)',
+            throttle_duration_sec=self._throttle_s)
+
+    def new_since_last_call(self) -> int:
+        """Inputs rejected since the previous call (for a periodic health report)."""
+        new, self._reported = self.count - self._reported, self.count
+        return new
+
+
+def guarded(what: str) -> Callable[[Callable[..., None]], Callable[..., None]]:
+    """Decorator of a node's message callback: the exceptions of :data:`HANDLED_ERRORS` are
+    counted and logged by the node's ``_bad_inputs`` (:class:`InputErrors`) as a rejected
+    ``what``, never raised into the executor (which would kill the node)."""
+    def decorate(method: Callable[..., None]) -> Callable[..., None]:
+        def handler(self: Any, *args: Any) -> None:
+            try:
+                method(self, *args)
+            except HANDLED_ERRORS as error:
+                self._bad_inputs.reject(what, error)
+        handler.__name__ = method.__name__
+        handler.__doc__ = method.__doc__
+        return handler
+    return decorate
+
+
+class FaultLog:
+    """The faults of a node's samples over time: each new one logged at once, a lasting one again
+    every ``throttle_s`` with how long it has lasted, and its end logged once."""
+
+    def __init__(self, node: Node, throttle_s: float = 1.0) -> None:
+        self._node = node
+        self._throttle_s = throttle_s
+        self._fault = ''
+        self._since = 0.0
+        self._logged = 0.0
+
+    def update(self, fault: str) -> None:
+        """The fault of the latest sample ('' when it had none)."""
+        now = time.monotonic()
+        if fault != self._fault:
+            if fault:
+                self._node.get_logger().warning(f'{fault}: no prediction')
+            else:
+                self._node.get_logger().info(f'back to normal after {now - self._since:.1f} s of: '
+                                             f'{self._fault}')
+            self._fault, self._since, self._logged = fault, now, now
+        elif fault and now - self._logged >= self._throttle_s:
+            self._node.get_logger().warning(f'{fault} for {now - self._since:.1f} s: no prediction')
+            self._logged = now
+
+    def current(self) -> str:
+        """The lasting fault with its duration, or ''."""
+        return f'{self._fault} for {time.monotonic() - self._since:.1f} s' if self._fault else ''
+
+
+class SampleAge:
+    """How old a sample is when it arrives, on the node's ROS clock: system time on a robot, the
+    simulator's ``/clock`` under ``use_sim_time``. Stamps and clock must be ROS time on
+    synchronised clocks; when they are not, :meth:`problem` says so in words."""
+
+    def __init__(self, node: Node) -> None:
+        self._clock = node.get_clock()
+
+    def age_s(self, stamp_ns: int) -> Optional[float]:
+        """Seconds since ``stamp_ns`` on the node's clock; None while the clock has no time yet
+        (``use_sim_time`` before the first ``/clock``)."""
+        now = self._clock.now().nanoseconds
+        return None if now == 0 else (now - stamp_ns) / 1e9
+
+    @staticmethod
+    def problem(age_s: Optional[float], limit_s: float) -> Optional[str]:
+        """Why a sample of age ``age_s`` cannot be used with ``max_sample_age_s`` = ``limit_s``
+        (0: no check), or None."""
+        if age_s is None or limit_s <= 0.0 or -limit_s <= age_s <= limit_s:
+            return None
+        if age_s > 0.0:
+            return (f'sample arrived {age_s:.3f} s after its stamp (max_sample_age_s {limit_s:g}); '
+                    'if every sample does, the clocks of the robot and of this computer differ')
+        return (f'sample stamped {-age_s:.3f} s ahead of this computer\'s clock: its ROS time and '
+                'the robot\'s are not synchronised (chrony/PTP), so ages cannot be checked')
+
+
+MAX_SAMPLE_AGE = ParamSpec(
+    'max_sample_age_s', 0.05, 'a sample whose stamp differs from the node\'s ROS clock by more than '
+    'this when it arrives [s] gets a STALE state instead of a prediction (0 = no check)', 0.0, 10.0)

@@ -1,0 +1,75 @@
+"""The ``main()`` of every node: create the nodes of a process and spin them until shutdown."""
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from typing import Callable, Optional
+
+import rclpy
+from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+
+from fall_predictor.ros.parameters import NodeStartupError
+
+# --------------------------------------------------------------------------------------------
+# main()
+# --------------------------------------------------------------------------------------------
+
+def run_node(factory: Callable[[], Node], name: str, args: Optional[list[str]] = None) -> int:
+    """Create the node with ``factory`` and spin it until Ctrl-C / SIGTERM / shutdown.
+
+    Returns the process exit code: 0 after a normal shutdown, 1 if the node could not start
+    (the reason is logged as one FATAL line, no traceback).
+    """
+    return run_nodes((factory,), name, args)
+
+
+def run_nodes(factories: Sequence[Callable[[], Node]], name: str,
+              args: Optional[list[str]] = None) -> int:
+    """Create one node per factory in this process and spin them all with one
+    SingleThreadedExecutor (the callbacks of all nodes run in turn, no threads), until
+    Ctrl-C / SIGTERM / shutdown. Exit code as :func:`run_node`; if one node cannot start,
+    none runs."""
+    rclpy.init(args=args)
+    nodes: list[Node] = []
+    try:
+        try:
+            for factory in factories:
+                nodes.append(factory())
+        except NodeStartupError as error:
+            rclpy.logging.get_logger(name).fatal(f'cannot start: {error}')
+            return 1
+        executor = SingleThreadedExecutor()
+        for node in nodes:
+            executor.add_node(node)
+        try:
+            executor.spin()
+        except (KeyboardInterrupt, ExternalShutdownException):
+            pass
+        except Exception:
+            # Ctrl-C / SIGTERM invalidate the context at once, in C; a callback that was already
+            # running then fails on its next publish ("publisher's context is invalid"). That is
+            # the shutdown, not a fault; with the context still valid it is one.
+            if rclpy.ok():
+                raise
+        return 0
+    finally:
+        for node in nodes:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def spin_until(executor: Executor, done: Callable[[], bool], timeout_s: float,
+               check: Callable[[], None] = lambda: None) -> bool:
+    """Spin ``executor`` until ``done()`` or ``timeout_s`` wall seconds; ``check()`` may raise.
+
+    Returns whether ``done()`` became true.
+    """
+    deadline = time.monotonic() + timeout_s
+    while not done():
+        check()
+        remaining = deadline - time.monotonic()
+        if remaining <= 0:
+            return False
+        executor.spin_once(timeout_sec=min(0.05, remaining))
+    return True
