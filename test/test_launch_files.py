@@ -169,8 +169,9 @@ def test_monitor_launch_file(monkeypatch):
 
 def test_params_files_use_wildcard_sections_for_every_node():
     for name, nodes in (('fall_predictor.yaml', ('simulator_node', 'controller_node',
-                                                 'feature_node', 'predictor_node',
-                                                 'recorder_node')),
-                        ('monitor.yaml', ('feature_node', 'predictor_node'))):
+                                                 'state_estimator_node', 'feature_node',
+                                                 'predictor_node', 'recorder_node')),
+                        ('monitor.yaml', ('state_estimator_node', 'feature_node',
+                                          'predictor_node'))):
         keys = re.findall(r'^(\S+):\s*$', (REPO / 'config' / name).read_text(), re.MULTILINE)
         assert keys == [f'/**/{n}' for n in nodes], name

@@ -4,14 +4,17 @@ would try them.
 One ``fall_monitor`` process (feature + predictor nodes on one executor) and one
 ``controller_node`` run in the namespace ``/robot1`` with the monitor's params file (its
 ``/**/<node>`` sections must match under the namespace). A "robot" node of this test publishes
-measurements whose sample times follow wall time (as a robot's do), and checks:
+measurements stamped with ROS time (system time, nanoseconds since 1970, as a robot's are), and
+checks:
 
 * the latched trigger reaches a subscriber that starts late; the fall direction comes with it;
-* ``~/reset`` and ``~/enable`` work; a disabled monitor says so and never triggers;
+* the monitor's one reset (``fall_predictor/reset``) and ``fall_predictor/enable`` work; a
+  disabled monitor says so and never triggers;
 * a sample that arrives late is refused (stale state), gaps are counted and reported (WARN);
-* the issue's fault cases: finite values that used to kill nodes (CoP 1.3e154, t 9.3e9,
-  momentum 1e308), a single glitch sample at CoM height 0, one old stamp after the fall; none
-  kills a node, triggers, or undoes the fall (the controller stays in C_fall until reset);
+* fault cases: finite values that used to kill nodes (CoP 1.3e154, momentum 1e308), stray
+  stamps (sec = 2^31 - 1, the epoch), a single glitch sample at CoM height 0, one old stamp after
+  the fall; none kills a node, triggers, or undoes the fall (the controller stays in C_fall until
+  the reset);
 * the example consumer (examples/fall_consumer.py) runs and sees the trigger.
 """
 from __future__ import annotations
@@ -33,14 +36,20 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import ReliabilityPolicy
-from std_msgs.msg import Bool, Float64MultiArray, String
+from std_msgs.msg import Bool, String
 from std_srvs.srv import SetBool, Trigger
 
-from fall_predictor.contract.topics import FALL_DIRECTION, FALLING, MEASUREMENT, STATE
-from fall_predictor.contract.wire import (LEVEL_WARN, STATUS_DISABLED, STATUS_OK, STATUS_STALE,
-                                      pack_measurement)
+from fall_predictor.contract import messages
+from fall_predictor.contract.topics import (ENABLE_SERVICE, FALL_DIRECTION, FALL_EVENT, FALLING,
+                                            MEASUREMENT, MONITOR_RESET_SERVICE, STATE)
+from fall_predictor.contract.wire import LEVEL_WARN
+from fall_predictor.monitor.fall_monitor import (STATUS_DEGRADED, STATUS_DISABLED, STATUS_OK,
+                                                 STATUS_STALE)
 from fall_predictor.monitor.records import Measurement
+from fall_predictor.msg import FallEvent, FallState
+from fall_predictor.msg import Measurement as MeasurementMsg
 from fall_predictor.ros import conversions as ros_qos
+from fall_predictor.ros.observer import ObservedState
 from fall_predictor.ros.bringup import ros_environment, start_process, stop_nodes
 from fall_predictor.ros.endpoints import create_publisher, create_subscription
 from test_nodes_support import MOMENTUM_THRESHOLD, ros_context, test_domain_id, write_momentum_model
@@ -49,8 +58,8 @@ REPO = Path(__file__).resolve().parents[1]
 NAMESPACE = '/robot1'
 LEFT = [(0.1, 0.15), (-0.1, 0.15), (-0.1, 0.05), (0.1, 0.05)]
 RIGHT = [(0.1, -0.05), (-0.1, -0.05), (-0.1, -0.15), (0.1, -0.15)]
-#: Sample time of the test robot's first measurement [s].
-CLOCK_START_S = 100.0
+#: Times [s] closer than this are the same sample (epoch seconds in floats).
+TIME_EPS_S = 1e-6
 STANDING_P = 2.0                            #: a balanced momentum [kg m/s]
 FALLING_P = MOMENTUM_THRESHOLD + 15.0       #: above the model's threshold
 #: Overrides of config/monitor.yaml, as a user's params file would hold them.
@@ -78,9 +87,11 @@ def measurement(t: float, p_x: float = STANDING_P, com_z: float = 0.59, cop_x: f
                        non_foot_contact=False)
 
 
-def raw_measurement_msg(values: np.ndarray) -> Float64MultiArray:
-    """A measurement message with any values (bypasses the sender-side checks)."""
-    return ros_qos.float64_array_msg(values, 'fall_predictor/measurement/v1')
+def measurement_msg(t: float, **kwargs: float) -> MeasurementMsg:
+    """The typed message of :func:`measurement` stamped ``t`` [s] of ROS time (on the 1 ms grid:
+    an epoch time in float seconds is not exact to the nanosecond)."""
+    return messages.measurement_msg(ros_qos.TYPES, round(t * 1000) * 1_000_000, 'odom',
+                                    measurement(t, **kwargs))
 
 
 class Robot:
@@ -90,28 +101,27 @@ class Robot:
         self.node = Node('robot', namespace=NAMESPACE, context=context)
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
-        self.pub = create_publisher(self.node, Float64MultiArray, MEASUREMENT)
+        self.pub = create_publisher(self.node, MeasurementMsg, MEASUREMENT)
         self.states: list = []
         self.falling: list[bool] = []
         self.directions: list[Vector3Stamped] = []
         self.modes: list[str] = []
         self.diagnostics: dict[str, DiagnosticArray] = {}
         self.diagnostics_history: list[tuple[float, str, int, str]] = []
-        create_subscription(self.node, Float64MultiArray, STATE, self._on_state, lossless=True)
+        create_subscription(self.node, FallState, STATE, self._on_state, lossless=True)
+        self.events: list[int] = []
+        create_subscription(self.node, FallEvent, FALL_EVENT, lambda m: self.events.append(m.event))
         create_subscription(self.node, Bool, FALLING, lambda m: self.falling.append(m.data))
         create_subscription(self.node, Vector3Stamped, FALL_DIRECTION, self.directions.append)
         self.node.create_subscription(String, 'fall_predictor/controller_mode',
                                       lambda m: self.modes.append(m.data),
                                       ros_qos.qos_profile(FALLING.qos))
         self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics, 50)
-        # The robot's clock has run for a while when the monitor starts: its stamps begin at
-        # CLOCK_START_S, so that "0.5 s old" is never near t = 0, where the restart rule
-        # (SampleIntake) takes an older sample as the possible start of a new run instead.
-        self.t0_wall = time.monotonic() - CLOCK_START_S
         self.last_t = 0.0
 
-    def _on_state(self, msg: Float64MultiArray) -> None:
-        self.states.append(ros_qos.state_from_msg(msg))
+    def _on_state(self, msg: FallState) -> None:
+        stamp_ns, state = messages.fall_state_from_msg(msg)
+        self.states.append(ObservedState(stamp_ns / 1e9, state))
 
     def _on_diagnostics(self, msg: DiagnosticArray) -> None:
         for status in msg.status:
@@ -128,7 +138,8 @@ class Robot:
         return True
 
     def now_t(self) -> float:
-        return round(time.monotonic() - self.t0_wall, 3)
+        """ROS time now (system time) on the 1 ms grid [s], as the robot stamps its samples."""
+        return round(time.time_ns() // 1_000_000 * 1e-3, 3)
 
     def stream(self, duration_s: float, **kwargs: float) -> list[float]:
         """Publish one measurement per new millisecond of wall time for ``duration_s``."""
@@ -137,14 +148,14 @@ class Robot:
         while time.monotonic() < end:
             t = self.now_t()
             if t > self.last_t:
-                self.pub.publish(ros_qos.measurement_to_msg(measurement(t, **kwargs)))
+                self.pub.publish(measurement_msg(t, **kwargs))
                 self.last_t = t
                 sent.append(t)
             self.executor.spin_once(timeout_sec=0.0)
         return sent
 
-    def inject(self, values: np.ndarray) -> None:
-        self.pub.publish(raw_measurement_msg(values))
+    def inject(self, msg: MeasurementMsg) -> None:
+        self.pub.publish(msg)
         self.spin_until(lambda: False, 0.003)     # no burst: the readers' queues are shallow
 
     def call(self, service: str, srv_type: type, request: object) -> object:
@@ -156,8 +167,8 @@ class Robot:
         return future.result()
 
     def reset_all(self) -> None:
-        for name in ('feature_node', 'predictor_node', 'controller_node'):
-            assert self.call(f'{name}/reset', Trigger, Trigger.Request()).success
+        """The monitor's one reset (the controller follows its RESET event)."""
+        assert self.call(MONITOR_RESET_SERVICE, Trigger, Trigger.Request()).success
         self.spin_until(lambda: False, 0.05)      # states of the old run still in flight
         self.states.clear()
         # Sample time goes on (a robot's clock does not restart with the monitor).
@@ -178,8 +189,10 @@ class Robot:
                 return False
         return True
 
-    def states_since(self, t_from: float, status: int = STATUS_OK) -> list:
-        return [s for s in self.states if s.t >= t_from and s.status == status]
+    def states_since(self, t_from: float, status: Optional[int] = STATUS_OK) -> list:
+        """States at or after ``t_from`` [s] with ``status`` (None: any). Epoch seconds as
+        floats are exact to ~0.2 us only: times within 1 us count as equal."""
+        return [s for s in self.states if s.t >= t_from - TIME_EPS_S and status in (None, s.status)]
 
 
 @pytest.fixture(scope='module')
@@ -262,23 +275,25 @@ def test_trigger_is_latched_for_late_subscribers_with_the_direction(robot: Robot
     robot.node.destroy_subscription(sub)
 
 
-def test_one_old_stamp_or_a_glitch_does_not_undo_the_fall(robot: Robot) -> None:
-    before = {node: robot.counter(node, 'out_of_order')
-              for node in ('feature_node', 'controller_node')}
+def test_one_old_stamp_or_a_stray_one_does_not_undo_the_fall(robot: Robot) -> None:
+    nodes = ('feature_node', 'controller_node')
+    before = {node: (robot.counter(node, 'out_of_order'), robot.counter(node, 'stray_stamps'))
+              for node in nodes}
     robot.stream(0.05)
-    robot.inject(pack_measurement(measurement(robot.last_t - 0.5)))   # 0.5 s old
+    robot.inject(measurement_msg(robot.last_t - 0.5))      # 0.5 s old: out of order
     # The readers' sensor queues are shallow (REP 2003): on a loaded machine the stream below
     # could push the injected samples out before they are read, so wait until they are.
-    for node, count in before.items():
-        assert robot.counter_reaches(node, 'out_of_order', count + 1), f'{node}: old sample never counted'
-    robot.inject(pack_measurement(measurement(0.0)))                   # a "new run" stamp
+    for node, (old, _) in before.items():
+        assert robot.counter_reaches(node, 'out_of_order', old + 1), f'{node}: old sample never counted'
+    robot.inject(measurement_msg(1e-3))                    # the epoch: a stray stamp
     robot.spin_until(lambda: False, 0.3)
     robot.stream(0.1)
-    # Both dropped and counted by every reader of the measurements (the t = 0 sample as the
-    # start of a restart that never came).
-    for node, count in before.items():
-        assert robot.counter(node, 'out_of_order') == count + 1, node
-        assert robot.counter(node, 'restarts') == 0, node
+    # Both dropped and counted by every reader of the measurements, and no new run started (the
+    # stray counted once a sample of the run came after it).
+    for node, (old, stray) in before.items():
+        assert robot.counter(node, 'out_of_order') == old + 1, node
+        assert robot.counter_reaches(node, 'stray_stamps', stray + 1), node
+        assert robot.counter(node, 'clock_jumps') == 0, node
     assert robot.states[-1].latched and robot.falling[-1] is True
     assert robot.modes[-1] == 'fall' and robot.modes.count('balance') == 1   # start-up only
     assert alive(robot)
@@ -290,17 +305,17 @@ def test_reset_service_clears_the_trigger_and_the_controller(robot: Robot) -> No
     assert robot.spin_until(lambda: robot.modes[-1] == 'balance', 5.0)
     sent = robot.stream(0.3)
     assert robot.spin_until(lambda: robot.states_since(sent[-1]), 5.0)
-    after = [s for s in robot.states if s.t >= sent[0] and s.status == STATUS_OK]
+    after = robot.states_since(sent[0])
     assert after and not any(s.latched for s in after)
 
 
 def test_enable_false_means_no_trigger_and_says_so(robot: Robot) -> None:
-    assert robot.call('predictor_node/enable', SetBool, SetBool.Request(data=False)).success
+    assert robot.call(ENABLE_SERVICE, SetBool, SetBool.Request(data=False)).success
     sent = robot.stream(0.2, p_x=FALLING_P)
     assert robot.spin_until(lambda: robot.states_since(sent[-1], STATUS_DISABLED), 5.0)
-    assert not any(s.status == STATUS_OK for s in robot.states if s.t >= sent[0])
+    assert not robot.states_since(sent[0])
     assert robot.falling[-1] is False and robot.modes[-1] == 'balance'
-    assert robot.call('predictor_node/enable', SetBool, SetBool.Request(data=True)).success
+    assert robot.call(ENABLE_SERVICE, SetBool, SetBool.Request(data=True)).success
     robot.stream(0.1, p_x=FALLING_P)
     assert robot.spin_until(lambda: robot.falling[-1] is True, 5.0)
     robot.reset_all()
@@ -309,21 +324,21 @@ def test_enable_false_means_no_trigger_and_says_so(robot: Robot) -> None:
 
 
 def test_a_late_sample_is_refused_and_gaps_are_reported(robot: Robot) -> None:
-    stale_before = robot.counter('predictor_node', 'stale_samples')
+    stale_before = robot.counter('predictor_node', 'stale_states')
     missing_before = robot.counter('feature_node', 'missing_samples')
     robot.stream(0.2)
     # A sample stamped 1 ms after the last, arriving 0.4 s late (> max_sample_age_s 0.15).
     time.sleep(0.4)
     late_t = round(robot.last_t + 0.001, 3)
-    robot.inject(pack_measurement(measurement(late_t)))
+    robot.inject(measurement_msg(late_t))
     assert robot.spin_until(lambda: robot.states_since(late_t, STATUS_STALE), 5.0)
-    assert robot.counter('predictor_node', 'stale_samples') == stale_before + 1
+    assert robot.counter('predictor_node', 'stale_states') == stale_before + 1
     # Five samples never sent: counted as missing, and the report says WARN.
     robot.last_t = late_t
     gap_wall = time.monotonic()
     sent = robot.stream(0.05)
     gap_t = round(robot.last_t + 0.006, 3)
-    robot.inject(pack_measurement(measurement(gap_t)))
+    robot.inject(measurement_msg(gap_t))
     robot.last_t = gap_t
     robot.stream(1.2)                     # a /diagnostics period while samples flow
     missing = robot.counter('feature_node', 'missing_samples') - missing_before
@@ -337,32 +352,41 @@ def test_a_late_sample_is_refused_and_gaps_are_reported(robot: Robot) -> None:
 
 def test_finite_in_contract_values_and_glitches_neither_kill_nor_trigger(robot: Robot) -> None:
     invalid_before = robot.counter('feature_node', 'invalid_measurements')
+    stray_before = robot.counter('feature_node', 'stray_stamps')
     robot.stream(0.1)
-    cases = []
-    for field, index, value in (('cop_x', 11, 1.3e154), ('t', 0, 9.3e9), ('t', 0, 2.0 ** 31),
-                                ('lin_mom_x', 4, 1e308)):
-        values = pack_measurement(measurement(round(robot.last_t + 0.001, 3)))
-        values[index] = value
-        cases.append(field)
-        robot.inject(values)
-    # One glitch sample: the CoM at the origin (height 0, below the guard), plausible alone.
+    # Well-formed messages no robot produces: refused by the contract's bounds (counted).
+    impossible = []
+    for path, value in (('cop', 1.3e154), ('linear_momentum', 1e308)):
+        msg = measurement_msg(round(robot.last_t + 0.001, 3))
+        getattr(msg, path).x = value
+        impossible.append(msg)
+    # Stray stamps: sec = 2^31 - 1, and the epoch.
+    strays = [measurement_msg(2.0 ** 31 - 1.0), measurement_msg(2e-3)]
+    for msg in impossible + strays:
+        robot.inject(msg)
+    # One glitch sample: the CoM at the origin (height 0, below the guard), plausible alone but
+    # faster than physics allows after the last one: refused, a DEGRADED state, never falling.
     robot.last_t = round(robot.last_t + 0.001, 3)
-    robot.inject(pack_measurement(measurement(robot.last_t, com_z=0.0)))
+    glitch_t = robot.last_t
+    robot.inject(measurement_msg(glitch_t, com_z=0.0))
     # The next valid sample, 10 ms later, is not blamed for the 1e308 momentum.
     robot.last_t = round(robot.last_t + 0.010, 3)
     valid_t = robot.last_t
-    robot.inject(pack_measurement(measurement(valid_t)))
+    robot.inject(measurement_msg(valid_t))
     # Let the readers take the injected samples before the stream could push them out of
     # their shallow queues on a loaded machine.
     assert robot.spin_until(lambda: robot.states_since(valid_t), 10.0)
     assert robot.counter_reaches('feature_node', 'invalid_measurements',
-                                 invalid_before + len(cases) + 1), 'injected samples not all counted'
+                                 invalid_before + len(impossible)), 'injected samples not all counted'
     sent = robot.stream(0.3)
     assert robot.spin_until(lambda: robot.states_since(sent[-1]), 5.0)
-    assert robot.states_since(valid_t)[0].t == valid_t
-    assert robot.counter('feature_node', 'invalid_measurements') == invalid_before + len(cases) + 1
+    assert robot.states_since(valid_t)[0].t == pytest.approx(valid_t, abs=TIME_EPS_S)
+    [glitch] = [s for s in robot.states if abs(s.t - glitch_t) < TIME_EPS_S]
+    assert glitch.status == STATUS_DEGRADED and 'faster than physics allows' in glitch.reason
+    assert robot.counter('feature_node', 'invalid_measurements') == invalid_before + len(impossible)
+    assert robot.counter('feature_node', 'stray_stamps') == stray_before + len(strays)
     assert alive(robot)
-    assert robot.falling[-1] is False and not any(s.falling for s in robot.states_since(valid_t))
+    assert robot.falling[-1] is False and not any(s.falling for s in robot.states_since(glitch_t - 0.05, None))
     assert robot.modes[-1] == 'balance'
 
 
@@ -377,14 +401,15 @@ def test_example_consumer_sees_the_trigger(robot: Robot) -> None:
     reader = threading.Thread(target=lambda: lines.extend(consumer.stdout), daemon=True)
     reader.start()
     try:
-        # Subscribers of the trigger: this node, the controller, and the consumer.
+        # Subscribers of the events: this node, the controller, the estimator-less monitor's
+        # feature node, and the consumer.
         assert robot.spin_until(
-            lambda: robot.node.count_subscribers('fall_predictor/falling') >= 3, 20.0)
-        # Stream until the consumer has logged the latched "not falling" and one state (once a
-        # second): the publisher's subscriber count does not say that the consumer's side has
-        # matched, which takes longer on a loaded machine.
+            lambda: robot.node.count_subscribers('fall_predictor/fall_event') >= 4, 20.0)
+        # Stream until the consumer has logged one ok state (once a second): the publisher's
+        # subscriber count does not say that the consumer's side has matched, which takes
+        # longer on a loaded machine.
         deadline = time.monotonic() + 30.0
-        while not ('falling: False' in ''.join(lines) and ', ok, falling False' in ''.join(lines)):
+        while ', ok, falling False' not in ''.join(lines):
             assert time.monotonic() < deadline and consumer.poll() is None, ''.join(lines)
             robot.stream(0.5)
         robot.stream(0.2, p_x=FALLING_P)
@@ -394,8 +419,7 @@ def test_example_consumer_sees_the_trigger(robot: Robot) -> None:
     finally:
         consumer.kill()
     assert consumer.returncode == 0, out
-    assert 'falling: False' in out and 'falling: True' in out
-    # The consumer read the state by slot (it logs it with the trigger): an ok state.
-    assert re.search(r't = \d+\.\d{3} s, ok, falling (True|False), latched', out), out
-    assert 'fall direction: 0 deg from the heading (frame base_footprint)' in out
+    assert 'FALLING: direction 0 deg from the heading (frame base_footprint)' in out
+    # The consumer read the typed state (it logs it with each event): an ok state, epoch stamp.
+    assert re.search(r'stamp \d{10}\.\d{3} s, ok, falling (True|False), latched', out), out
     assert not math.isnan(robot.states[-1].t)

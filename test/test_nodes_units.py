@@ -23,7 +23,7 @@ from fall_predictor.contract.topics import FEATURES, STATE
 from fall_predictor.contract import messages
 from fall_predictor.msg import FallState, Features
 from fall_predictor.monitor.fall_monitor import STATUS_FALLEN, FallMonitor
-from fall_predictor.ros.feature_node import base_tilt_rad
+from fall_predictor.monitor.chain import base_tilt_rad
 from fall_predictor.ros.robots import fallen_config_for
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.ros.endpoints import create_subscription

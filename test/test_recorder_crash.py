@@ -19,11 +19,12 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from std_msgs.msg import Float64MultiArray
 
 from fall_predictor.data.bagio import bag_parts, read_trajectory
 from fall_predictor.contract.topics import MEASUREMENT
 from fall_predictor.monitor.records import Measurement
+from fall_predictor.contract import messages
+from fall_predictor.msg import Measurement as MeasurementMsg
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.ros.bringup import ros_environment, start_process
 from fall_predictor.ros.endpoints import create_publisher
@@ -32,6 +33,11 @@ from test_nodes_support import ros_context, test_domain_id
 SKIPPED = {round(0.200 + 0.001 * k, 3) for k in range(5)}      # never published
 SECONDS = 1.8
 STRAY_AT, STRAY_T = 1.4, 1.05      # published when t = 1.4 s, stamped 1.05 s (in part_002)
+
+
+def measurement_msg(t: float) -> MeasurementMsg:
+    """The typed message of :func:`measurement` stamped with simulation time ``t``."""
+    return messages.measurement_msg(ros_qos.TYPES, ros_qos.sim_ns(t), 'odom', measurement(t))
 
 
 def measurement(t: float) -> Measurement:
@@ -55,7 +61,7 @@ def test_killed_recorder_leaves_readable_parts_and_reports_gaps(tmp_path: Path) 
             node = Node('robot', context=context)
             executor = SingleThreadedExecutor(context=context)
             executor.add_node(node)
-            publisher = create_publisher(node, Float64MultiArray, MEASUREMENT)
+            publisher = create_publisher(node, MeasurementMsg, MEASUREMENT)
             node.create_subscription(
                 DiagnosticArray, '/diagnostics',
                 lambda msg: statuses.extend((s.level[0], s.message) for s in msg.status
@@ -71,9 +77,9 @@ def test_killed_recorder_leaves_readable_parts_and_reports_gaps(tmp_path: Path) 
                 while time.monotonic() < start + t:
                     executor.spin_once(timeout_sec=0.0005)
                 if t == STRAY_AT:               # one stray stamp, 0.35 s old: not a gap after it
-                    publisher.publish(ros_qos.measurement_to_msg(measurement(STRAY_T)))
+                    publisher.publish(measurement_msg(STRAY_T))
                 if t not in SKIPPED:
-                    publisher.publish(ros_qos.measurement_to_msg(measurement(t)))
+                    publisher.publish(measurement_msg(t))
                     sent.append(t)
             # Wait until the recorder writes the 4th part (it may lag on a loaded machine) and
             # a report said samples are missing, then kill.

@@ -20,16 +20,15 @@ import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from std_msgs.msg import Float64MultiArray
 
 from fall_predictor.cli import main
 from fall_predictor.data.bagio import BagError, bag_parts, read_trajectory
 from fall_predictor.contract.topics import MEASUREMENT
-from fall_predictor.ros import conversions as ros_qos
+from fall_predictor.msg import Measurement as MeasurementMsg
 from fall_predictor.ros.bringup import ros_environment, start_process
 from fall_predictor.ros.endpoints import create_publisher
 from test_nodes_support import ros_context, test_domain_id
-from test_recorder_crash import measurement
+from test_recorder_crash import measurement_msg
 
 SECONDS = 5.0
 
@@ -48,7 +47,7 @@ def test_repair_bag_recovers_the_open_bag_of_a_killed_recorder(tmp_path: Path, c
             node = Node('robot', context=context)
             executor = SingleThreadedExecutor(context=context)
             executor.add_node(node)
-            publisher = create_publisher(node, Float64MultiArray, MEASUREMENT)
+            publisher = create_publisher(node, MeasurementMsg, MEASUREMENT)
             key = f'{MEASUREMENT.name} received/written/rejected'
             node.create_subscription(
                 DiagnosticArray, '/diagnostics',
@@ -63,7 +62,7 @@ def test_repair_bag_recovers_the_open_bag_of_a_killed_recorder(tmp_path: Path, c
                 t = round(k * 0.001, 3)
                 while time.monotonic() < start + t:
                     executor.spin_once(timeout_sec=0.0005)
-                publisher.publish(ros_qos.measurement_to_msg(measurement(t)))
+                publisher.publish(measurement_msg(t))
                 sent.append(t)
             # Kill once two reports after the last publish agree (all received is written).
             reports = len(written)

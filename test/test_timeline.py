@@ -64,19 +64,36 @@ def test_one_stray_stamp_neither_blinds_the_timeline_nor_starts_a_run(stray_ns: 
     assert (timeline.strays, timeline.jumps) == (1, 0)
 
 
-def test_a_real_clock_jump_re_anchors_after_jump_samples_consistent_samples() -> None:
+def test_a_clock_set_back_re_anchors_after_jump_samples_consistent_samples() -> None:
     timeline = StampTimeline(TimelineConfig(max_step_s=0.5, jump_samples=5))
     stream(timeline, [EPOCH_NS + k * MS for k in range(100)])
-    jumped = EPOCH_NS + 3600 * NS_PER_S                      # NTP stepped the clock by an hour
-    kinds = stream(timeline, [jumped + k * MS for k in range(10)])
+    back = EPOCH_NS - 3600 * NS_PER_S                       # NTP stepped the clock back an hour
+    kinds = stream(timeline, [back + k * MS for k in range(10)])
     assert kinds == [Stamp.JUMP_PENDING] * 4 + [Stamp.NEW_RUN] + [Stamp.NEXT] * 5
-    assert timeline.anchor_ns == jumped + 4 * MS
-    assert timeline.run_time(jumped + 9 * MS) == pytest.approx(0.005)
+    assert timeline.anchor_ns == back + 4 * MS
+    assert timeline.run_time(back + 9 * MS) == pytest.approx(0.005)
     assert (timeline.jumps, timeline.strays) == (1, 0)
-    # Backwards as well (a clock set back), and nothing from the old run counts any more.
-    back = EPOCH_NS - 7200 * NS_PER_S
-    kinds = stream(timeline, [back + k * MS for k in range(5)])
-    assert kinds[-1] is Stamp.NEW_RUN and timeline.jumps == 2
+
+
+def test_a_sensor_that_pauses_or_a_clock_stepped_forward_is_a_gap_of_the_same_run() -> None:
+    """A step forward beyond max_step_s is held for one sample: followed on, it is a gap (the
+    run goes on, the samples in between counted missing); not followed, a stray."""
+    timeline = StampTimeline(TimelineConfig(max_step_s=0.5))
+    stream(timeline, [EPOCH_NS + k * MS for k in range(100)])
+    resumed = EPOCH_NS + 2099 * MS                          # 2 s without samples
+    assert timeline.classify(resumed) is Stamp.JUMP_PENDING
+    assert timeline.classify(resumed + MS) is Stamp.NEXT
+    assert timeline.missing == 2000 and timeline.anchor_ns == EPOCH_NS and timeline.jumps == 0
+    # An hour forward (NTP): the same, a gap of the same run.
+    ahead = resumed + 3600 * NS_PER_S
+    assert [timeline.classify(ahead + k * MS) for k in range(3)] == [
+        Stamp.JUMP_PENDING, Stamp.NEXT, Stamp.NEXT]
+    assert timeline.anchor_ns == EPOCH_NS and timeline.strays == 0
+    # A stray from the past held while the sensor paused is still counted.
+    assert timeline.classify(EPOCH_NS - NS_PER_S) is Stamp.JUMP_PENDING
+    assert [timeline.classify(ahead + NS_PER_S + k * MS) for k in range(2)] == [
+        Stamp.JUMP_PENDING, Stamp.NEXT]
+    assert timeline.strays == 1
 
 
 def test_strays_that_disagree_with_each_other_never_confirm_a_jump() -> None:
@@ -123,3 +140,15 @@ def test_reset_anchors_the_next_stamp_whatever_it_is() -> None:
 def test_bad_configurations_are_refused(kwargs: dict) -> None:
     with pytest.raises(ValueError):
         TimelineConfig(**kwargs)
+
+
+def test_the_period_is_learnt_even_when_the_first_step_is_a_gap() -> None:
+    timeline = StampTimeline()
+    timeline.classify(EPOCH_NS)
+    stream(timeline, [EPOCH_NS + 300 * MS + k * MS for k in range(50)])   # 0.3 s, then 1 kHz
+    assert timeline.period_s == pytest.approx(0.001)
+    # A 1 s pause: the first sample after it is held, the next confirms the gap; every sample in
+    # between (the held one too) is missing.
+    assert stream(timeline, [EPOCH_NS + 1349 * MS, EPOCH_NS + 1350 * MS]) == [Stamp.JUMP_PENDING,
+                                                                             Stamp.NEXT]
+    assert timeline.missing == 1000

@@ -11,6 +11,7 @@ exceptions never escape.
 """
 from __future__ import annotations
 
+import dataclasses
 import heapq
 import os
 import warnings
@@ -170,23 +171,31 @@ class BagState(NamedTuple):
     state: MonitorState
 
 
-def _decode_measurement(msg: RosbagsMsg) -> Measurement:
+class Fault(NamedTuple):
+    """A per-sample message that carries a fault instead of values (a recorded live run whose
+    estimator had no estimate for that sample): kept out of the records, counted."""
+
+    t: float
+    fault: str
+
+
+def _decode_measurement(msg: RosbagsMsg) -> Measurement | Fault:
     if hasattr(msg, 'layout'):              # a bag recorded before the typed messages
         check_layout(msg.layout, MEASUREMENT_LABEL, len(msg.data))
         return unpack_measurement(msg.data)
     decoded = messages.measurement_from_msg(msg)
     if decoded.measurement is None:
-        raise WireFormatError(f'measurement carries a fault: {decoded.fault}')
+        return Fault(decoded.stamp_ns / 1e9, decoded.fault)
     return decoded.measurement
 
 
-def _decode_features(msg: RosbagsMsg) -> FeatureSample:
+def _decode_features(msg: RosbagsMsg) -> FeatureSample | Fault:
     if hasattr(msg, 'layout'):
         check_layout(msg.layout, FEATURES_LABEL, len(msg.data))
         return unpack_features(msg.data)
     decoded = messages.features_from_msg(msg)
     if decoded.x is None:
-        raise WireFormatError(f'features carry a fault: {decoded.fault}')
+        return Fault(decoded.stamp_ns / 1e9, decoded.fault)
     return FeatureSample(decoded.stamp_ns / 1e9, decoded.x, decoded.mode)
 
 
@@ -250,6 +259,8 @@ class RecordedTrajectory:
     states: Optional[list[object]]         #: BagState (legacy bags: PredictorState)
     joint_states: Optional[JointStateSeries]
     pushes: Optional[list[PushEvent]]
+    #: Per topic: the samples that carried a fault instead of values (left out above).
+    faults: dict[str, list[Fault]] = dataclasses.field(default_factory=dict)
 
 
 def _joint_series(path: Path, samples: list[JointStateSample]) -> JointStateSeries:
@@ -316,6 +327,10 @@ def read_trajectory(path: str | os.PathLike[str], *,
             raise BagError(f'{bag}: {topic} has {len(records)} messages, metadata declares '
                            f'{declared[topic]}')
 
+    faults = {topic: [r for r in records if isinstance(r, Fault)] for topic, records in decoded.items()}
+    faults = {topic: found for topic, found in faults.items() if found}
+    for topic in faults:
+        decoded[topic] = [r for r in decoded[topic] if not isinstance(r, Fault)]
     joint_samples = decoded.get(JOINT_STATES.name)
     return RecordedTrajectory(
         path=bag,
@@ -326,4 +341,5 @@ def read_trajectory(path: str | os.PathLike[str], *,
         joint_states=(None if joint_samples is None
                       else _joint_series(bag, cast('list[JointStateSample]', joint_samples))),
         pushes=cast('Optional[list[PushEvent]]', decoded.get(PUSH.name)),
+        faults=faults,
     )

@@ -7,20 +7,22 @@ the sole frames) and one synchronised sample of joint encoders, IMU and foot for
 * **base orientation**: the IMU may sit on any link (the sample's ``imu_frame``, resolved in the
   description; empty: the description's default IMU frame); its attitude and angular velocity are
   carried to the floating base through the leg and torso kinematics. The base's angular velocity
-  is integrated and pulled towards the IMU's attitude output with gain ``attitude_gain`` per sample
-  (a complementary filter: the attitude output's white noise is averaged out, its bias is not); yaw
+  is integrated and pulled towards the IMU's attitude output with time constant
+  ``attitude_time_constant_s`` (a complementary filter: the attitude output's white noise is
+  averaged out, its bias is not; every time constant is in seconds, so the filter behaves the same
+  at any sample rate: a sample ``dt`` apart corrects by ``1 - exp(-dt / tau)``); yaw
   relative to the first sample plus ``initial_yaw_rad`` (the world frame is the frame the robot
   started in, its origin at ``initial_xy_m`` on the loaded soles' centres at the first sample);
 * **the IMU point's position and velocity**: the accelerometer measures the specific force of the
   IMU point, so the filter runs on that point: it integrates the accelerometer and corrects with
-  the force-weighted kinematic position and velocity of the point (gains ``position_gain``,
-  ``velocity_gain``) from the soles on the ground: the part of each loaded sole on the ground (its
+  the force-weighted kinematic position and velocity of the point (time constants
+  ``position_time_constant_s``, ``velocity_time_constant_s``) from the soles on the ground: the part of each loaded sole on the ground (its
   corners within ``tilt_tolerance_m`` of the lowest: the whole sole, an edge or a corner) is
   anchored where it touched down (z = 0), re-anchored when that part changes; a still contact moves
   the IMU point by minus the contact's velocity relative to it. With no loaded sole it integrates
   the IMU alone. A sole whose kinematic velocity is more than ``slip_velocity_m_s`` from the IMU
   prediction is taken as slipping: left out and re-anchored (if all slip for
-  ``max_slip_samples``, the closest is used). The base follows from the point by kinematics;
+  ``max_slip_s``, the closest is used). The base follows from the point by kinematics;
 * **CoM and centroidal momentum**: ``pinocchio.computeCentroidalMomentum`` (linear momentum,
   angular momentum about the CoM);
 * **contacts and CoP**: a sole with normal force above ``contact_force_n`` is loaded; each foot's
@@ -61,14 +63,14 @@ _GRAVITY = np.array([0.0, 0.0, STANDARD_GRAVITY_M_S2])
 @dataclass(frozen=True)
 class EstimatorConfig:
     contact_force_n: float = 10.0
-    attitude_gain: float = 0.02
-    position_gain: float = 0.05
-    velocity_gain: float = 0.05
+    attitude_time_constant_s: float = 0.05
+    position_time_constant_s: float = 0.02
+    velocity_time_constant_s: float = 0.02
     tilt_tolerance_m: float = 0.002
     #: A sole whose kinematic velocity is this far from the IMU prediction slips [m/s].
     slip_velocity_m_s: float = 0.25
-    #: After this many samples with every loaded sole slipping, the closest one is trusted.
-    max_slip_samples: int = 20
+    #: After every loaded sole has slipped for this long [s], the closest one is trusted.
+    max_slip_s: float = 0.02
     max_gap_s: float = 0.05
     initial_yaw_rad: float = 0.0
     #: World xy of the loaded soles' midpoint at the first sample [m].
@@ -160,7 +162,7 @@ class StateEstimator:
         self.last_issue: Optional[str] = None
         self.n_rejected = 0
         self._have_fix = False      # a sole has anchored the position
-        self._slipping = 0          # consecutive samples with every loaded sole slipping
+        self._slipping_s = 0.0      # how long every loaded sole has been slipping [s]
 
     # -- helpers ---------------------------------------------------------------------
     def _order(self, names: Sequence[str]) -> Optional[np.ndarray]:
@@ -224,7 +226,8 @@ class StateEstimator:
             rot = r_meas
         else:
             rot = self.rot @ pin.exp3(omega_b * dt)
-            rot = pin.exp3(cfg.attitude_gain * pin.log3(r_meas @ rot.T)) @ rot
+            gain = 1.0 - math.exp(-dt / cfg.attitude_time_constant_s)
+            rot = pin.exp3(gain * pin.log3(r_meas @ rot.T)) @ rot
         sole_pos, sole_rot, sole_vel = {}, {}, {}
         for side in SIDES:
             frame = data.oMf[robot.sole_ids[side]]
@@ -309,7 +312,7 @@ class StateEstimator:
             self.v = self.v + a_world * dt
             self.p = self.p + self.v * dt
         if loaded:
-            self._correct(kin, loaded, touch, point_rel, point_vel, first)
+            self._correct(kin, loaded, touch, point_rel, point_vel, first, dt)
         self.t = s.t
         if not self._have_fix:
             self.last_issue = 'no loaded sole yet: the base position is unknown'
@@ -317,8 +320,9 @@ class StateEstimator:
         return self._measurement(s.t, kin, loaded, touch)
 
     def _correct(self, kin: _Kinematics, loaded: dict, touch: dict, point_rel: dict,
-                 point_vel: dict, first: bool) -> None:
-        """The kinematic correction of the IMU point from the soles on the ground."""
+                 point_vel: dict, first: bool, dt: float) -> None:
+        """The kinematic correction of the IMU point from the soles on the ground (``dt``: the
+        time since the previous sample [s])."""
         cfg = self.config
         per_side = {}
         base_now = self.p - kin.imu_pos
@@ -336,11 +340,11 @@ class StateEstimator:
         if self._have_fix and not first:
             # Slip: a sole whose kinematic velocity disagrees with the IMU prediction by more
             # than slip_velocity_m_s is sliding; it is left out and re-anchored. If every sole
-            # slips for max_slip_samples samples, the closest one is trusted.
+            # slips for max_slip_s, the closest one is trusted.
             residual = {side: float(np.linalg.norm(v - self.v)) for side, (_, _, v) in per_side.items()}
             keep = {side for side, r in residual.items() if r <= cfg.slip_velocity_m_s}
-            self._slipping = 0 if keep else self._slipping + 1
-            if not keep and self._slipping > cfg.max_slip_samples:
+            self._slipping_s = 0.0 if keep else self._slipping_s + dt
+            if not keep and self._slipping_s > cfg.max_slip_s:
                 keep = {min(residual, key=residual.get)}
             for side in set(per_side) - keep:
                 self.anchors[side] = None
@@ -353,8 +357,8 @@ class StateEstimator:
                 self.p, self.v = p_meas, v_meas
                 self._have_fix = True
             else:
-                self.p = self.p + cfg.position_gain * (p_meas - self.p)
-                self.v = self.v + cfg.velocity_gain * (v_meas - self.v)
+                self.p = self.p + (1.0 - math.exp(-dt / cfg.position_time_constant_s)) * (p_meas - self.p)
+                self.v = self.v + (1.0 - math.exp(-dt / cfg.velocity_time_constant_s)) * (v_meas - self.v)
 
     def _measurement(self, t: float, kin: _Kinematics, loaded: dict, touch: dict) -> Measurement:
         rot = kin.rot

@@ -18,7 +18,8 @@ and it runs the same offline. Per sample of features it gives a :class:`MonitorS
   for ``standing_time_s``. While down the state says FALLEN and nothing is predicted;
 * **disabled** (:meth:`FallMonitor.enable`): states say DISABLED and nothing triggers;
 * **degraded / stale** samples (:meth:`FallMonitor.unusable`): no prediction, the reason in words;
-  the history window restarts after them (no window spans a hole in the data), the latch stays.
+  the history window restarts after them, and after a gap in the input longer than
+  ``max_gap_s`` (no window spans a hole in the data); the latch stays.
 """
 from __future__ import annotations
 
@@ -104,12 +105,14 @@ class FallMonitor:
 
     def __init__(self, lists: PerModeDecisionLists, tau_his_s: float, fallen: FallenConfig,
                  dt_s: float = 0.001, guard_com_height_m: Optional[float] = None,
-                 mass_kg: float = 1.0, time_to_fall: Optional[object] = None) -> None:
+                 mass_kg: float = 1.0, time_to_fall: Optional[object] = None,
+                 max_gap_s: float = 0.1) -> None:
         kwargs = {} if guard_com_height_m is None else {'guard_com_height_m': guard_com_height_m}
         self.predictor = OnlinePredictor(lists, tau_his_s, dt_s, **kwargs)
         self.fallen_config = fallen
         self.mass_kg = float(mass_kg)
         self.time_to_fall = time_to_fall
+        self.max_gap_s = float(max_gap_s)
         self.enabled = True
         self.reset()
 
@@ -135,12 +138,14 @@ class FallMonitor:
         self._latched = False
         self._fallen = False
         self._standing_since: Optional[float] = None
+        self._last_t = -math.inf
         return FallEvent(EVENT_RESET)
 
     def new_run(self) -> None:
         """The input's clock jumped (a new run): the window restarts; latch and fallen stay."""
         self.predictor.reset()
         self._standing_since = None
+        self._last_t = -math.inf
 
     def enable(self, enabled: bool) -> None:
         """Switch the trigger on or off; either way the window restarts and, off, the latch goes."""
@@ -161,6 +166,9 @@ class FallMonitor:
              ) -> tuple[MonitorState, Optional[FallEvent]]:
         """One sample at run time ``t`` [s]: features ``x`` (15), contact mode, base tilt [rad]."""
         values = x.tolist() if hasattr(x, 'tolist') else list(x)
+        if t - self._last_t > self.max_gap_s:
+            self.predictor.reset()              # a hole in the input: the window starts over
+        self._last_t = t
         event = self._update_fallen(t, values[COM_HEIGHT_FEATURE], base_tilt_rad, mode)
         tau = self.predictor.tau_his_s
         if self._fallen:

@@ -11,16 +11,20 @@ time.
 
 * **next**: a stamp after the previous accepted one by at most ``max_step_s`` is accepted; samples
   missing on the stream's period (estimated from the stream itself) are counted;
+* **pause**: a stamp further than ``max_step_s`` after the previous accepted one is held (dropped,
+  counted as missing); if the next one follows it (by at most ``max_step_s``), the sensor paused
+  (or its clock stepped forward) and the run goes on from there: a gap, not a new run. If the next
+  one belongs to the run instead, the held stamp was a stray (far future, ``sec = 2^31 - 1``);
 * **duplicate**: the same stamp again is dropped;
 * **out of order**: a stamp before the previous accepted one, by at most ``max_step_s``, is dropped;
-* **jump**: a stamp further than ``max_step_s`` after the previous accepted one, or any stamp
-  before it (a stray stamp: far future, far past, ``sec = 2^31 - 1``; an old sample; or the first
-  sample after a clock jump or a simulator's restart) is held as a candidate and dropped.
-  ``jump_samples`` consecutive candidates that are consistent with each other (each after the one
-  before by at most ``max_step_s``) are a real clock jump: the timeline re-anchors there and a new
-  run starts (:data:`Stamp.NEW_RUN`), without a reset call. A sample of the current run in between
-  discards the candidates (counted as strays, or as out of order when they were less than
-  ``max_step_s`` old): one stray stamp neither blinds the monitor nor starts a new run.
+* **jump back**: any stamp before the previous accepted one (an old sample, a stray from the far
+  past, or the first sample after the clock was set back or a simulator restarted) is held as a
+  candidate and dropped. ``jump_samples`` consecutive candidates that are consistent with each
+  other (each after the one before by at most ``max_step_s``) are a real clock jump: the timeline
+  re-anchors there and a new run starts (:data:`Stamp.NEW_RUN`), without a reset call. A sample of
+  the current run in between discards the candidates (counted as strays, or as out of order when
+  they were less than ``max_step_s`` old): one stray stamp neither blinds the monitor nor starts a
+  new run.
 
 The first sample after construction or :meth:`StampTimeline.reset` anchors a run whatever its stamp;
 if it was a stray, the stream re-anchors after ``jump_samples`` samples.
@@ -83,6 +87,7 @@ class StampTimeline:
         """Explicit new run: the next stamp anchors it, whatever its value."""
         self.anchor_ns: Optional[int] = None
         self.last_ns: Optional[int] = None
+        self._ahead: Optional[int] = None  # a stamp far ahead of the run, held (see classify)
         self._candidates: list[int] = []
         self._period_ns: Optional[float] = None
 
@@ -106,8 +111,22 @@ class StampTimeline:
         if last is None:
             self._anchor(stamp_ns)
             return Stamp.NEXT
+        held = self._ahead
+        self._ahead = None
+        if held is not None and 0 < stamp_ns - held <= self._max_step_ns:
+            # The stamp held ahead of the run is followed: the sensor paused (a gap; the held
+            # sample, dropped, is one of the missing).
+            self._discard_candidates()
+            self._count_missing(stamp_ns - last)
+            self.last_ns = stamp_ns
+            return Stamp.NEXT
+        if held is not None:
+            self.strays += 1
         step = stamp_ns - last
-        if 0 < step <= self._max_step_ns:
+        if step > self._max_step_ns:
+            self._ahead = stamp_ns          # a pause or a stray: the next stamp will tell
+            return Stamp.JUMP_PENDING
+        if 0 < step:
             if self._candidates:
                 self._discard_candidates()
             self._count_missing(step)
@@ -140,18 +159,23 @@ class StampTimeline:
     def _anchor(self, stamp_ns: int) -> None:
         self.anchor_ns = self.last_ns = stamp_ns
         self._candidates.clear()
+        self._ahead = None
         self._period_ns = None
+        self._regular_steps = 0
 
     def _count_missing(self, step_ns: int) -> None:
+        """Count the samples missing in a step, on the stream's period, and learn the period
+        from the regular steps: their running mean (a slow average after 100 of them); a step
+        under half the period so far restarts the learning (the first step was a gap)."""
         period = self._period_ns
-        if period is None:
-            self._period_ns = float(step_ns)
-            return
-        if step_ns > 1.5 * period:
+        if period is not None and step_ns > 1.5 * period:
             self.missing += round(step_ns / period) - 1
-        else:
-            # A slow average of regular steps: the period of the stream (gaps left out).
-            self._period_ns = period + 0.01 * (step_ns - period)
+            return
+        if period is None or step_ns < 0.5 * period:
+            self._period_ns, self._regular_steps = float(step_ns), 1
+            return
+        self._regular_steps += 1
+        self._period_ns = period + max(0.01, 1.0 / self._regular_steps) * (step_ns - period)
 
     def counters(self) -> dict[str, int]:
         """Counts for ``/diagnostics``."""

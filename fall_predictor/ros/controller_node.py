@@ -24,6 +24,7 @@ logged (throttled), counted and dropped. The controller's clock is the measureme
 """
 from __future__ import annotations
 
+
 from typing import Optional
 
 from rclpy.node import Node

@@ -22,7 +22,6 @@ dropped or samples missing in the last period; STALE when no measurement arrived
 """
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import replace
 from typing import Optional
@@ -33,6 +32,7 @@ from rclpy.parameter import Parameter
 from fall_predictor.contract import messages
 from fall_predictor.contract.topics import FALL_EVENT, FEATURES, MEASUREMENT
 from fall_predictor.contract.wire import LEVEL_OK, LEVEL_STALE, LEVEL_WARN
+from fall_predictor.monitor.chain import base_tilt_rad
 from fall_predictor.monitor.fall_monitor import EVENT_RESET
 from fall_predictor.monitor.timeline import Stamp, StampTimeline
 from fall_predictor.msg import FallEvent, Features, Measurement
@@ -58,11 +58,6 @@ PARAMS = (
 )
 #: Samples whose period is averaged before the rate is judged against the model.
 _RATE_SAMPLES = 20
-
-
-def base_tilt_rad(rotation) -> float:
-    """Angle [rad] between the base's z axis and the vertical (0 for an upright base)."""
-    return math.acos(min(1.0, max(-1.0, float(rotation[2, 2]))))
 
 
 class FeatureNode(Node):

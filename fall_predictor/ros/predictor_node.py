@@ -124,7 +124,8 @@ class PredictorNode(Node):
         self._faults = FaultLog(self)
         #: Counters by event name (reported in /diagnostics).
         self.counts = {'features': 0, 'states': 0, 'falling_states': 0, 'degraded_states': 0,
-                       'stale_states': 0, 'fallen_states': 0, 'events': 0, 'resets': 0}
+                       'stale_states': 0, 'fallen_states': 0, 'events': 0, 'resets': 0,
+                       'trigger_messages': 0, 'direction_messages': 0}
         self._missing_at_report = 0
         self._last_valid_wall = time.monotonic()
         self._last_stale_wall = -math.inf
@@ -225,6 +226,7 @@ class PredictorNode(Node):
         if event.kind == EVENT_FALLING:
             if math.isfinite(event.direction[0]):
                 self._direction_pub.publish(ros_qos.fall_direction_msg(stamp_ns, event.direction))
+                self.counts['direction_messages'] += 1
             self._publish_trigger(True)
         self.get_logger().info(f'{EVENT_NAMES[event.kind]} at stamp {stamp_ns / 1e9:.3f} s'
                                + (f', direction ({event.direction[0]:.2f}, {event.direction[1]:.2f})'
@@ -233,6 +235,7 @@ class PredictorNode(Node):
     def _publish_trigger(self, falling: bool) -> None:
         if falling != self._trigger or falling is False:
             self._falling_pub.publish(ros_qos.falling_msg(falling))
+            self.counts['trigger_messages'] += 1
         self._trigger = falling
 
     def _on_watchdog(self) -> None:

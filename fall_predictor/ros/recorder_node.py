@@ -52,7 +52,7 @@ import rclpy
 from geometry_msgs.msg import Vector3Stamped, WrenchStamped
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Bool, Float64MultiArray, String
+from std_msgs.msg import Bool, String
 
 from fall_predictor.data import bagio
 from fall_predictor.data.bag_writer import BagWriter
@@ -62,7 +62,9 @@ from fall_predictor.ros.endpoints import create_subscription
 from fall_predictor.ros.health import Diagnostics, InputErrors, Report
 from fall_predictor.ros.parameters import NodeStartupError, ParamSpec, declare_parameters
 from fall_predictor.ros.runner import run_node
-from fall_predictor.contract.topics import (CONTROLLER_MODE, FALL_DIRECTION, FALLING, FEATURES,
+from fall_predictor.contract import messages
+from fall_predictor.msg import FallEvent, FallState, Features, Measurement
+from fall_predictor.contract.topics import (CONTROLLER_MODE, FALL_DIRECTION, FALL_EVENT, FALLING, FEATURES,
                                         JOINT_COMMANDS, JOINT_STATES, MEASUREMENT, PUSH, STATE,
                                         TopicSpec, WireFormatError, check_controller_mode)
 from fall_predictor.contract.wire import LEVEL_OK, LEVEL_WARN, JointStateSample
@@ -71,9 +73,10 @@ from fall_predictor.contract.topics import ns_to_time, stamp_to_ns, time_to_ns
 NODE_NAME = 'recorder_node'
 #: Recorded topics and their rclpy message classes.
 RECORDED: tuple[tuple[TopicSpec, type], ...] = (
-    (MEASUREMENT, Float64MultiArray), (FEATURES, Float64MultiArray), (STATE, Float64MultiArray),
+    (MEASUREMENT, Measurement), (FEATURES, Features), (STATE, FallState),
     (JOINT_STATES, JointState), (JOINT_COMMANDS, JointState), (PUSH, WrenchStamped),
     (CONTROLLER_MODE, String), (FALLING, Bool), (FALL_DIRECTION, Vector3Stamped),
+    (FALL_EVENT, FallEvent),
 )
 #: Stamped streams split into runs on their own time line; the value says whether a new
 #: t = 0 sample starts a run (not for states: degraded states repeat the last sample time).
@@ -115,10 +118,18 @@ def _sample_time(topic: str, msg: bagio.RosbagsMsg) -> Optional[float]:
         if not isinstance(msg.data, bool):
             raise WireFormatError(f'falling must be a bool, got {msg.data!r}')
         return None
+    if topic == FALL_EVENT.name:
+        return None                         # logged at the latest measurement's time
     if topic == FALL_DIRECTION.name:
         # Logged at the latest measurement's time, like the unstamped topics.
         time_to_ns(ns_to_time(stamp_to_ns(msg.header.stamp.sec, msg.header.stamp.nanosec)))
         return None
+    if topic == MEASUREMENT.name:             # a measurement that carries a fault is recorded too
+        return messages.measurement_from_msg(msg).stamp_ns / 1e9
+    if topic == FEATURES.name:
+        return messages.features_from_msg(msg).stamp_ns / 1e9
+    if topic == STATE.name:
+        return messages.fall_state_from_msg(msg)[0] / 1e9
     record = bagio.decode(bagio.BagMessage(topic, '', 0, msg))
     return float(record.t)  # type: ignore[attr-defined]
 
