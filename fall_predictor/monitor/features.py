@@ -35,6 +35,12 @@ class FeatureSettingsMismatch(ValueError):
     """A monitor configured differently from the model it runs (the message says how)."""
 
 
+#: What a feature setting can physically be: [low, high] per setting (a model file that says
+#: otherwise is refused, before any arithmetic overflows on it).
+SETTING_RANGES = {'rate_window_s': (1e-4, 1.0), 'edge_tolerance_m': (0.0, 0.1),
+                  'sample_period_s': (1e-4, 0.1), 'guard_com_height_m': (0.0, 2.0)}
+
+
 @dataclass(frozen=True)
 class FeatureSettings:
     """How features were computed for a model; the monitor must compute them the same way.
@@ -51,8 +57,9 @@ class FeatureSettings:
 
     def __post_init__(self) -> None:
         for name, value in asdict(self).items():
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0.0):
-                raise ValueError(f'{name} must be a finite number >= 0, got {value!r}')
+            low, high = SETTING_RANGES[name]
+            if not (isinstance(value, (int, float)) and low <= value <= high):
+                raise ValueError(f'{name} must be a number in [{low:g}, {high:g}], got {value!r}')
         if not 0.0 < self.sample_period_s <= self.rate_window_s:
             raise ValueError(f'need 0 < sample_period_s <= rate_window_s, got '
                              f'{self.sample_period_s} and {self.rate_window_s}')

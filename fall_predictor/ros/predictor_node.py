@@ -205,8 +205,11 @@ class PredictorNode(Node):
             self._publish_event(decoded.stamp_ns, event)
         self._publish_state(decoded.stamp_ns, state)
 
-    def _publish_unusable(self, stamp_ns: int, reason: str, stale: bool) -> None:
-        self._faults.update(reason)
+    def _publish_unusable(self, stamp_ns: int, reason: str, stale: bool,
+                          logged_as: Optional[str] = None) -> None:
+        """A DEGRADED (or STALE) state with ``reason``; logged as ``logged_as`` (a reason that
+        does not change while the fault lasts), else as ``reason``."""
+        self._faults.update(logged_as or reason)
         self._publish_state(stamp_ns, self._monitor.unusable(reason, stale))
 
     def _publish_state(self, stamp_ns: int, state: MonitorState) -> None:
@@ -245,7 +248,8 @@ class PredictorNode(Node):
             self._last_stale_wall = now
             what = 'no features received' if self._timeline.last_ns is None else 'no features'
             self._stale_reason = f'{what} for {silent_s:.2f} s'
-            self._publish_unusable(self._timeline.last_ns or 0, self._stale_reason, stale=True)
+            self._publish_unusable(self._timeline.last_ns or 0, self._stale_reason, stale=True,
+                                   logged_as=what)
 
     def _report(self) -> Report:
         values = {'stamp_ns': self._timeline.last_ns, 'tau_his_s': self._monitor.tau_his_s,

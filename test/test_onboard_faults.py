@@ -1,0 +1,171 @@
+"""Sensor faults through the whole onboard chain with the shipped model: a degraded state that says
+why, never a fall, never a crash; normal again when the sensor is.
+
+One unpushed walk recorded with the sensor model and published as a robot's drivers would
+(:mod:`fall_predictor.sim.drivers`, epoch stamps), then each fault class injected into it and run
+through :class:`~fall_predictor.monitor.chain.OnboardChain` (what ``fall_monitor --estimator``
+runs). Each case asserts: no FALLING event, the fault's words in the DEGRADED states while it
+lasts, OK states before it and again from 60 ms after it.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+from typing import Callable, Optional
+
+import numpy as np
+import pytest
+
+from fall_predictor.monitor.chain import OnboardChain
+from fall_predictor.monitor.fall_monitor import (EVENT_FALLING, STATUS_DEGRADED, STATUS_OK,
+                                                 FallenConfig, FallMonitor)
+from fall_predictor.monitor.model_file import load_model
+from fall_predictor.monitor.records import FALLEN_COM_HEIGHT_M, GUARD_COM_HEIGHT_M
+from fall_predictor.monitor.sensor_pipeline import PipelineConfig, SensorPipeline
+from fall_predictor.monitor.sensor_records import JointStateReading
+from fall_predictor.robot import model as rm
+from fall_predictor.sim.drivers import DriverTiming, driver_messages
+from fall_predictor.sim.sensors import SensorParams, apply_sensors
+from fall_predictor.sim.trajectory import run_trajectory
+
+MODEL = Path(__file__).resolve().parents[1] / 'models' / 'default_model.json'
+LEGS = tuple(f'{s}_{j}' for s in rm.SIDES for j in rm.LEG_JOINTS)
+UPPER = tuple(n for n in rm.JOINT_NAMES if n not in LEGS)
+TIMING = DriverTiming.robot(1000.0, (LEGS, UPPER))
+EPOCH_NS = TIMING.clock_offset_ns
+MS = 1_000_000
+#: The fault lasts from FAULT_START to FAULT_END [ns after the start of the recording].
+FAULT_START, FAULT_END = 800 * MS, 1300 * MS
+
+
+@pytest.fixture(scope='module')
+def messages():
+    run = run_trajectory(None, 2.0, record_sensors=True)
+    samples = apply_sensors(run.sensor_truths, SensorParams(), seed=4)
+    return list(driver_messages(samples, TIMING))
+
+
+def chain() -> OnboardChain:
+    lists, metadata = load_model(MODEL)
+    settings = metadata.feature_settings
+    layout = rm.SENSOR_LAYOUT
+    pipeline = SensorPipeline(layout.description(rm.URDF_PATH.read_text()), layout.imu_frame,
+                              config=PipelineConfig(driving_joints=LEGS))
+    monitor = FallMonitor(lists, metadata.recommended_tau_his_s,
+                          FallenConfig(FALLEN_COM_HEIGHT_M, GUARD_COM_HEIGHT_M),
+                          settings.sample_period_s, settings.guard_com_height_m, rm.TOTAL_MASS_KG)
+    return OnboardChain(pipeline, settings, monitor)
+
+
+def during(reading, start: int = FAULT_START, end: int = FAULT_END) -> bool:
+    return start <= reading.stamp_ns - EPOCH_NS < end
+
+
+def drop_joint(name: str) -> Callable:
+    def change(stream, r):
+        if stream == 'joints' and name in r.names and during(r):
+            keep = [i for i, n in enumerate(r.names) if n != name]
+            return [(stream, replace(r, names=tuple(r.names[i] for i in keep),
+                                     position=r.position[keep], velocity=r.velocity[keep],
+                                     effort=r.effort[keep]))]
+        return [(stream, r)]
+    return change
+
+
+def freeze_joint(name: str) -> Callable:
+    frozen: dict[str, float] = {}
+
+    def change(stream, r):
+        if stream == 'joints' and name in r.names and during(r):
+            i = r.names.index(name)
+            position, velocity = r.position.copy(), r.velocity.copy()
+            position[i] = frozen.setdefault(name, float(position[i]))
+            velocity[i] = 2.0               # the drive says it moves; the encoder says it does not
+            return [(stream, replace(r, position=position, velocity=velocity))]
+        return [(stream, r)]
+    return change
+
+
+def imu_burst(stream, r):
+    if stream == 'imu' and during(r, FAULT_START, FAULT_START + 10 * MS):
+        return [(stream, replace(r, linear_acceleration=np.array([3000.0, 0.0, 9.81])))]
+    return [(stream, r)]
+
+
+def silence(target: str) -> Callable:
+    def change(stream, r):
+        return [] if stream == target and during(r, FAULT_START, FAULT_START + 300 * MS) else [(stream, r)]
+    return change
+
+
+def once(kind: str) -> Callable:
+    """A single bad message at FAULT_START, besides the good ones."""
+    def change(stream, r):
+        out = [(stream, r)]
+        if stream == 'joints' and 'l_hip_yaw' in r.names and r.stamp_ns - EPOCH_NS == FAULT_START:
+            if kind == 'nan':
+                position = r.position.copy()
+                position[0] = np.nan
+                out.append((stream, replace(r, stamp_ns=r.stamp_ns + 1, position=position)))
+            elif kind == 'empty':
+                out.append((stream, JointStateReading(r.stamp_ns + 1, (), np.zeros(0))))
+            elif kind == 'sec_2_31_minus_1':
+                out.append((stream, replace(r, stamp_ns=(2 ** 31 - 1) * 1_000_000_000)))
+            elif kind == '1000_s_ahead':
+                out.append((stream, replace(r, stamp_ns=r.stamp_ns + 1000 * 1_000_000_000)))
+            elif kind == 'unknown_names':
+                out.append((stream, JointStateReading(r.stamp_ns, ('gripper',), np.ones(1))))
+        if stream == 'imu' and kind == 'huge_gyro' and r.stamp_ns - EPOCH_NS == FAULT_START + 300_000:
+            out = [(stream, replace(r, angular_velocity=np.array([1e6, 0.0, 0.0])))]
+        return out
+    return change
+
+
+CASES = {
+    # case: (how the messages change, the words of the DEGRADED states (None: no such state))
+    'joint missing 0.5 s': (drop_joint('l_knee_pitch'),
+                            'joint l_knee_pitch not received for more than 50 ms'),
+    'joint stuck 0.5 s': (freeze_joint('r_knee_pitch'), 'joint r_knee_pitch stuck at'),
+    'IMU burst of 3000 m/s^2 for 10 ms': (imu_burst, None),
+    'IMU stops 0.3 s': (silence('imu'), 'no /imu/data within 5 ms of /joint_states'),
+    'left foot sensor stops 0.3 s': (silence('l'), 'no /left_foot/wrench within 5 ms'),
+    'NaN joint position': (once('nan'), None),
+    'empty joint states': (once('empty'), None),
+    'stamp sec = 2^31 - 1': (once('sec_2_31_minus_1'), None),
+    'joint stamp 1000 s ahead': (once('1000_s_ahead'), None),
+    'huge gyro reading': (once('huge_gyro'), None),
+    'joint names the URDF lacks': (once('unknown_names'), None),
+}
+
+
+@pytest.mark.parametrize('case', list(CASES))
+def test_a_sensor_fault_degrades_never_falls_never_crashes(messages, case: str) -> None:
+    change, words = CASES[case]
+    c = chain()
+    outputs, rejected = [], 0
+    for stream, reading in messages:
+        for s, r in change(stream, reading):
+            try:
+                outputs += c.add(s, r)
+            except ValueError:              # malformed: the node logs, counts and drops it
+                rejected += 1
+    outputs += c.flush()
+    assert not [o for o in outputs if o.event is not None and o.event.kind == EVENT_FALLING]
+    assert not any(o.state.falling for o in outputs)
+    rel = lambda o: o.stamp_ns - EPOCH_NS   # noqa: E731
+    before = [o for o in outputs if 100 * MS <= rel(o) < FAULT_START]
+    after = [o for o in outputs if rel(o) >= FAULT_END + 60 * MS]
+    assert before and all(o.state.status == STATUS_OK for o in before), case
+    assert after and all(o.state.status == STATUS_OK for o in after), case
+    degraded = [o for o in outputs if o.state.status == STATUS_DEGRADED and rel(o) >= 100 * MS]
+    if words is None:
+        # Refused on arrival (or dropped by the time rule): at most the samples that had no
+        # other reading within the tolerance are degraded, for no longer than the fault.
+        assert all(FAULT_START <= rel(o) < FAULT_START + 20 * MS for o in degraded), case
+    else:
+        assert degraded and all(words in o.state.reason for o in degraded), (case, degraded[:1])
+        assert all(FAULT_START <= rel(o) < FAULT_END + 60 * MS for o in degraded), case
+    if case == 'NaN joint position':
+        assert rejected == 1
+    refused = {'IMU burst of 3000 m/s^2 for 10 ms': 10, 'huge gyro reading': 1}.get(case, 0)
+    assert c.pipeline.sync.counts['refused_readings'] == refused, case
