@@ -136,3 +136,86 @@ def test_a_urdf_without_sole_frames_is_a_clear_error():
     with pytest.raises(DescriptionError, match='cannot build'):
         asimo_estimator('<robot name="x"><link')
     assert EstimatorConfig().contact_force_n > 0
+
+
+# -- frames from the robot description --------------------------------------------------------
+
+#: An IMU mounted on the torso away from its origin, turned (rpy [rad], xyz [m] in the torso frame).
+IMU_RPY, IMU_XYZ = (0.3, -0.2, 1.0), (0.05, 0.02, 0.10)
+
+
+def _with_imu_link(urdf: str) -> str:
+    link = ('<link name="imu_link"/><joint name="imu_joint" type="fixed"><parent link="torso"/>'
+            '<child link="imu_link"/><origin xyz="%g %g %g" rpy="%g %g %g"/></joint></robot>'
+            % (*IMU_XYZ, *IMU_RPY))
+    return urdf.replace('</robot>', link)
+
+
+def _mounted_imu_truths(truths):
+    """The truths of an IMU mounted at IMU_XYZ / IMU_RPY on the torso instead of at its origin."""
+    from dataclasses import replace
+
+    from scipy.spatial.transform import Rotation
+    mount = Rotation.from_euler('xyz', IMU_RPY)
+    out = []
+    for truth in truths:
+        torso = Rotation.from_quat(truth.imu_quat_xyzw)
+        omega_world = torso.apply(truth.gyro_rad_s)
+        lever = torso.apply(IMU_XYZ)
+        out.append(replace(truth, imu_quat_xyzw=(torso * mount).as_quat(),
+                           gyro_rad_s=mount.inv().apply(truth.gyro_rad_s),
+                           imu_velocity_world=truth.imu_velocity_world + np.cross(omega_world, lever)))
+    return out
+
+
+def test_an_imu_on_another_link_named_by_its_frame_tracks_as_well(run):
+    """The IMU's frame (its messages' frame_id) is resolved in the robot description: mounted
+    10 cm off the torso origin and turned by 1 rad, the estimate meets the same aims."""
+    from dataclasses import replace
+    samples = [replace(s, imu_frame='imu_link')
+               for s in apply_sensors(_mounted_imu_truths(run.sensor_truths), SensorParams(), seed=7)]
+    est = asimo_estimator(_with_imu_link(rm.URDF_PATH.read_text())).run(samples)
+    truth = run.measurements
+    assert sum(m is None for m in est) <= 5
+    assert np.percentile(_errors(est, truth, 'com'), 99) <= 0.010
+    lin = _errors(est, truth, 'lin_mom')
+    assert np.median(lin) <= 0.3 and np.percentile(lin, 99) <= 1.5
+
+
+def test_foot_wrenches_in_another_frame_are_carried_to_the_soles(readings):
+    """Wrenches reported in the ankle frame (the foot link, 7 cm above the sole) give exactly the
+    sole-frame estimates: the frame of each WrenchStamped is resolved in the description."""
+    from dataclasses import replace
+    r_sole = np.asarray(rm.SOLE_ORIGIN_IN_FOOT_M)          # sole origin in the foot (ankle) frame
+
+    def at_ankle(w):
+        f, tau = w[:3], w[3:]
+        return np.concatenate([f, tau + np.cross(r_sole, f)])    # same axes, moment about the ankle
+    ankle = [replace(s, left_wrench=at_ankle(s.left_wrench), right_wrench=at_ankle(s.right_wrench),
+                     wrench_frames=('l_foot', 'r_foot')) for s in readings[:400]]
+    direct = asimo_estimator().run(readings[:400])
+    carried = asimo_estimator().run(ankle)
+    for a, b in zip(direct, carried):
+        assert (a is None) == (b is None)
+        if a is not None:
+            np.testing.assert_allclose(a.cop, b.cop, atol=1e-9)
+            np.testing.assert_allclose(a.com, b.com, atol=1e-9)
+
+
+def test_continuous_joints_and_joints_in_any_order(readings):
+    """A continuous joint (cos/sin in Pinocchio) and a sample listing the joints in reverse give
+    the estimates of the revolute, URDF-ordered case."""
+    from dataclasses import replace
+    urdf = rm.URDF_PATH.read_text().replace('<joint name="head_pan" type="revolute">',
+                                            '<joint name="head_pan" type="continuous">')
+    assert 'type="continuous"' in urdf
+    order = np.arange(len(rm.JOINT_NAMES))[::-1]
+    reversed_samples = [replace(s, joint_names=tuple(np.array(s.joint_names)[order]),
+                                q=s.q[order], dq=s.dq[order]) for s in readings[:300]]
+    direct = asimo_estimator().run(readings[:300])
+    other = asimo_estimator(urdf).run(reversed_samples)
+    for a, b in zip(direct, other):
+        assert (a is None) == (b is None)
+        if a is not None:
+            np.testing.assert_allclose(a.com, b.com, atol=1e-9)
+            np.testing.assert_allclose(a.lin_mom, b.lin_mom, atol=1e-9)

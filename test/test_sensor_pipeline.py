@@ -168,3 +168,16 @@ def test_unknown_joints_empty_and_stray_messages_never_break_it(robot, samples):
     assert p.imu(ImuReading(EPOCH_NS, 'torso', np.array([0.0, 0.0, 0.0, 2.0]), np.zeros(3),
                             np.zeros(3))) == []
     assert 'unit quaternion' in p.sync.refused['imu'][1]
+
+
+def test_joint_velocities_are_optional(robot, samples, run):
+    """A driver that reports positions only: velocities are differenced per joint, and the
+    estimates still track the truth (momentum within twice the aim of reported velocities)."""
+    stripped = [(s, replace(r, velocity=np.zeros(0)) if s == 'joints' else r)
+                for s, r in driver_messages(samples)]
+    estimates = [e for e in feed(pipeline(robot), stripped) if e.measurement is not None]
+    truth = {round(m.t * 1000): m for m in run.measurements}
+    lin = np.array([np.linalg.norm(e.measurement.lin_mom - truth[round(e.stamp_ns / 1e6)].lin_mom)
+                    for e in estimates])
+    assert len(estimates) >= len(samples) - 5
+    assert np.median(lin) <= 0.6 and np.percentile(lin, 99) <= 3.0

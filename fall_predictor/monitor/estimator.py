@@ -12,7 +12,8 @@ the sole frames) and one synchronised sample of joint encoders, IMU and foot for
   averaged out, its bias is not; every time constant is in seconds, so the filter behaves the same
   at any sample rate: a sample ``dt`` apart corrects by ``1 - exp(-dt / tau)``); yaw
   relative to the first sample plus ``initial_yaw_rad`` (the world frame is the frame the robot
-  started in, its origin at ``initial_xy_m`` on the loaded soles' centres at the first sample);
+  started in, its origin at ``initial_xy_m`` on the loaded soles' centres at the first sample with a
+  loaded sole);
 * **the IMU point's position and velocity**: the accelerometer measures the specific force of the
   IMU point, so the filter runs on that point: it integrates the accelerometer and corrects with
   the force-weighted kinematic position and velocity of the point (time constants
@@ -297,22 +298,23 @@ class StateEstimator:
             point_rel[side] = kin.sole_pos[side] + offset
             v_origin, w_sole = kin.sole_vel[side]
             point_vel[side] = v_origin + _cross(w_sole, offset)
-        if first:
-            if loaded:
-                # The world frame goes on the soles' centres (the sole frames' origins), not on
-                # the part judged on the ground: that part hangs on the first, unfiltered tilt
-                # (0.5 deg of IMU error makes an edge of a flat sole: half a sole's shift).
-                mid = np.mean([kin.sole_pos[side] for side in loaded], axis=0)
-                ground = np.mean([point_rel[side][2] for side in loaded])
-                base = np.array([cfg.initial_xy_m[0] - mid[0], cfg.initial_xy_m[1] - mid[1], -ground])
-                self.p = base + kin.imu_pos
+        first_fix = not self._have_fix and bool(loaded)
+        if first_fix:
+            # The world frame is placed at the first sample with a loaded sole: its origin on the
+            # soles' centres (the sole frames' origins), not on the part judged on the ground,
+            # which hangs on the first, unfiltered tilt (0.5 deg of IMU error makes an edge of a
+            # flat sole: half a sole's shift).
+            mid = np.mean([kin.sole_pos[side] for side in loaded], axis=0)
+            ground = np.mean([point_rel[side][2] for side in loaded])
+            base = np.array([cfg.initial_xy_m[0] - mid[0], cfg.initial_xy_m[1] - mid[1], -ground])
+            self.p = base + kin.imu_pos
             self.v = np.zeros(3)
-        else:
+        elif not first:
             a_world = kin.imu_rot @ np.asarray(s.accel_m_s2, dtype=float) - _GRAVITY
             self.v = self.v + a_world * dt
             self.p = self.p + self.v * dt
         if loaded:
-            self._correct(kin, loaded, touch, point_rel, point_vel, first, dt)
+            self._correct(kin, loaded, touch, point_rel, point_vel, first_fix, dt)
         self.t = s.t
         if not self._have_fix:
             self.last_issue = 'no loaded sole yet: the base position is unknown'
@@ -320,9 +322,9 @@ class StateEstimator:
         return self._measurement(s.t, kin, loaded, touch)
 
     def _correct(self, kin: _Kinematics, loaded: dict, touch: dict, point_rel: dict,
-                 point_vel: dict, first: bool, dt: float) -> None:
+                 point_vel: dict, first_fix: bool, dt: float) -> None:
         """The kinematic correction of the IMU point from the soles on the ground (``dt``: the
-        time since the previous sample [s])."""
+        time since the previous sample [s]; ``first_fix``: the world frame was just placed)."""
         cfg = self.config
         per_side = {}
         base_now = self.p - kin.imu_pos
@@ -337,7 +339,7 @@ class StateEstimator:
             p_meas = self.anchors[side][1] - point_rel[side] + kin.imu_pos
             v_meas = kin.imu_vel - point_vel[side]
             per_side[side] = (w[2], p_meas, v_meas)
-        if self._have_fix and not first:
+        if not first_fix:
             # Slip: a sole whose kinematic velocity disagrees with the IMU prediction by more
             # than slip_velocity_m_s is sliding; it is left out and re-anchored. If every sole
             # slips for max_slip_s, the closest one is trusted.
@@ -353,7 +355,7 @@ class StateEstimator:
             weights = sum(f for f, _, _ in per_side.values())
             p_meas = sum(f * p for f, p, _ in per_side.values()) / weights
             v_meas = sum(f * v for f, _, v in per_side.values()) / weights
-            if first or not self._have_fix:
+            if first_fix:
                 self.p, self.v = p_meas, v_meas
                 self._have_fix = True
             else:
