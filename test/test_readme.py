@@ -119,8 +119,8 @@ def test_readme_cli_table_lists_exactly_the_cli_subcommands():
     assert documented == subcommands
 
 
-def test_readme_package_layout_names_existing_sub_packages():
-    rows = table_rows(README.read_text(encoding='utf-8'), 'sub-package')
+def test_contributing_layout_names_existing_sub_packages():
+    rows = table_rows((ROOT / 'CONTRIBUTING.md').read_text(encoding='utf-8'), 'sub-package')
     assert len(rows) >= 6
     for cell in rows:
         assert (ROOT / cell.strip('`')).exists(), cell

@@ -16,28 +16,15 @@ import time
 from pathlib import Path
 
 import pytest
-from geometry_msgs.msg import WrenchStamped
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
-from sensor_msgs.msg import Imu, JointState
-from std_msgs.msg import String
-from std_srvs.srv import Trigger
 
-from fall_predictor.contract import messages
-from fall_predictor.contract.topics import (FALL_EVENT, IMU, LEFT_FOOT_WRENCH, MONITOR_RESET_SERVICE,
-                                            RIGHT_FOOT_WRENCH, ROBOT_DESCRIPTION,
-                                            SENSOR_JOINT_STATES, STATE)
 from fall_predictor.monitor.chain import OnboardChain
 from fall_predictor.monitor.fall_monitor import EVENT_FALLING, FallenConfig, FallMonitor
 from fall_predictor.monitor.model_file import load_model
 from fall_predictor.monitor.records import FALLEN_COM_HEIGHT_M, GUARD_COM_HEIGHT_M, PushSpec
 from fall_predictor.monitor.sensor_pipeline import SensorPipeline
-from fall_predictor.msg import FallEvent, FallState
 from fall_predictor.robot import model as rm
-from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.ros.bringup import ros_environment, start_process, stop_nodes
-from fall_predictor.ros.endpoints import create_publisher, create_subscription
-from fall_predictor.ros.runner import spin_until
+from fall_predictor.ros.sensor_replay import SensorReplayer
 from fall_predictor.sim.drivers import DriverTiming, driver_messages
 from fall_predictor.sim.sensors import SensorParams, apply_sensors
 from fall_predictor.sim.trajectory import run_trajectory
@@ -47,8 +34,7 @@ MODEL = Path(__file__).resolve().parents[1] / 'models' / 'default_model.json'
 NAMESPACE = '/robot2'
 LEGS = tuple(f'{s}_{j}' for s in rm.SIDES for j in rm.LEG_JOINTS)
 UPPER = tuple(n for n in rm.JOINT_NAMES if n not in LEGS)
-BUILD = {'joints': messages.joint_state_msg, 'imu': messages.imu_msg,
-         'l': messages.wrench_msg, 'r': messages.wrench_msg}
+TIMING = DriverTiming.robot(500.0, (LEGS, UPPER))
 #: (force [N], direction [deg]) at t = 1 s: the first falls, the second does not.
 PUSHES = {'fall': (420.0, 0.0), 'survived': (250.0, 0.0)}
 
@@ -81,50 +67,6 @@ def offline_alarm_s(samples) -> float | None:
     return None
 
 
-class RobotDrivers:
-    """This test's node: the robot's sensor topics out, the monitor's events and states in."""
-
-    def __init__(self, context) -> None:
-        self.node = Node('robot_drivers', namespace=NAMESPACE, context=context)
-        self.executor = SingleThreadedExecutor(context=context)
-        self.executor.add_node(self.node)
-        self.pubs = {'joints': create_publisher(self.node, JointState, SENSOR_JOINT_STATES),
-                     'imu': create_publisher(self.node, Imu, IMU),
-                     'l': create_publisher(self.node, WrenchStamped, LEFT_FOOT_WRENCH),
-                     'r': create_publisher(self.node, WrenchStamped, RIGHT_FOOT_WRENCH)}
-        self.description = create_publisher(self.node, String, ROBOT_DESCRIPTION)
-        self.events: list[tuple[int, int]] = []
-        self.states: list[tuple[int, int]] = []
-        create_subscription(self.node, FallEvent, FALL_EVENT,
-                            lambda m: self.events.append((messages.stamp_ns(m), m.event)))
-        create_subscription(self.node, FallState, STATE,
-                            lambda m: self.states.append((messages.stamp_ns(m), m.status)),
-                            lossless=True)
-
-    def spin_until(self, done, timeout_s: float) -> bool:
-        return spin_until(self.executor, done, timeout_s)
-
-    def replay(self, samples) -> tuple[int, int]:
-        """Publish a recording in real time, stamped with ROS time now; returns (clock offset
-        [ns] of the stamps, joint state messages published)."""
-        offset_ns = time.time_ns() + 200_000_000
-        timing = DriverTiming.robot(500.0, (LEGS, UPPER), clock_offset_ns=offset_ns)
-        joint_messages = 0
-        for stream, reading in driver_messages(samples, timing):
-            while time.time_ns() < reading.stamp_ns:
-                self.executor.spin_once(timeout_sec=0.0)
-            self.pubs[stream].publish(BUILD[stream](ros_qos.TYPES, reading))
-            joint_messages += stream == 'joints'
-        return offset_ns, joint_messages
-
-    def reset_monitor(self) -> None:
-        client = self.node.create_client(Trigger, MONITOR_RESET_SERVICE)
-        assert client.wait_for_service(timeout_sec=10.0)
-        future = client.call_async(Trigger.Request())
-        assert self.spin_until(future.done, 10.0) and future.result().success
-        self.node.destroy_client(client)
-
-
 def test_robot_streams_over_dds_give_the_simulator_timed_alarms(recordings, tmp_path):
     domain = test_domain_id(170)
     monitor = start_process('fall_monitor', [
@@ -135,35 +77,26 @@ def test_robot_streams_over_dds_give_the_simulator_timed_alarms(recordings, tmp_
     results = {}
     try:
         with ros_context(domain) as context:
-            robot = RobotDrivers(context)
-            assert robot.spin_until(lambda: all(p.get_subscription_count() for p in robot.pubs.values())
-                                    and robot.description.get_subscription_count(), 60.0), \
-                monitor.log_tail()
-            robot.description.publish(String(data=rm.URDF_PATH.read_text()))
+            robot = SensorReplayer(context, NAMESPACE)
+            assert robot.spin_until(robot.connected, 60.0), monitor.log_tail()
+            robot.publish_description(rm.URDF_PATH.read_text())
             time.sleep(1.0)                 # the estimator builds its model of the robot
             for name, (run, samples) in recordings.items():
                 robot.reset_monitor()
-                robot.events.clear()
-                robot.states.clear()
-                offset_ns, joint_messages = robot.replay(samples)
-                robot.spin_until(lambda: False, 1.0)            # states still in flight
-                falling = [stamp for stamp, kind in robot.events if kind == EVENT_FALLING]
-                results[name] = {
-                    'alarm_s': (falling[0] - offset_ns) / 1e9 if falling else None,
-                    'states': len(robot.states), 'joint_messages': joint_messages}
-            robot.node.destroy_node()
+                results[name] = robot.replay(samples, TIMING)
+            robot.destroy()
     finally:
         codes = stop_nodes({'fall_monitor': monitor})
     assert codes == {'fall_monitor': 0}, monitor.log_tail(40)
     run, samples = recordings['fall']
     reference = offline_alarm_s(samples)
     assert reference is not None and reference < run.t_fallen
-    alarm = results['fall']['alarm_s']
+    alarm = results['fall'].first_alarm_s
     assert alarm is not None and alarm < run.t_fallen, (results, monitor.log_tail(40))
     assert abs((run.t_fallen - alarm) - (run.t_fallen - reference)) <= 0.05, (alarm, reference)
-    assert results['survived']['alarm_s'] is None, results
+    assert results['survived'].first_alarm_s is None, results
     # One state per joint state cycle of the legs (best effort: a loaded machine may lose some,
     # counted by the nodes; never more states than estimates).
     for result in results.values():
-        cycles = result['joint_messages'] // 2
-        assert 0.5 * cycles <= result['states'] <= cycles + 1, result
+        cycles = result.joint_messages // 2
+        assert 0.5 * cycles <= result.states <= cycles + 1, result

@@ -128,7 +128,7 @@ FALL_EVENT = TopicSpec(
     'base_footprint', None, 'the last change of the fall state: falling, fallen, standing, reset')
 FALLING = TopicSpec(
     '/fall_predictor/falling', 'std_msgs/msg/Bool', LATCHED_QOS, None, None, None,
-    'the trigger: true from the first falling prediction until ~/reset (latched)')
+    'the trigger: true from the first falling prediction until the reset (latched)')
 FALL_DIRECTION = TopicSpec(
     '/fall_predictor/fall_direction', 'geometry_msgs/msg/Vector3Stamped', LATCHED_QOS, None,
     HEADING_FRAME, None, 'predicted fall direction (unit, heading frame) at each falling event')
