@@ -71,7 +71,10 @@ def generate_launch_description() -> LaunchDescription:
         node('simulated_robot', simulator_overrides, None, condition=IfCondition(composed)),
         node('simulator_node', simulator_overrides, condition=UnlessCondition(composed)),
         node('state_estimator_node', condition=IfCondition(LaunchConfiguration('sensors'))),
-        node('controller_node', condition=UnlessCondition(composed)),
+        # The simulated robot's own controller reads the simulator's exact state beside its sensors.
+        node('controller_node', {'ground_truth': ParameterValue(LaunchConfiguration('sensors'),
+                                                                value_type=bool)},
+             condition=UnlessCondition(composed)),
         # Both read the model: the feature node for the feature settings it was trained with.
         node('feature_node', {'model_path': ParameterValue(
             LaunchConfiguration('model_path'), value_type=str)}),

@@ -57,6 +57,9 @@ if TYPE_CHECKING:
 #: Shutdown order: the source of all samples first, the recorder last.
 SHUTDOWN_ORDER = ('simulator_node', 'state_estimator_node', 'controller_node', 'feature_node',
                   'predictor_node', RECORDER_NODE)
+#: The legs' joints (the driving joints of split joint states), as a -p value.
+_LEG_JOINTS = '[' + ', '.join(f'"{s}_{j}"' for s in ('l', 'r') for j in (
+    'hip_yaw', 'hip_roll', 'hip_pitch', 'knee_pitch', 'ankle_pitch', 'ankle_roll')) + ']'
 #: With ``sensors``: the node that turns the simulator's sensor topics into the measurement.
 ESTIMATOR_NODE = 'state_estimator_node'
 
@@ -206,7 +209,8 @@ def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
                 record_dir: Optional[Path] = None, horizon_s: float = 3.0,
                 log_dir: Optional[Path] = None, startup_timeout_s: float = 60.0,
                 push_distribution: Optional[PushDistribution] = None,
-                fall_trigger: bool = True, sensors: bool = False) -> list[dict]:
+                fall_trigger: bool = True, sensors: bool = False,
+                sensor_timing: str = 'simulator') -> list[dict]:
     """Start the nodes, push the robot ``pushes`` times, stop everything; see the module docs.
 
     ``real_time_factor`` 0 runs as fast as the lock-stepped pipeline allows (the outcome does
@@ -244,7 +248,13 @@ def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
     names = list(PIPELINE_NODES)
     if sensors:
         overrides['simulator_node']['publish_sensors'] = 'true'
-        overrides[ESTIMATOR_NODE] = {}
+        overrides['controller_node']['ground_truth'] = 'true'     # the robot's own controller
+        if sensor_timing == 'robot':            # sim/drivers.DriverTiming.robot(500 Hz, split)
+            overrides['simulator_node'].update(
+                sensor_joint_rate_hz='500.0', sensor_imu_offset_s='0.0003',
+                sensor_wrench_offset_s='0.0004', sensor_split_joints='true')
+            overrides[ESTIMATOR_NODE] = {'driving_joints': _LEG_JOINTS}
+        overrides.setdefault(ESTIMATOR_NODE, {})
         names.insert(names.index('simulator_node'), ESTIMATOR_NODE)
     if record_dir is not None:
         names.insert(0, RECORDER_NODE)
@@ -299,7 +309,7 @@ def cmd_bringup(args: argparse.Namespace) -> int:
                               model_path=args.model, params_file=args.params_file,
                               record_dir=args.record, horizon_s=args.horizon,
                               log_dir=args.log_dir, fall_trigger=args.fall_trigger,
-                              sensors=args.sensors)
+                              sensors=args.sensors, sensor_timing=args.sensor_timing)
     except BringupError as error:
         print(f'error: {error}', file=sys.stderr)
         return 1

@@ -1,7 +1,8 @@
 """controller_node: C_bal (walking with the balance reflex) until the predictor says falling,
 then C_fall (freeze) for good (SPEC §2).
 
-For every ``fall_predictor/measurement`` it runs
+For every ``fall_predictor/measurement`` (with ``ground_truth``: ``fall_predictor/ground_truth``,
+the simulator's exact state beside its sensors, as C_bal reads it in data generation) it runs
 :class:`~fall_predictor.robot.controllers.ControllerSwitch` and publishes the joint targets on
 ``fall_predictor/joint_commands`` (sensor_msgs/JointState, position field, URDF joint order),
 stamped with the measurement's time so that the lock-stepped simulator can match them. It
@@ -41,8 +42,8 @@ from fall_predictor.ros.parameters import ParamSpec, declare_parameters
 from fall_predictor.ros.runner import run_node
 from fall_predictor.ros.in_process import Output, connect_input
 from fall_predictor.contract import messages
-from fall_predictor.contract.topics import (CONTROLLER_MODE, FALL_EVENT, FALLING, JOINT_COMMANDS,
-                                            MEASUREMENT)
+from fall_predictor.contract.topics import (CONTROLLER_MODE, FALL_EVENT, FALLING, GROUND_TRUTH,
+                                            JOINT_COMMANDS, MEASUREMENT)
 from fall_predictor.contract.wire import LEVEL_OK, LEVEL_WARN
 from fall_predictor.monitor.fall_monitor import EVENT_RESET
 from fall_predictor.monitor.timeline import Stamp, StampTimeline
@@ -59,6 +60,10 @@ PARAMS = (
               read_only=True),
     ParamSpec('fall_trigger_enabled', True, 'switch to C_fall when the trigger says falling; '
               'false: C_bal throughout (as in data generation)'),
+    ParamSpec('ground_truth', False, 'read the simulator\'s exact state (fall_predictor/ground_truth, '
+              'published with its sensors) instead of fall_predictor/measurement: the simulated '
+              'robot\'s own controller then does not depend on the monitor\'s estimator',
+              read_only=True),
 )
 
 
@@ -78,7 +83,8 @@ class ControllerNode(Node):
         #: The joint commands, published and handed to in-process consumers (the simulator).
         self.output = Output(create_publisher(self, JointState, JOINT_COMMANDS))
         self._mode_pub = create_publisher(self, String, CONTROLLER_MODE)
-        inputs = [*connect_input(self, Measurement, MEASUREMENT, self._on_measurement,
+        source = GROUND_TRUTH if p['ground_truth'] else MEASUREMENT
+        inputs = [*connect_input(self, Measurement, source, self._on_measurement,
                                  upstream, lossless=True),
                   create_subscription(self, Bool, FALLING, self._on_falling)]
         create_subscription(self, FallEvent, FALL_EVENT, self._on_fall_event)

@@ -8,8 +8,8 @@ measurement from the simulator directly and its joint command goes straight back
 topics are still published for the monitor, recorders and tools. The world steps up to five
 times per executor wake-up; the fall trigger, push requests, timers and services are served in
 between, so the controller sees the trigger at most 5 ms of simulation time later than as a
-separate process. With ``publish_sensors`` the controller reads the state estimator's
-measurement over DDS as usual (only the commands stay in process).
+separate process. With ``publish_sensors`` the controller takes the simulator's exact state
+(``fall_predictor/ground_truth``) in process the same way, as C_bal does in data generation.
 
     ros2 run fall_predictor simulated_robot --ros-args --params-file config/fall_predictor.yaml
 
@@ -20,8 +20,9 @@ from __future__ import annotations
 from typing import Optional
 
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 
-from fall_predictor.contract.topics import MEASUREMENT
+from fall_predictor.contract.topics import GROUND_TRUTH
 from fall_predictor.ros.runner import run_nodes
 from fall_predictor.ros.controller_node import ControllerNode
 from fall_predictor.ros.simulator_node import SimulatorNode
@@ -41,9 +42,11 @@ def robot_nodes(simulator_class: type = SimulatorNode, **node_kwargs: object) ->
 
     def controller() -> Node:
         sim = created[0]
-        # The simulator's own measurement (no sensors): taken in process; else over DDS.
-        in_process = sim.output.topic_name == sim.resolve_topic_name(MEASUREMENT.ros_name)
-        node = ControllerNode(upstream=sim.output if in_process else None, **node_kwargs)
+        # The simulator's exact state, on measurement or (with sensors) on ground_truth.
+        truth = sim.output.topic_name == sim.resolve_topic_name(GROUND_TRUTH.ros_name)
+        others = {k: v for k, v in node_kwargs.items() if k != 'parameter_overrides'}
+        overrides = [*node_kwargs.get('parameter_overrides', []), Parameter('ground_truth', value=truth)]
+        node = ControllerNode(upstream=sim.output, parameter_overrides=overrides, **others)
         sim.connect_controller(node.output)
         return node
     return [simulator, controller]
