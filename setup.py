@@ -18,22 +18,22 @@ setup(
         ('share/' + package_name + '/examples', glob('examples/*.py')),
     ],
     python_requires='>=3.10',
+    # What the onboard monitor needs (a robot installs only this, see package.xml); the offline
+    # tools (simulation, learning, plots, the Dask cluster) are the extras.
     install_requires=[
         'setuptools',
         'numpy>=1.24',
-        'scipy>=1.10',
-        'scikit-learn>=1.3',
-        'joblib>=1.3',
-        'distributed>=2023.1',
-        'matplotlib>=3.7',
-        'tqdm>=4.60',
-        'pybullet>=3.2.5',
         'rosbags>=0.10',
         'pyyaml>=6',
         # Pinocchio (the state estimator's rigid-body dynamics); imported as `pinocchio`.
         'pin>=3.0',
     ],
-    extras_require={'test': ['pytest>=7']},
+    extras_require={
+        'offline': ['pybullet>=3.2.5', 'scipy>=1.10', 'scikit-learn>=1.3', 'joblib>=1.3',
+                    'matplotlib>=3.7', 'tqdm>=4.60'],
+        'cluster': ['distributed>=2023.1'],
+        'test': ['pytest>=7'],
+    },
     zip_safe=True,
     maintainer='fall_predictor developers',
     maintainer_email='dev@fall-predictor.invalid',
@@ -50,6 +50,7 @@ setup(
             'fall_monitor = fall_predictor.ros.fall_monitor:main',
             'simulated_robot = fall_predictor.ros.simulated_robot:main',
             'state_estimator_node = fall_predictor.ros.state_estimator_node:main',
+            'monitor_markers = fall_predictor.ros.marker_node:main',
         ],
     },
 )

@@ -232,3 +232,37 @@ def test_method_states_the_numbers_the_code_uses():
                    'U[0, 0.25] m/s', 'U[0.45, 0.7] s', 'U[0.16, 0.22] m', '10 %',
                    '[0, 1e7] s', '[0, 2] m', '20 m/s', '5e5 N', '2e5 N m'):
         assert needle in method, needle
+
+
+# -- the typed interface ------------------------------------------------------------------------
+
+def _msg_fields_and_constants(name: str) -> tuple[list[str], list[str]]:
+    """Field names and constant names of msg/<name>.msg (comments stripped)."""
+    fields, constants = [], []
+    for line in (ROOT / 'msg' / f'{name}.msg').read_text().splitlines():
+        line = line.split('#', 1)[0].strip()
+        if not line:
+            continue
+        kind, rest = line.split(None, 1)
+        if '=' in rest:
+            constants.append(rest.split('=')[0].strip())
+        else:
+            fields.append(rest.strip())
+    return fields, constants
+
+
+def test_readme_describes_every_field_of_the_monitors_messages():
+    """The README's interface bullets name every field of FallState and every status constant,
+    and the events of FallEvent: a field added to the message must be documented."""
+    readme = README.read_text(encoding='utf-8')
+    fields, constants = _msg_fields_and_constants('FallState')
+    for field in fields:
+        if field != 'header':
+            assert f'`{field}`' in readme, f'FallState.{field} is not in the README'
+    for constant in constants:
+        if constant.startswith('STATUS_'):
+            assert f'`{constant}`' in readme, f'FallState.{constant} is not in the README'
+    assert '`CONTACT_MODE_*`' in readme
+    _, events = _msg_fields_and_constants('FallEvent')
+    for event in events:
+        assert event.removeprefix('EVENT_') in readme, f'FallEvent.{event} is not in the README'

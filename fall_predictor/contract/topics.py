@@ -126,6 +126,10 @@ STATE = TopicSpec(
 FALL_EVENT = TopicSpec(
     '/fall_predictor/fall_event', 'fall_predictor/msg/FallEvent', LATCHED_QOS, None,
     'base_footprint', None, 'the last change of the fall state: falling, fallen, standing, reset')
+MARKERS = TopicSpec(
+    '/fall_predictor/markers', 'visualization_msgs/msg/MarkerArray', EVENT_QOS, None, None, None,
+    'what the monitor sees (monitor_markers, off unless started): support polygon, CoP, CoM, '
+    'capture point, fall direction, status')
 FALLING = TopicSpec(
     '/fall_predictor/falling', 'std_msgs/msg/Bool', LATCHED_QOS, None, None, None,
     'the trigger: true from the first falling prediction until the reset (latched)')
@@ -164,7 +168,7 @@ DIAGNOSTICS = TopicSpec(
 
 #: The interface table, in README order.
 TOPICS: tuple[TopicSpec, ...] = (
-    MEASUREMENT, FEATURES, STATE, FALL_EVENT, FALLING, FALL_DIRECTION, JOINT_STATES, PUSH, PUSH_REQUEST,
+    MEASUREMENT, FEATURES, STATE, FALL_EVENT, FALLING, FALL_DIRECTION, MARKERS, JOINT_STATES, PUSH, PUSH_REQUEST,
     CONTROLLER_MODE, JOINT_COMMANDS, CLOCK, DIAGNOSTICS,
 )
 TOPICS_BY_NAME: dict[str, TopicSpec] = {spec.name: spec for spec in TOPICS}

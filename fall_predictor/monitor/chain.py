@@ -17,6 +17,7 @@ from typing import Optional, Union
 from fall_predictor.monitor.fall_monitor import FallEvent, FallMonitor, MonitorState
 from fall_predictor.monitor.features import FeatureSettings
 from fall_predictor.monitor.plausibility import ImplausibleSample
+from fall_predictor.monitor.records import Measurement
 from fall_predictor.monitor.sensor_pipeline import Estimate, SensorPipeline
 from fall_predictor.monitor.sensor_records import ImuReading, JointStateReading, WrenchReading
 
@@ -35,6 +36,7 @@ class ChainOutput:
     stamp_ns: int
     state: MonitorState
     event: Optional[FallEvent] = None
+    measurement: Optional[Measurement] = None   #: the estimate the state was made from
 
 
 class OnboardChain:
@@ -71,4 +73,4 @@ class OnboardChain:
         except (ValueError, ImplausibleSample) as error:
             return ChainOutput(e.stamp_ns, self.monitor.unusable(f'measurement refused: {error}'))
         state, event = self.monitor.step(e.t, x, mode, base_tilt_rad(m.torso_rotation))
-        return ChainOutput(e.stamp_ns, state, event)
+        return ChainOutput(e.stamp_ns, state, event, e.measurement)

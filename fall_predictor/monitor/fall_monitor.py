@@ -12,10 +12,12 @@ and it runs the same offline. Per sample of features it gives a :class:`MonitorS
 * **direction**: the heading-frame direction of the horizontal momentum at each falling sample
   (:func:`~fall_predictor.monitor.fall_direction.momentum_direction`); **time to fall** from the
   model's regressor when it has one, clamped to [0, 1000] s (NaN otherwise);
-* **fallen**: the robot is down when its CoM is below ``fallen_com_height_m`` above the support or
-  its floating base is tilted beyond ``fallen_tilt_rad`` (method §4); it stands again when the CoM
-  is back above ``standing_com_height_m`` with the base within ``standing_tilt_rad`` of upright,
-  for ``standing_time_s``. While down the state says FALLEN and nothing is predicted;
+* **fallen**: the robot is down when its CoM is below ``fallen_com_height_m`` above the support, or
+  its floating base is tilted beyond ``fallen_tilt_rad`` (method §4), or no foot has touched the
+  ground for ``unsupported_s`` (lying on its back, or carried); it stands again when a foot is on
+  the ground with the CoM back above ``standing_com_height_m`` and the base within
+  ``standing_tilt_rad`` of upright, for ``standing_time_s``. While down the state says FALLEN and
+  nothing is predicted;
 * **disabled** (:meth:`FallMonitor.enable`): states say DISABLED and nothing triggers;
 * **degraded / stale** samples (:meth:`FallMonitor.unusable`): no prediction, the reason in words;
   the history window restarts after them, and after a gap in the input longer than
@@ -29,6 +31,7 @@ from typing import Optional, Sequence
 
 from fall_predictor.monitor.decision_list import PerModeDecisionLists
 from fall_predictor.monitor.fall_direction import momentum_direction
+from fall_predictor.monitor.contact_modes import ContactMode
 from fall_predictor.monitor.predictor import COM_HEIGHT_FEATURE, OnlinePredictor
 
 #: ``MonitorState.status`` values (``fall_predictor/msg/FallState`` STATUS_*).
@@ -37,6 +40,7 @@ STATUS_NAMES = ('ok', 'degraded', 'stale', 'disabled', 'fallen')
 #: ``FallEvent.kind`` values (``fall_predictor/msg/FallEvent`` EVENT_*).
 EVENT_FALLING, EVENT_FALLEN, EVENT_STANDING, EVENT_RESET = range(4)
 EVENT_NAMES = ('falling', 'fallen', 'standing', 'reset')
+_OUTSIDE = int(ContactMode.OUTSIDE)
 #: Largest time to fall reported [s].
 MAX_TIME_TO_FALL_S = 1e3
 _NAN2 = (math.nan, math.nan)
@@ -84,6 +88,7 @@ class FallenConfig:
     fallen_tilt_rad: float = math.radians(60.0)
     standing_tilt_rad: float = math.radians(30.0)
     standing_time_s: float = 1.0
+    unsupported_s: float = 0.5
 
     def __post_init__(self) -> None:
         if not 0.0 < self.fallen_com_height_m < self.standing_com_height_m:
@@ -91,8 +96,10 @@ class FallenConfig:
                              f'{self.fallen_com_height_m} and {self.standing_com_height_m}')
         if not 0.0 < self.standing_tilt_rad < self.fallen_tilt_rad <= math.pi:
             raise ValueError('need 0 < standing_tilt_rad < fallen_tilt_rad <= pi')
-        if not (math.isfinite(self.standing_time_s) and self.standing_time_s >= 0.0):
-            raise ValueError(f'standing_time_s must be >= 0, got {self.standing_time_s}')
+        for name in ('standing_time_s', 'unsupported_s'):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ValueError(f'{name} must be >= 0, got {value}')
 
 
 class FallMonitor:
@@ -138,6 +145,7 @@ class FallMonitor:
         self._latched = False
         self._fallen = False
         self._standing_since: Optional[float] = None
+        self._unsupported_since: Optional[float] = None
         self._last_t = -math.inf
         return FallEvent(EVENT_RESET)
 
@@ -145,6 +153,7 @@ class FallMonitor:
         """The input's clock jumped (a new run): the window restarts; latch and fallen stay."""
         self.predictor.reset()
         self._standing_since = None
+        self._unsupported_since = None
         self._last_t = -math.inf
 
     def enable(self, enabled: bool) -> None:
@@ -195,13 +204,22 @@ class FallMonitor:
     def _update_fallen(self, t: float, com_height_m: float, tilt_rad: float, mode: int
                        ) -> Optional[FallEvent]:
         cfg = self.fallen_config
+        supported = mode != _OUTSIDE
+        if supported:
+            self._unsupported_since = None
+        elif self._unsupported_since is None:
+            self._unsupported_since = t
         if not self._fallen:
-            if com_height_m < cfg.fallen_com_height_m or tilt_rad > cfg.fallen_tilt_rad:
+            unsupported = (self._unsupported_since is not None
+                           and t - self._unsupported_since >= cfg.unsupported_s)
+            if (com_height_m < cfg.fallen_com_height_m or tilt_rad > cfg.fallen_tilt_rad
+                    or unsupported):
                 self._fallen = True
                 self._standing_since = None
                 return FallEvent(EVENT_FALLEN, contact_mode=mode)
             return None
-        upright = com_height_m > cfg.standing_com_height_m and tilt_rad < cfg.standing_tilt_rad
+        upright = (supported and com_height_m > cfg.standing_com_height_m
+                   and tilt_rad < cfg.standing_tilt_rad)
         if not upright:
             self._standing_since = None
             return None

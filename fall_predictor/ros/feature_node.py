@@ -26,7 +26,6 @@ import time
 from dataclasses import replace
 from typing import Optional
 
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from fall_predictor.contract import messages
@@ -34,6 +33,7 @@ from fall_predictor.contract.topics import FALL_EVENT, FEATURES, MEASUREMENT
 from fall_predictor.contract.wire import LEVEL_OK, LEVEL_STALE, LEVEL_WARN
 from fall_predictor.monitor.chain import base_tilt_rad
 from fall_predictor.monitor.fall_monitor import EVENT_RESET
+from fall_predictor.monitor.features import FeatureExtractor, FeatureSettings
 from fall_predictor.monitor.timeline import Stamp, StampTimeline
 from fall_predictor.msg import FallEvent, Features, Measurement
 from fall_predictor.ros import conversions as ros_qos
@@ -41,6 +41,7 @@ from fall_predictor.ros.endpoints import create_publisher, create_subscription
 from fall_predictor.ros.health import (HANDLED_ERRORS, Diagnostics, FaultLog, InputErrors, Report,
                                        guarded)
 from fall_predictor.ros.in_process import Output, connect_input
+from fall_predictor.ros.lifecycle import AUTOSTART, MonitorLifecycleNode
 from fall_predictor.ros.parameters import (MAX_MODEL_BYTES, MODEL_PATH, ParamSpec,
                                            declare_parameters, feature_setting_params,
                                            load_model_for)
@@ -51,7 +52,7 @@ NODE_NAME = 'feature_node'
 #: Feature settings this node uses, checked against the model's.
 SETTINGS = ('rate_window_s', 'edge_tolerance_m', 'sample_period_s')
 PARAMS = (
-    MODEL_PATH, MAX_MODEL_BYTES,
+    AUTOSTART, MODEL_PATH, MAX_MODEL_BYTES,
     *feature_setting_params(SETTINGS),
     ParamSpec('stale_timeout_s', 0.5, 'wall time [s] without a measurement after which '
               '/diagnostics reports STALE', 0.01, 60.0),
@@ -60,18 +61,17 @@ PARAMS = (
 _RATE_SAMPLES = 20
 
 
-class FeatureNode(Node):
-    """Wraps :class:`~fall_predictor.monitor.features.FeatureExtractor`; see the module docs."""
+class FeatureNode(MonitorLifecycleNode):
+    """Wraps :class:`~fall_predictor.monitor.features.FeatureExtractor`; see the module docs
+    (a managed node: configure loads the model's feature settings, see ``ros/lifecycle.py``)."""
 
     def __init__(self, upstream: Optional[Output] = None, **kwargs: object) -> None:
         """``upstream``: take the measurements from this output of a node of the same process
         (``fall_monitor --estimator``) instead of subscribing; ``kwargs`` go to ``Node``."""
         super().__init__(NODE_NAME, **kwargs)
-        p = declare_parameters(self, PARAMS)
-        _, _, settings = load_model_for(self, str(p['model_path']), {k: p[k] for k in SETTINGS},
-                                        int(p['max_model_bytes']))
-        self._settings = settings
-        self._extractor = settings.extractor()
+        p = self._params = declare_parameters(self, PARAMS)
+        self._settings: Optional[FeatureSettings] = None
+        self._extractor: Optional[FeatureExtractor] = None
         self._stale_timeout_s = float(p['stale_timeout_s'])
         self.add_post_set_parameters_callback(self._apply_parameters)
 
@@ -90,7 +90,20 @@ class FeatureNode(Node):
         self._last_input_wall: Optional[float] = None
         self._diagnostics = Diagnostics(self, self._report, lambda: self._timeline.last_ns or 0,
                                         inputs, self._bad_inputs)
+        self.start(bool(p['autostart']))
+
+    def _configure(self) -> None:
+        p = self._params
+        _, _, self._settings = load_model_for(self, str(p['model_path']),
+                                              {k: p[k] for k in SETTINGS}, int(p['max_model_bytes']))
+        self._extractor = self._settings.extractor()
+        self._timeline.reset()
+        self._rate_problem = None
+        self._accepted = 0
         self.get_logger().info('feature extractor ready')
+
+    def _cleanup(self) -> None:
+        self._settings = self._extractor = None
 
     def _apply_parameters(self, parameters: list[Parameter]) -> None:
         for parameter in parameters:
@@ -99,13 +112,15 @@ class FeatureNode(Node):
 
     @guarded('fall event')
     def _on_fall_event(self, msg: FallEvent) -> None:
-        if msg.event == EVENT_RESET:
+        if msg.event == EVENT_RESET and self._extractor is not None:
             self._timeline.reset()
             self._extractor.reset()
             self.counts['resets'] += 1
 
     @guarded('measurement')
     def _on_measurement(self, msg: Measurement) -> None:
+        if not self.active:
+            return
         self.counts['measurements'] += 1
         self._last_input_wall = time.monotonic()
         decoded = messages.measurement_from_msg(msg)
@@ -151,6 +166,8 @@ class FeatureNode(Node):
         dropped = self._bad_inputs.new_since_last_call()
         missing = self._timeline.missing - self._missing_at_report
         self._missing_at_report = self._timeline.missing
+        if not self.active:
+            return LEVEL_STALE, 'inactive (lifecycle)', values
         if self._last_input_wall is None:
             return LEVEL_STALE, 'no measurement received yet', values
         silent_s = time.monotonic() - self._last_input_wall

@@ -39,7 +39,6 @@ import time
 from typing import Optional
 
 from geometry_msgs.msg import Vector3Stamped
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import Bool
 from std_srvs.srv import SetBool, Trigger
@@ -58,7 +57,8 @@ from fall_predictor.ros.endpoints import create_publisher
 from fall_predictor.ros.health import (MAX_SAMPLE_AGE, Diagnostics, FaultLog, InputErrors, Report,
                                        SampleAge, guarded, steady_clock)
 from fall_predictor.ros.in_process import Output, connect_input
-from fall_predictor.ros.parameters import (MAX_MODEL_BYTES, MODEL_PATH, ParamSpec,
+from fall_predictor.ros.lifecycle import AUTOSTART, MonitorLifecycleNode
+from fall_predictor.ros.parameters import (FROM_MODEL, MAX_MODEL_BYTES, MODEL_PATH, ParamSpec,
                                            declare_parameters, feature_setting_params,
                                            load_model_for)
 from fall_predictor.ros.robots import ROBOT_PARAM, fallen_config_for, robot_mass_for
@@ -77,40 +77,30 @@ STALE_TIMEOUT = ParamSpec(
 SETTINGS = ('sample_period_s', 'guard_com_height_m')
 
 
-def robot_mass_param(default_kg: float) -> ParamSpec:
-    return ParamSpec('robot_mass_kg', default_kg, 'total robot mass [kg] (fall direction); '
-                     'default: the model\'s, else the robot profile\'s', 1.0, 1000.0, read_only=True)
+ROBOT_MASS = ParamSpec('robot_mass_kg', FROM_MODEL, 'total robot mass [kg] (fall direction); '
+                       '-1 = the model\'s, else the robot profile\'s', 1.0, 1000.0, read_only=True,
+                       unset=FROM_MODEL)
+TAU_HIS = ParamSpec('tau_his_s', FROM_MODEL, 'history window [s]: falling only when every atomic '
+                    'prediction of the last tau_his_s was falling (method §8); settable at run '
+                    'time; -1 = the model\'s recommended window (set at configure)', 0.0,
+                    MAX_TAU_HIS_S, unset=FROM_MODEL)
 
 
-def tau_his_param(default_s: float) -> ParamSpec:
-    """The run-time history window parameter with the model's default."""
-    return ParamSpec('tau_his_s', default_s, 'history window [s]: falling only when every atomic '
-                     'prediction of the last tau_his_s was falling (method §8); settable at run '
-                     'time', 0.0, MAX_TAU_HIS_S)
-
-
-class PredictorNode(Node):
-    """Wraps :class:`~fall_predictor.monitor.fall_monitor.FallMonitor`; see the module docs."""
+class PredictorNode(MonitorLifecycleNode):
+    """Wraps :class:`~fall_predictor.monitor.fall_monitor.FallMonitor`; see the module docs (a
+    managed node: configure loads the model, activate starts the trigger; ``ros/lifecycle.py``)."""
 
     def __init__(self, upstream: Optional[Output] = None, **kwargs: object) -> None:
         """``upstream``: take the features from this output of a node of the same process
         (``fall_monitor``) instead of subscribing; ``kwargs`` go to ``Node``."""
         super().__init__(NODE_NAME, **kwargs)
-        p = declare_parameters(self, (MODEL_PATH, MAX_MODEL_BYTES, STALE_TIMEOUT, MAX_SAMPLE_AGE,
-                                      ROBOT_PARAM, *feature_setting_params(SETTINGS)))
-        lists, metadata, settings = load_model_for(self, str(p['model_path']),
-                                                   {k: p[k] for k in SETTINGS},
-                                                   int(p['max_model_bytes']))
-        robot = str(p['robot'])
-        # Declared once the model is known: its recommended window is the default.
-        recommended_s = min(metadata.recommended_tau_his_s or 0.0, MAX_TAU_HIS_S)
-        model_mass_kg = getattr(metadata, 'robot_mass_kg', None) or robot_mass_for(robot)
-        q = declare_parameters(self, (tau_his_param(recommended_s), robot_mass_param(model_mass_kg)))
+        p = self._params = declare_parameters(
+            self, (AUTOSTART, MODEL_PATH, MAX_MODEL_BYTES, STALE_TIMEOUT, MAX_SAMPLE_AGE, ROBOT_PARAM,
+                   TAU_HIS, ROBOT_MASS, *feature_setting_params(SETTINGS)))
         self._stale_timeout_s = float(p['stale_timeout_s'])
         self._max_sample_age_s = float(p['max_sample_age_s'])
-        self._monitor = FallMonitor(lists, float(q['tau_his_s']), fallen_config_for(robot),
-                                    settings.sample_period_s, settings.guard_com_height_m,
-                                    float(q['robot_mass_kg']), getattr(metadata, 'time_to_fall', None))
+        self._monitor: Optional[FallMonitor] = None
+        self._model_description = ''
         self.add_post_set_parameters_callback(self._apply_parameters)
 
         self._state_pub = create_publisher(self, FallState, STATE)
@@ -131,20 +121,49 @@ class PredictorNode(Node):
         self._last_stale_wall = -math.inf
         self._stale_reason: Optional[str] = None
         self._trigger = False
-        self._publish_trigger(False)
         self.create_service(Trigger, MONITOR_RESET_SERVICE, self._on_reset)
         self.create_service(SetBool, ENABLE_SERVICE, self._on_enable)
         self.create_timer(_WATCHDOG_PERIOD_S, self._on_watchdog, clock=steady_clock())
         self._diagnostics = Diagnostics(self, self._report, lambda: self._timeline.last_ns or 0,
                                         inputs, self._bad_inputs)
+        self.start(bool(p['autostart']))
+
+    def _configure(self) -> None:
+        p = self._params
+        lists, metadata, settings = load_model_for(self, str(p['model_path']),
+                                                   {k: p[k] for k in SETTINGS},
+                                                   int(p['max_model_bytes']))
+        robot = str(p['robot'])
+        tau_his_s = self.get_parameter('tau_his_s').value
+        if tau_his_s == FROM_MODEL:         # the model's recommended window, shown as the value
+            tau_his_s = min(metadata.recommended_tau_his_s or 0.0, MAX_TAU_HIS_S)
+            self.set_parameters([Parameter('tau_his_s', value=float(tau_his_s))])
+        mass_kg = (ROBOT_MASS.value_or_none(p['robot_mass_kg'])
+                   or getattr(metadata, 'robot_mass_kg', None) or robot_mass_for(robot))
+        self._monitor = FallMonitor(lists, float(tau_his_s), fallen_config_for(robot),
+                                    settings.sample_period_s, settings.guard_com_height_m,
+                                    float(mass_kg), getattr(metadata, 'time_to_fall', None))
+        self._timeline.reset()
         self._model_description = (f'{p["model_path"] or "the shipped model"} (mean rule size '
                                    f'{lists.mean_rule_size:.1f}, tau_plus {metadata.tau_plus_s} s)')
         self.get_logger().info(f'predictor ready: model {self._model_description}, '
-                               f'tau_his_s={self._monitor.tau_his_s}')
+                               f'tau_his_s={tau_his_s}, robot mass {mass_kg:.1f} kg')
+
+    def _activate(self) -> None:
+        self._last_valid_wall = time.monotonic()
+        self._publish_trigger(False)
+
+    def _deactivate(self) -> None:
+        self._publish_trigger(False)
+
+    def _cleanup(self) -> None:
+        self._monitor = None
 
     def _apply_parameters(self, parameters: list[Parameter]) -> None:
         for parameter in parameters:
-            if parameter.name == 'tau_his_s':
+            if parameter.name == 'tau_his_s' and self._monitor is not None:
+                if parameter.value == FROM_MODEL:
+                    continue
                 self._monitor.tau_his_s = float(parameter.value)
                 self.get_logger().info(f'tau_his_s = {parameter.value} s')
             elif parameter.name == 'stale_timeout_s':
@@ -154,6 +173,9 @@ class PredictorNode(Node):
 
     # -- services --------------------------------------------------------------------------
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        if self._monitor is None:
+            response.success, response.message = False, 'not configured (lifecycle)'
+            return response
         event = self._monitor.reset()
         self._timeline.reset()
         self._publish_trigger(False)
@@ -164,6 +186,9 @@ class PredictorNode(Node):
         return response
 
     def _on_enable(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
+        if self._monitor is None:
+            response.success, response.message = False, 'not configured (lifecycle)'
+            return response
         enabled = bool(request.data)
         if enabled != self._monitor.enabled:
             self._monitor.enable(enabled)
@@ -177,6 +202,8 @@ class PredictorNode(Node):
     # -- samples ---------------------------------------------------------------------------
     @guarded('features')
     def _on_features(self, msg: Features) -> None:
+        if not self.active:
+            return
         self.counts['features'] += 1
         try:
             decoded = messages.features_from_msg(msg)
@@ -242,6 +269,8 @@ class PredictorNode(Node):
         self._trigger = falling
 
     def _on_watchdog(self) -> None:
+        if not self.active:
+            return
         now = time.monotonic()
         silent_s = now - self._last_valid_wall
         if silent_s > self._stale_timeout_s and now - self._last_stale_wall > self._stale_timeout_s:
@@ -252,9 +281,13 @@ class PredictorNode(Node):
                                    logged_as=what)
 
     def _report(self) -> Report:
-        values = {'stamp_ns': self._timeline.last_ns, 'tau_his_s': self._monitor.tau_his_s,
-                  'enabled': self._monitor.enabled, 'latched': self._monitor.latched,
-                  'fallen': self._monitor.fallen, 'model': self._model_description,
+        monitor = self._monitor
+        if monitor is None or not self.active:
+            return (LEVEL_STALE, 'not configured (lifecycle)' if monitor is None
+                    else 'inactive (lifecycle)', {'stamp_ns': self._timeline.last_ns})
+        values = {'stamp_ns': self._timeline.last_ns, 'tau_his_s': monitor.tau_his_s,
+                  'enabled': monitor.enabled, 'latched': monitor.latched,
+                  'fallen': monitor.fallen, 'model': self._model_description,
                   'invalid_features': self._bad_inputs.count, 'last_error': self._bad_inputs.last,
                   **self._timeline.counters(), **self.counts}
         dropped = self._bad_inputs.new_since_last_call()

@@ -32,7 +32,6 @@ import time
 from typing import Optional
 
 from geometry_msgs.msg import WrenchStamped
-from rclpy.node import Node
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import String
 
@@ -43,7 +42,7 @@ from fall_predictor.contract.topics import (FALL_EVENT, IMU, LEFT_FOOT_WRENCH, M
 from fall_predictor.contract.wire import LEVEL_ERROR, LEVEL_OK, LEVEL_STALE, LEVEL_WARN
 from fall_predictor.monitor.estimator import EstimatorConfig
 from fall_predictor.monitor.fall_monitor import EVENT_RESET
-from fall_predictor.monitor.robot_description import DescriptionError
+from fall_predictor.monitor.robot_description import DescriptionError, SensorLayout
 from fall_predictor.monitor.sensor_pipeline import Estimate, PipelineConfig, SensorPipeline
 from fall_predictor.monitor.sensor_sync import SyncConfig
 from fall_predictor.monitor.timeline import TimelineConfig
@@ -54,6 +53,7 @@ from fall_predictor.ros.endpoints import create_publisher, create_subscription
 from fall_predictor.ros.health import (HANDLED_ERRORS, Diagnostics, FaultLog, InputErrors, Report,
                                        guarded)
 from fall_predictor.ros.in_process import Output
+from fall_predictor.ros.lifecycle import AUTOSTART, MonitorLifecycleNode
 from fall_predictor.ros.parameters import ParamSpec, declare_parameters
 from fall_predictor.ros.robots import ROBOT_PARAM, sensor_layout_for
 from fall_predictor.ros.runner import run_node
@@ -61,7 +61,7 @@ from fall_predictor.ros.runner import run_node
 NODE_NAME = 'state_estimator_node'
 _DEFAULT_SYNC = SyncConfig()
 PARAMS = (
-    ROBOT_PARAM,
+    AUTOSTART, ROBOT_PARAM,
     ParamSpec('driving_topic', 'joint_states', "the topic whose messages drive the estimates: "
               "'joint_states' or 'imu/data'", read_only=True),
     ParamSpec('driving_joints', [''], 'joint state messages drive an estimate only if they carry '
@@ -82,13 +82,16 @@ PARAMS = (
 _DRIVING = {'joint_states': 'joints', 'imu/data': 'imu'}
 
 
-class StateEstimatorNode(Node):
-    """Wraps :class:`~fall_predictor.monitor.sensor_pipeline.SensorPipeline`; see the module docs."""
+class StateEstimatorNode(MonitorLifecycleNode):
+    """Wraps :class:`~fall_predictor.monitor.sensor_pipeline.SensorPipeline`; see the module docs
+    (a managed node: configure reads the robot profile and builds the robot model from
+    ``robot_description`` when it is there; ``ros/lifecycle.py``)."""
 
     def __init__(self, **kwargs: object) -> None:
         super().__init__(NODE_NAME, **kwargs)
-        p = declare_parameters(self, PARAMS, _check_driving)
-        self._layout = sensor_layout_for(str(p['robot']))
+        p = self._params = declare_parameters(self, PARAMS, _check_driving)
+        self._layout: Optional[SensorLayout] = None
+        self._description: Optional[str] = None
         sync = SyncConfig(tolerance_s=float(p['sync_tolerance_s']),
                           joint_timeout_s=float(p['joint_timeout_s']))
         self._config = PipelineConfig(
@@ -97,7 +100,6 @@ class StateEstimatorNode(Node):
             estimator=EstimatorConfig(contact_force_n=float(p['contact_force_n'])),
             timeline=TimelineConfig(max_step_s=float(p['max_step_s'])))
         self._stale_timeout_s = float(p['stale_timeout_s'])
-        self._pipeline: Optional[SensorPipeline] = None
         self._bad_inputs = InputErrors(self)
         self._faults = FaultLog(self)
         self.counts = {'joint_messages': 0, 'imu_messages': 0, 'wrench_messages': 0,
@@ -109,18 +111,39 @@ class StateEstimatorNode(Node):
                         'imu': self.resolve_topic_name(IMU.ros_name),
                         'l': self.resolve_topic_name(LEFT_FOOT_WRENCH.ros_name),
                         'r': self.resolve_topic_name(RIGHT_FOOT_WRENCH.ros_name)}
-        inputs = [
+        self._inputs = [
             create_subscription(self, String, ROBOT_DESCRIPTION, self._on_description),
             create_subscription(self, JointState, SENSOR_JOINT_STATES, self._on_joint_state),
             create_subscription(self, Imu, IMU, self._on_imu),
         ]
+        self._wrench_subscriptions: list = []
+        create_subscription(self, FallEvent, FALL_EVENT, self._on_fall_event)
+        self._pipeline: Optional[SensorPipeline] = None
+        self._diagnostics = Diagnostics(self, self._report, self._last_stamp, self._inputs,
+                                        self._bad_inputs)
+        self.start(bool(p['autostart']))
+
+    def _configure(self) -> None:
+        self._layout = sensor_layout_for(str(self._params['robot']))
+        # The foot sensors the robot has (its profile's).
         for side, spec in (('l', LEFT_FOOT_WRENCH), ('r', RIGHT_FOOT_WRENCH)):
             if side in self._layout.force_sensors:
-                inputs.append(create_subscription(
-                    self, WrenchStamped, spec, lambda msg, side=side: self._on_wrench(side, msg)))
-        create_subscription(self, FallEvent, FALL_EVENT, self._on_fall_event)
-        self._diagnostics = Diagnostics(self, self._report, self._last_stamp, inputs, self._bad_inputs)
-        self.get_logger().info(f'state estimator waiting for {self.resolve_topic_name(ROBOT_DESCRIPTION.ros_name)}')
+                sub = create_subscription(self, WrenchStamped, spec,
+                                          lambda msg, side=side: self._on_wrench(side, msg))
+                self._wrench_subscriptions.append(sub)
+                self._inputs.append(sub)
+        if self._description is not None:
+            self._build(self._description)
+        else:
+            self.get_logger().info('state estimator waiting for '
+                                   f'{self.resolve_topic_name(ROBOT_DESCRIPTION.ros_name)}')
+
+    def _cleanup(self) -> None:
+        self._layout = self._pipeline = None
+        for sub in self._wrench_subscriptions:
+            self._inputs.remove(sub)
+            self.destroy_subscription(sub)
+        self._wrench_subscriptions.clear()
 
     def _last_stamp(self) -> int:
         return 0 if self._pipeline is None else self._pipeline.timeline.last_ns or 0
@@ -128,8 +151,15 @@ class StateEstimatorNode(Node):
     # -- inputs ----------------------------------------------------------------------------
     @guarded('robot description')
     def _on_description(self, msg: String) -> None:
+        self._description = msg.data
+        if self._layout is not None:
+            self._build(msg.data)
+
+    def _build(self, urdf: str) -> None:
+        """The estimator's robot model of ``urdf`` (a description it cannot use is logged)."""
+        assert self._layout is not None
         try:
-            robot = self._layout.description(msg.data)
+            robot = self._layout.description(urdf)
         except DescriptionError as error:
             self._bad_inputs.reject('robot description', error)
             return
@@ -142,7 +172,7 @@ class StateEstimatorNode(Node):
     @guarded('joint state')
     def _on_joint_state(self, msg: JointState) -> None:
         self._touch('joint_messages')
-        if self._pipeline is None:
+        if not self._ready:
             return
         estimates, unknown = self._pipeline.joint_state(messages.joint_state_reading(msg))
         if unknown:
@@ -153,13 +183,13 @@ class StateEstimatorNode(Node):
     @guarded('IMU reading')
     def _on_imu(self, msg: Imu) -> None:
         self._touch('imu_messages')
-        if self._pipeline is not None:
+        if self._ready:
             self._publish(self._pipeline.imu(messages.imu_reading(msg)))
 
     @guarded('foot wrench')
     def _on_wrench(self, side: str, msg: WrenchStamped) -> None:
         self._touch('wrench_messages')
-        if self._pipeline is not None:
+        if self._ready:
             self._publish(self._pipeline.wrench(side, messages.wrench_reading(msg)))
 
     @guarded('fall event')
@@ -171,6 +201,11 @@ class StateEstimatorNode(Node):
     def _touch(self, what: str) -> None:
         self.counts[what] += 1
         self._last_input_wall = time.monotonic()
+
+    @property
+    def _ready(self) -> bool:
+        """Active, with a robot model: sensor messages are estimated."""
+        return self.active and self._pipeline is not None
 
     def _publish(self, estimates: list[Estimate]) -> None:
         for e in estimates:
@@ -195,6 +230,8 @@ class StateEstimatorNode(Node):
             values.update(pipeline.sync.counts)
             values['driving_rate_hz'] = None if not period else round(1.0 / period, 1)
             values['joints_never_received'] = ' '.join(pipeline.sync.joints.never_received())
+        if not self.active:
+            return LEVEL_STALE, 'inactive (lifecycle)', values
         if pipeline is None:
             return LEVEL_STALE, 'no usable robot description yet', values
         if self._last_input_wall is None:
