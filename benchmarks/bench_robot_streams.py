@@ -39,7 +39,7 @@ from fall_predictor.monitor.model_file import load_model
 from fall_predictor.monitor.records import FALLEN_COM_HEIGHT_M, GUARD_COM_HEIGHT_M
 from fall_predictor.monitor.sensor_pipeline import PipelineConfig, SensorPipeline
 from fall_predictor.monitor.sensor_records import SensorSample
-from fall_predictor.robot import model as rm
+from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.sim.drivers import DriverTiming, driver_messages
 
 MODEL = Path(__file__).resolve().parents[1] / 'models' / 'default_model.json'
@@ -71,7 +71,7 @@ def samples_of(bag: Path) -> list[SensorSample]:
 def offline_alarm_s(urdf: str, samples: list[SensorSample]) -> float | None:
     lists, metadata = load_model(MODEL)
     settings = metadata.feature_settings
-    layout = rm.SENSOR_LAYOUT
+    layout = rm.PROFILE.sensor_layout()
     chain = OnboardChain(
         SensorPipeline(layout.description(urdf), layout.imu_frame,
                        config=PipelineConfig(driving_joints=LEGS)), settings,

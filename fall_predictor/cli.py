@@ -11,7 +11,7 @@ from typing import Optional
 import numpy as np
 
 from fall_predictor import cli_args as argtypes
-from fall_predictor.cli_args import emit as _emit, fail as _fail
+from fall_predictor.cli_args import add_robot_argument, emit as _emit, fail as _fail
 
 # Sub-commands that live in their own front-end module (``fall_predictor/cli_<area>.py``), each
 # exposing ``register(subparsers)``. Keeps this file short and each area's options with its code.
@@ -70,7 +70,7 @@ def _sensor_timing(args) -> Optional[dict]:
     joint states split into legs and upper body, IMU and foot sensors 0.3 / 0.4 ms after them."""
     if args.sensor_timing == 'simulator':
         return None
-    from fall_predictor.robot import model as rm
+    from fall_predictor.profiles import asimo_like_urdf as rm
     from fall_predictor.sim.drivers import DriverTiming
     legs = tuple(f'{s}_{j}' for s in rm.SIDES for j in rm.LEG_JOINTS)
     groups = (legs, tuple(n for n in rm.JOINT_NAMES if n not in legs))
@@ -254,14 +254,15 @@ def cmd_import_bags(args) -> int:
     from fall_predictor.data.dataset import DatasetError
     from fall_predictor.data.generation import ImportReport, import_recordings
     from fall_predictor.data.robot_import import import_robot_recordings, is_robot_recording
+    from fall_predictor.profiles import ProfileError
 
     try:
         if all(is_robot_recording(bag) for bag in args.bags):       # a robot's own topics
             urdf = args.urdf.read_text() if args.urdf is not None else None
-            report = ImportReport(*import_robot_recordings(args.bags, args.out, urdf))
+            report = ImportReport(*import_robot_recordings(args.bags, args.out, urdf, args.robot))
         else:
             report = import_recordings(args.bags, args.out)
-    except (DatasetError, OSError) as error:
+    except (DatasetError, OSError, ProfileError) as error:
         return _fail('import-bags', error)
     payload = {'out': str(args.out), 'imported': len(report.rows),
                'fallen': sum(r.fallen for r in report.rows), 'rejected': report.rejected}
@@ -343,6 +344,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--urdf', type=Path, default=None, help='the robot\'s URDF, for recordings without '
                    '/robot_description')
     p.add_argument('--out', type=Path, required=True, help='new dataset directory')
+    add_robot_argument(p)
     p.add_argument('--json', action='store_true')
     p.set_defaults(func=cmd_import_bags)
 

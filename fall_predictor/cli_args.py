@@ -26,6 +26,22 @@ def fail(command: str, error: Exception | str) -> int:
     return 2
 
 
+def add_robot_argument(parser: argparse.ArgumentParser) -> None:
+    """``--robot NAME|PATH``: the robot profile (profiles/), checked when parsed."""
+    from fall_predictor.profiles import DEFAULT_ROBOT, ProfileError, available_profiles, load_profile
+
+    def robot(text: str) -> str:
+        try:
+            load_profile(text)
+        except ProfileError as error:
+            raise argparse.ArgumentTypeError(str(error)) from error
+        return text
+
+    parser.add_argument('--robot', type=robot, default=DEFAULT_ROBOT, metavar='NAME|PATH',
+                        help=f'robot profile: {", ".join(available_profiles())} or the path to a '
+                             f'profile file (default {DEFAULT_ROBOT})')
+
+
 def add_scheduler_argument(parser: argparse.ArgumentParser, what: str) -> None:
     """``--scheduler ADDRESS``: run ``what`` on a Dask cluster instead of local processes."""
     parser.add_argument('--scheduler', default=None, metavar='ADDRESS',

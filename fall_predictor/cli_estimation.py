@@ -15,7 +15,7 @@ def cmd_estimation_error(args) -> int:
     from joblib import delayed
 
     from fall_predictor.data.bagio import BagError
-    from fall_predictor.data.dataset import DatasetError, read_index
+    from fall_predictor.data.dataset import DatasetError, dataset_robot, read_index
     from fall_predictor.data.estimation import error_samples, estimate_bag, summarise
     from fall_predictor.data.parallel import compute_parallel, progress_bar
 
@@ -28,8 +28,10 @@ def cmd_estimation_error(args) -> int:
     if not rows:
         return fail('estimation-error', f'{args.data}: no trajectories')
 
+    robot = dataset_robot(Path(args.data))
+
     def one(row):
-        return error_samples(estimate_bag(Path(args.data) / row.bag), row.t_push)
+        return error_samples(estimate_bag(Path(args.data) / row.bag, robot=robot), row.t_push)
 
     per_bag = []
     try:

@@ -26,7 +26,7 @@ from fall_predictor.monitor.records import (FALLEN_COM_HEIGHT_M, GUARD_COM_HEIGH
                                             PushSpec)
 from fall_predictor.monitor.sensor_pipeline import SensorPipeline  # noqa: E402
 from fall_predictor.monitor.view import monitor_view  # noqa: E402
-from fall_predictor.robot import model as rm  # noqa: E402
+from fall_predictor.profiles import asimo_like_urdf as rm  # noqa: E402
 from fall_predictor.sim.drivers import DriverTiming, driver_messages  # noqa: E402
 from fall_predictor.sim.sensors import SensorParams, apply_sensors  # noqa: E402
 from fall_predictor.sim.trajectory import run_trajectory  # noqa: E402
@@ -44,7 +44,7 @@ def main() -> int:
     samples = apply_sensors(run.sensor_truths, SensorParams(), seed=0)
     lists, metadata = load_model(MODEL)
     settings = metadata.feature_settings
-    layout = rm.SENSOR_LAYOUT
+    layout = rm.PROFILE.sensor_layout()
     chain = OnboardChain(SensorPipeline(layout.description(rm.URDF_PATH.read_text()), layout.imu_frame),
                          settings, FallMonitor(lists, metadata.recommended_tau_his_s,
                                                FallenConfig(FALLEN_COM_HEIGHT_M, GUARD_COM_HEIGHT_M),

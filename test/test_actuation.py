@@ -6,7 +6,7 @@ import numpy as np
 import pybullet as pb
 import pytest
 
-from fall_predictor.robot import model as rm
+from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.robot.actuation import SERVO_GAINS, joint_group, servo_arrays, servo_torques
 from fall_predictor.robot.controllers import BalanceController
 from fall_predictor.sim.simulator import Simulator, SimulatorConfig

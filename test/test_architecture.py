@@ -19,12 +19,14 @@ ROOT = 'fall_predictor'
 ALLOWED = {
     'monitor': (set(), set()),
     'contract': ({'monitor'}, set()),
-    'robot': ({'monitor'}, set()),
-    'sim': ({'robot', 'monitor'}, set()),
-    'data': ({'monitor', 'contract'}, {'sim'}),
+    'profiles': ({'monitor'}, set()),
+    'robot': ({'monitor', 'profiles'}, set()),
+    'sim': ({'robot', 'monitor', 'profiles'}, set()),
+    'data': ({'monitor', 'contract', 'profiles'}, {'sim'}),
     'learning': ({'monitor', 'data'}, set()),
-    'ros': ({'monitor', 'contract', 'robot', 'sim', 'data', 'learning', 'cli', 'msg'}, set()),
-    'cli': ({'monitor', 'contract', 'data'}, {'robot', 'sim', 'learning', 'ros'}),
+    'ros': ({'monitor', 'contract', 'profiles', 'robot', 'sim', 'data', 'learning', 'cli', 'msg'},
+            set()),
+    'cli': ({'monitor', 'contract', 'data', 'profiles'}, {'robot', 'sim', 'learning', 'ros'}),
 }
 #: Third-party distributions the onboard code may use.
 MONITOR_THIRD_PARTY = {'numpy', 'pinocchio'}

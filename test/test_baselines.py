@@ -8,7 +8,7 @@ from fall_predictor.learning.baselines import capture_point_curve, com_height_cu
 from fall_predictor.monitor.capture_point import capture_point_distances, signed_distance_to_support
 from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2 as GRAVITY
 from fall_predictor.monitor.records import FEATURE_NAMES, Measurement, TrajectoryFeatures
-from fall_predictor.robot.model import TOTAL_MASS_KG
+from fall_predictor.profiles.asimo_like_urdf import TOTAL_MASS_KG
 
 DT = 0.001
 COM_Z = FEATURE_NAMES.index('com_z')

@@ -8,7 +8,7 @@ from fall_predictor.cli import main
 from fall_predictor.data.dataset import read_index, read_manifest
 from fall_predictor.data.estimation import estimate_bag, summarise
 from fall_predictor.data.sensorbag import read_robot_description, read_sensor_messages, read_sensor_params
-from fall_predictor.robot import model as rm
+from fall_predictor.profiles import asimo_like_urdf as rm
 
 
 @pytest.fixture(scope='module')
@@ -29,7 +29,7 @@ def test_bags_carry_the_sensor_topics_parameters_and_description(sensor_dataset)
     assert {k: len(v) for k, v in streams.items()} == dict.fromkeys(streams, row.samples)
     assert np.diff([r.stamp_ns for r in streams['joints']]) == pytest.approx(1_000_000)
     assert streams['joints'][0].names == rm.JOINT_NAMES
-    assert streams['imu'][0].frame_id == rm.IMU_LINK
+    assert streams['imu'][0].frame_id == rm.PROFILE.imu_frame
     assert (streams['l'][0].frame_id, streams['r'][0].frame_id) == rm.SOLE_FRAMES
     # The robot's weight is on its soles (42.1 kg x 9.81), on average over the walk.
     fz = np.mean([a.wrench[2] + b.wrench[2] for a, b in zip(streams['l'], streams['r'])])
@@ -87,5 +87,6 @@ def test_the_sensor_topic_table_is_consistent():
         # /joint_states is the same topic and type as the base table's, at 1 kHz.
         if spec.name in TOPICS_BY_NAME:
             assert TOPICS_BY_NAME[spec.name].msg_type == spec.msg_type
-    assert SENSOR_TOPICS_BY_NAME['/left_foot/wrench'].frame_id == 'l_sole'
+    # The frames are the robot's (its profile names them): the table shows placeholders.
+    assert SENSOR_TOPICS_BY_NAME['/left_foot/wrench'].frame_id == '(F/T frame)'
     assert SENSOR_TOPICS_BY_NAME['/robot_description'].qos.durability == 'transient_local'

@@ -1,4 +1,6 @@
 """The state estimator against the simulator's ground truth, and on bad input."""
+from dataclasses import replace
+
 import numpy as np
 import pinocchio as pin
 import pybullet as pb
@@ -9,7 +11,7 @@ from fall_predictor.monitor.estimator import EstimatorConfig, StateEstimator, sp
 from fall_predictor.monitor.robot_description import DescriptionError, RobotDescription
 from fall_predictor.monitor.sensor_records import SensorSample
 from fall_predictor.monitor.records import PushSpec
-from fall_predictor.robot import model as rm
+from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.sim.sensors import SensorParams, apply_sensors
 from fall_predictor.sim.simulator import Simulator
 from fall_predictor.sim.trajectory import run_trajectory
@@ -26,8 +28,8 @@ def readings(run):
 
 
 def asimo_estimator(urdf: str = '', config: EstimatorConfig = EstimatorConfig()) -> StateEstimator:
-    return StateEstimator(RobotDescription(urdf or rm.URDF_PATH.read_text(), rm.SOLES), config,
-                          imu_frame=rm.IMU_LINK)
+    return StateEstimator(RobotDescription(urdf or rm.URDF_PATH.read_text(), rm.PROFILE.sensor_layout().soles), config,
+                          imu_frame=rm.PROFILE.imu_frame)
 
 
 def _errors(est, truth, name):
@@ -130,9 +132,26 @@ def test_a_tilt_error_in_the_first_sample_does_not_shift_the_world_frame(run, re
     assert len(errors) == 200 and errors[0] < 0.01 and max(errors[-50:]) < 0.01
 
 
-def test_a_urdf_without_sole_frames_is_a_clear_error():
+def test_sole_frames_missing_from_the_urdf_come_from_the_profile():
+    """The profile puts each sole frame on its foot link: where the full URDF has it."""
+    soles = rm.PROFILE.sensor_layout().soles
+    with_frames = RobotDescription(rm.urdf_xml(), soles)
+    added = RobotDescription(rm.urdf_xml(sole_frames=False), soles)
+    q = with_frames.configuration(np.linspace(-0.3, 0.3, len(with_frames.joint_names)))
+    for d in (with_frames, added):
+        pin.framesForwardKinematics(d.model, d.data, q)
+    for side in ('l', 'r'):
+        a = with_frames.data.oMf[with_frames.sole_ids[side]]
+        b = added.data.oMf[added.sole_ids[side]]
+        assert np.allclose(a.translation, b.translation, atol=1e-12)
+        assert np.allclose(a.rotation, b.rotation, atol=1e-12)
+    # Without the frame in the URDF and without a link to put it on, the estimator cannot work.
+    bare = {side: replace(sole, link=None) for side, sole in soles.items()}
     with pytest.raises(DescriptionError, match='needs both sole frames'):
-        asimo_estimator(rm.urdf_xml(sole_frames=False))
+        RobotDescription(rm.urdf_xml(sole_frames=False), bare)
+
+
+def test_a_malformed_urdf_is_a_clear_error():
     with pytest.raises(DescriptionError, match='cannot build'):
         asimo_estimator('<robot name="x"><link')
     assert EstimatorConfig().contact_force_n > 0

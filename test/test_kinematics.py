@@ -4,7 +4,7 @@ import pybullet as pb
 import pytest
 
 from fall_predictor.robot import kinematics as kin
-from fall_predictor.robot import model as rm
+from fall_predictor.profiles import asimo_like_urdf as rm
 
 
 def _random_leg_angles(rng):

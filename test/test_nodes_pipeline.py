@@ -36,7 +36,7 @@ from rcl_interfaces.msg import SetParametersResult
 from sensor_msgs.msg import JointState
 from test_nodes_support import MODEL_TAU_HIS_S, ros_context, test_domain_id, write_momentum_model
 
-from fall_predictor.robot import model as rm
+from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.data.bagio import iter_messages, read_trajectory
 from fall_predictor.ros.bringup import (NodeProcess, default_params_file, ros_environment,

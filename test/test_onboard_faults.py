@@ -23,7 +23,7 @@ from fall_predictor.monitor.model_file import load_model
 from fall_predictor.monitor.records import FALLEN_COM_HEIGHT_M, GUARD_COM_HEIGHT_M
 from fall_predictor.monitor.sensor_pipeline import PipelineConfig, SensorPipeline
 from fall_predictor.monitor.sensor_records import JointStateReading
-from fall_predictor.robot import model as rm
+from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.sim.drivers import DriverTiming, driver_messages
 from fall_predictor.sim.sensors import SensorParams, apply_sensors
 from fall_predictor.sim.trajectory import run_trajectory
@@ -48,7 +48,7 @@ def messages():
 def chain() -> OnboardChain:
     lists, metadata = load_model(MODEL)
     settings = metadata.feature_settings
-    layout = rm.SENSOR_LAYOUT
+    layout = rm.PROFILE.sensor_layout()
     pipeline = SensorPipeline(layout.description(rm.URDF_PATH.read_text()), layout.imu_frame,
                               config=PipelineConfig(driving_joints=LEGS))
     monitor = FallMonitor(lists, metadata.recommended_tau_his_s,

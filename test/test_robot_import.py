@@ -12,11 +12,11 @@ import pytest
 from fall_predictor.cli import main
 from fall_predictor.data.bag_writer import BagWriter
 from fall_predictor.data.bagio import iter_messages
-from fall_predictor.data.dataset import read_index, read_manifest, robot_total_mass_kg
+from fall_predictor.data.dataset import dataset_robot, read_index, read_manifest, robot_total_mass_kg
 from fall_predictor.data.robot_import import is_robot_recording
 from fall_predictor.contract.topics import ROBOT_DESCRIPTION, SENSOR_TOPICS
 from fall_predictor.monitor.model_file import load_model
-from fall_predictor.robot import model as rm
+from fall_predictor.profiles import asimo_like_urdf as rm
 
 SENSOR_NAMES = tuple(spec.name for spec in SENSOR_TOPICS)
 
@@ -85,10 +85,14 @@ def test_a_recording_without_description_needs_the_urdf(simulated, tmp_path, cap
     bag = _robot_recording(simulated / row.bag, tmp_path / 'no_description', keep_description=False)
     assert main(['import-bags', str(bag), '--out', str(tmp_path / 'a'), '--json']) == 1
     assert 'robot_description' in json.loads(capsys.readouterr().out)['rejected'][str(bag)]
+    # The robot's profile given as a file: recorded, and what later estimation of the data uses.
+    profile = str(rm.PROFILE.source)
     assert main(['import-bags', str(bag), '--out', str(tmp_path / 'b'), '--urdf', str(rm.URDF_PATH),
-                 '--json']) == 0
+                 '--robot', profile, '--json']) == 0
     capsys.readouterr()
     assert (tmp_path / 'b' / 'robot.urdf').read_text() == rm.URDF_PATH.read_text()
+    assert read_manifest(tmp_path / 'b')['robot']['profile'] == profile
+    assert dataset_robot(tmp_path / 'b') == profile
     assert row.fallen                   # one fallen recording is enough to train on
     assert main(['train', '--data', str(tmp_path / 'b'), '--tau-plus=-0.25', '--out',
                  str(tmp_path / 'm.json'), '--json']) == 0

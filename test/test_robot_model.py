@@ -2,7 +2,7 @@
 import pybullet as pb
 import pytest
 
-from fall_predictor.robot import model as rm
+from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.robot.controllers import BalanceController
 
 

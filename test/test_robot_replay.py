@@ -22,7 +22,7 @@ from fall_predictor.monitor.fall_monitor import EVENT_FALLING, FallenConfig, Fal
 from fall_predictor.monitor.model_file import load_model
 from fall_predictor.monitor.records import FALLEN_COM_HEIGHT_M, GUARD_COM_HEIGHT_M, PushSpec
 from fall_predictor.monitor.sensor_pipeline import SensorPipeline
-from fall_predictor.robot import model as rm
+from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.ros.bringup import ros_environment, start_process, stop_nodes
 from fall_predictor.ros.sensor_replay import SensorReplayer
 from fall_predictor.sim.drivers import DriverTiming, driver_messages
@@ -52,7 +52,7 @@ def recordings():
 def offline_alarm_s(samples) -> float | None:
     """The simulator-timed reference: the first FALLING event's time [s] through the chain."""
     lists, metadata = load_model(MODEL)
-    layout = rm.SENSOR_LAYOUT
+    layout = rm.PROFILE.sensor_layout()
     chain = OnboardChain(
         SensorPipeline(layout.description(rm.URDF_PATH.read_text()), layout.imu_frame),
         metadata.feature_settings,

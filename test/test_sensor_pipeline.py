@@ -13,7 +13,7 @@ from fall_predictor.monitor.records import PushSpec
 from fall_predictor.monitor.robot_description import RobotDescription
 from fall_predictor.monitor.sensor_pipeline import PipelineConfig, SensorPipeline
 from fall_predictor.monitor.sensor_records import ImuReading, JointStateReading
-from fall_predictor.robot import model as rm
+from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.sim.drivers import DriverTiming, driver_messages
 from fall_predictor.sim.sensors import SensorParams, apply_sensors
 from fall_predictor.sim.trajectory import run_trajectory
@@ -37,11 +37,11 @@ def samples(run):
 
 @pytest.fixture(scope='module')
 def robot() -> RobotDescription:
-    return RobotDescription(rm.URDF_PATH.read_text(), rm.SOLES)
+    return RobotDescription(rm.URDF_PATH.read_text(), rm.PROFILE.sensor_layout().soles)
 
 
 def pipeline(robot: RobotDescription, **config) -> SensorPipeline:
-    return SensorPipeline(robot, imu_frame=rm.IMU_LINK, config=PipelineConfig(**config))
+    return SensorPipeline(robot, imu_frame=rm.PROFILE.imu_frame, config=PipelineConfig(**config))
 
 
 def feed(p: SensorPipeline, messages) -> list:
@@ -58,7 +58,7 @@ def feed(p: SensorPipeline, messages) -> list:
 
 def test_simulator_timing_gives_exactly_the_estimators_output(robot, samples):
     estimates = feed(pipeline(robot), driver_messages(samples[:600]))
-    direct = StateEstimator(robot, imu_frame=rm.IMU_LINK).run(samples[:600])
+    direct = StateEstimator(robot, imu_frame=rm.PROFILE.imu_frame).run(samples[:600])
     assert len(estimates) == 600
     for e, m in zip(estimates, direct):
         assert (e.measurement is None) == (m is None)

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from fall_predictor.monitor.records import PushSpec, STANDARD_GRAVITY_M_S2
-from fall_predictor.robot import model as rm
+from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.sim.sensors import SensorParams, SensorSuite, apply_sensors
 from fall_predictor.sim.trajectory import run_trajectory
 

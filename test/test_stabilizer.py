@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from fall_predictor.monitor.records import Measurement
-from fall_predictor.robot import model as rm
+from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.robot.controllers import BalanceController, GaitConfig, ReflexConfig
 from fall_predictor.robot.stabilizer import Stabilizer, StabilizerConfig, foot_wrench
 from fall_predictor.sim.simulator import Simulator

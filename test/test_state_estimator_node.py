@@ -17,7 +17,7 @@ from fall_predictor.contract.topics import (IMU, LEFT_FOOT_WRENCH, MEASUREMENT, 
 from fall_predictor.monitor.records import PushSpec
 from fall_predictor.monitor.sensor_pipeline import SensorPipeline
 from fall_predictor.msg import Measurement
-from fall_predictor.robot import model as rm
+from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.ros.endpoints import create_publisher, create_subscription
 from fall_predictor.ros.runner import spin_until
@@ -42,7 +42,7 @@ def samples():
 
 def offline(samples, timing: DriverTiming) -> dict[int, object]:
     """The pipeline run offline over the same messages: estimates by stamp."""
-    layout = rm.SENSOR_LAYOUT
+    layout = rm.PROFILE.sensor_layout()
     pipeline = SensorPipeline(layout.description(rm.URDF_PATH.read_text()), layout.imu_frame)
     out = []
     for stream, reading in driver_messages(samples, timing):
@@ -114,7 +114,10 @@ def test_the_node_publishes_what_the_offline_pipeline_computes(samples, timing):
 
 
 def test_a_description_without_sole_frames_is_logged_not_fatal(samples):
-    got, counts, node = _drive(driver_messages(samples[:20]), rm.urdf_xml(sole_frames=False))
+    # Without sole frames the profile adds them on the foot links; without those either, the
+    # description cannot serve.
+    urdf = rm.urdf_xml(sole_frames=False).replace('"l_foot"', '"l_paw"')
+    got, counts, node = _drive(driver_messages(samples[:20]), urdf)
     assert node._pipeline is None and got == [] and counts['measurements'] == 0
     assert 'needs both sole frames' in node._bad_inputs.last
 

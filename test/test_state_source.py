@@ -12,7 +12,7 @@ from fall_predictor.cli import main
 from fall_predictor.data.dataset import load_features, read_index, resolve_state
 from fall_predictor.data.sensorbag import read_robot_description, read_sensor_messages
 from fall_predictor.monitor.sensor_pipeline import SensorPipeline
-from fall_predictor.robot import model as rm
+from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.monitor.features import FeatureSettings
 from fall_predictor.monitor.model_file import ModelFileError, load_model
 from fall_predictor.monitor.records import FEATURE_NAMES
@@ -41,7 +41,7 @@ def test_estimated_features_are_the_live_nodes_stream(sensor_dataset):
     traj = next(t for t in report.trajectories if t.trajectory_id == row.trajectory_id)
     # The live path, one message at a time: estimator node, then feature node.
     bag = sensor_dataset / row.bag
-    layout = rm.SENSOR_LAYOUT
+    layout = rm.PROFILE.sensor_layout()
     pipeline = SensorPipeline(layout.description(read_robot_description(bag)), layout.imu_frame)
     extractor = FeatureSettings().extractor()
     t, X, mode = [], [], []

@@ -183,7 +183,8 @@ def topics_markdown_table(topics: Iterable[TopicSpec] = TOPICS) -> str:
              '|---|---|---|---|---|---|']
     for spec in topics:
         rate = 'on event' if spec.rate_hz is None else f'{spec.rate_hz:g} Hz'
-        frame = '-' if not spec.frame_id else f'`{spec.frame_id}`'
+        frame = ('-' if not spec.frame_id else spec.frame_id if spec.frame_id.startswith('(')
+                 else f'`{spec.frame_id}`')
         content = spec.content if spec.layout is None else f'{spec.content} (`{spec.layout}`)'
         qos = spec.qos.describe()
         if spec.sub_qos is not None:
@@ -255,29 +256,29 @@ def check_controller_mode(mode: str) -> str:
 # --------------------------------------------------------------------------------------------
 # Robot sensor topics (issue 10): what a real robot publishes; the state estimator's input
 # --------------------------------------------------------------------------------------------
-#: Frame of the torso IMU (the torso link's origin and axes).
-IMU_FRAME = 'torso'
-#: Frames of the ankle F/T wrenches (URDF sole frames: the sole underside centres).
-SOLE_FRAME_IDS = {'l': 'l_sole', 'r': 'r_sole'}
+#: The sensors' header.frame_id: frames of the robot's URDF, which its robot profile names (the
+#: IMU's link; the F/T sensors' frames). Shown in the interface table as placeholders.
+IMU_FRAME = '(IMU frame)'
+WRENCH_FRAME = '(F/T frame)'
 #: Joint encoders at the simulation rate, with efforts (the /joint_states of JOINT_STATES,
 #: published at 1 kHz when the simulator publishes its sensors).
 SENSOR_JOINT_STATES = TopicSpec(
     '/joint_states', 'sensor_msgs/msg/JointState', STREAM_QOS, SIM_RATE_HZ,
-    '', None, 'joint encoders: positions, velocities, efforts of all 26 joints', SENSOR_SUB_QOS)
+    '', None, 'joint encoders: positions, velocities (optional), efforts (optional)', SENSOR_SUB_QOS)
 IMU = TopicSpec(
     '/imu/data', 'sensor_msgs/msg/Imu', STREAM_QOS, SIM_RATE_HZ,
-    IMU_FRAME, None, 'torso IMU: orientation, angular velocity, specific force', SENSOR_SUB_QOS)
+    IMU_FRAME, None, 'IMU: orientation, angular velocity, specific force', SENSOR_SUB_QOS)
 LEFT_FOOT_WRENCH = TopicSpec(
     '/left_foot/wrench', 'geometry_msgs/msg/WrenchStamped', STREAM_QOS, SIM_RATE_HZ,
-    SOLE_FRAME_IDS['l'], None, 'left ankle F/T: ground reaction on the sole [N, N m]',
+    WRENCH_FRAME, None, 'left foot F/T (if the robot has one): ground reaction [N, N m]',
     SENSOR_SUB_QOS)
 RIGHT_FOOT_WRENCH = TopicSpec(
     '/right_foot/wrench', 'geometry_msgs/msg/WrenchStamped', STREAM_QOS, SIM_RATE_HZ,
-    SOLE_FRAME_IDS['r'], None, 'right ankle F/T: ground reaction on the sole [N, N m]',
+    WRENCH_FRAME, None, 'right foot F/T (if the robot has one): ground reaction [N, N m]',
     SENSOR_SUB_QOS)
 ROBOT_DESCRIPTION = TopicSpec(
     '/robot_description', 'std_msgs/msg/String', LATCHED_QOS, None,
-    None, None, 'URDF of the robot, with sole frames l_sole and r_sole')
+    None, None, 'URDF of the robot (sole frames: from it or its profile)')
 #: The estimator's output and the simulator's exact state: both carry the measurement layout.
 #: With sensors on, MEASUREMENT is the estimate and this topic the ground truth (evaluation only).
 GROUND_TRUTH = TopicSpec(

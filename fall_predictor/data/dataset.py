@@ -175,8 +175,23 @@ def _measurements(bag: Path, state: str) -> list:
         return read_trajectory(bag).measurements
     # Imported here: Pinocchio is loaded only by those who estimate.
     from fall_predictor.data.estimation import estimated_measurements
-    urdf_file = bag.parent.parent / ROBOT_URDF_FILE          # DATA/bags/<id> -> DATA/robot.urdf
-    return estimated_measurements(bag, urdf=urdf_file.read_text() if urdf_file.exists() else None)
+    data_dir = bag.parent.parent                              # DATA/bags/<id> -> DATA
+    urdf_file = data_dir / ROBOT_URDF_FILE
+    return estimated_measurements(bag, urdf=urdf_file.read_text() if urdf_file.exists() else None,
+                                  robot=dataset_robot(data_dir))
+
+
+def dataset_robot(data_dir: Path) -> str:
+    """The robot profile (name or path) of a dataset's robot: its manifest's ``robot.profile``, else
+    its ``robot.name`` when a shipped profile has that name, else the default robot."""
+    from fall_predictor.profiles import DEFAULT_ROBOT, available_profiles
+    try:
+        robot = json.loads((data_dir / 'dataset.json').read_text()).get('robot') or {}
+    except (OSError, ValueError):
+        return DEFAULT_ROBOT
+    if robot.get('profile'):
+        return str(robot['profile'])
+    return robot['name'] if robot.get('name') in available_profiles() else DEFAULT_ROBOT
 
 
 def cached_bag_arrays(data_dir: Path, bag: str, name: str, kind: str, compute) -> dict[str, np.ndarray]:

@@ -18,6 +18,7 @@ from typing import Optional
 
 import numpy as np
 
+from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
 from fall_predictor.data.bagio import BagError, read_trajectory
 from fall_predictor.data.sensorbag import read_robot_description, read_sensor_messages
 from fall_predictor.monitor.contact_modes import classify_contact_mode
@@ -33,22 +34,22 @@ QUANTITIES = {'com_m': 'com', 'linear_momentum_kg_m_s': 'lin_mom',
               'angular_momentum_kg_m2_s': 'ang_mom', 'cop_m': 'cop'}
 
 
-def default_layout() -> SensorLayout:
-    """The simulated robot's sensor layout (its soles, IMU frame and foot sensors)."""
-    from fall_predictor.sim.sensors import SENSOR_LAYOUT
-    return SENSOR_LAYOUT
+def default_layout(robot: str = DEFAULT_ROBOT) -> SensorLayout:
+    """The sensor layout of robot ``robot`` (a profile name or path): soles, IMU frame, foot sensors."""
+    return load_profile(robot).sensor_layout()
 
 
 def run_pipeline(path: str | os.PathLike[str], urdf: Optional[str] = None,
                  config: EstimatorConfig = EstimatorConfig(),
-                 layout: Optional[SensorLayout] = None) -> list[Estimate]:
+                 layout: Optional[SensorLayout] = None, robot: str = DEFAULT_ROBOT) -> list[Estimate]:
     """Every estimate of a bag's sensor messages, as the live node makes them (``urdf``
-    replaces the bag's ``/robot_description``, for recordings without one)."""
+    replaces the bag's ``/robot_description``, for recordings without one; ``layout``, else the
+    profile of ``robot``, names the soles, the IMU frame and the foot sensors)."""
     bag = Path(path)
     urdf = urdf if urdf is not None else read_robot_description(bag)
     if urdf is None:
         raise BagError(f'{bag}: no /robot_description (was it generated with --sensor-noise?)')
-    layout = layout or default_layout()
+    layout = layout or default_layout(robot)
     try:
         pipeline = SensorPipeline(layout.description(urdf), layout.imu_frame, layout.force_sensors,
                                   PipelineConfig(estimator=config))
@@ -71,21 +72,23 @@ def _stamped(e: Estimate) -> Measurement:
 
 
 def estimated_measurements(path: str | os.PathLike[str], config: EstimatorConfig = EstimatorConfig(),
-                           urdf: Optional[str] = None) -> list[Measurement]:
+                           urdf: Optional[str] = None, robot: str = DEFAULT_ROBOT) -> list[Measurement]:
     """The state the estimator gives from a bag's sensor topics alone, as the live node runs it:
     default configuration, the world frame the robot starts in, no ground truth (samples without
     an estimate are left out, as the node publishes a fault for them)."""
-    return [_stamped(e) for e in run_pipeline(path, urdf, config) if e.measurement is not None]
+    return [_stamped(e) for e in run_pipeline(path, urdf, config, robot=robot)
+            if e.measurement is not None]
 
 
 def aligned_config(path: str | os.PathLike[str], urdf: str, truth: dict,
-                   config: EstimatorConfig = EstimatorConfig()) -> EstimatorConfig:
+                   config: EstimatorConfig = EstimatorConfig(),
+                   robot: str = DEFAULT_ROBOT) -> EstimatorConfig:
     """``config`` with its world frame aligned to the truth's at the first estimate: the truth's
     heading, and the horizontal offset that puts the first estimated CoM on the true one."""
     first_ns = next(r.stamp_ns for stream, r in read_sensor_messages(path) if stream == 'joints')
     first = truth.get(round(first_ns / 1e6))
     config = replace(config, initial_yaw_rad=float(first.heading) if first is not None else 0.0)
-    for e in run_pipeline(path, urdf, config)[:50]:
+    for e in run_pipeline(path, urdf, config, robot=robot)[:50]:
         ref = truth.get(round(e.stamp_ns / 1e6))
         if e.measurement is not None and ref is not None:
             dx, dy = (ref.com - e.measurement.com)[:2]
@@ -103,8 +106,10 @@ class BagEstimate:
     truth: list[Measurement]
 
 
-def estimate_bag(path: str | os.PathLike[str], config: EstimatorConfig = EstimatorConfig()) -> BagEstimate:
-    """Run the estimator over a bag's sensor topics; pair each estimate with the truth."""
+def estimate_bag(path: str | os.PathLike[str], config: EstimatorConfig = EstimatorConfig(),
+                 robot: str = DEFAULT_ROBOT) -> BagEstimate:
+    """Run the estimator over a bag's sensor topics (robot profile ``robot``); pair each estimate
+    with the truth."""
     bag = Path(path)
     urdf = read_robot_description(bag)
     if urdf is None:
@@ -114,7 +119,7 @@ def estimate_bag(path: str | os.PathLike[str], config: EstimatorConfig = Estimat
         raise BagError(f'{bag}: no ground truth')
     by_ms = {round(m.t * 1000): m for m in truth}
     t, est, tru = [], [], []
-    for e in run_pipeline(bag, urdf, aligned_config(bag, urdf, by_ms, config)):
+    for e in run_pipeline(bag, urdf, aligned_config(bag, urdf, by_ms, config, robot), robot=robot):
         ref = by_ms.get(round(e.stamp_ns / 1e6))
         if ref is not None:
             t.append(e.stamp_ns / 1e9)

@@ -30,6 +30,7 @@ from typing import Iterable, Optional
 
 import numpy as np
 
+from fall_predictor.profiles import DEFAULT_ROBOT
 from fall_predictor.data.bagio import BagError
 from fall_predictor.data.dataset import (FORMAT, ROBOT_URDF_FILE, DatasetError, IndexRow, trajectory_id,
                                          write_index_csv)
@@ -57,7 +58,8 @@ def robot_from_urdf(urdf: str) -> dict:
     return {'name': model.name, 'total_mass_kg': float(data.mass[0]), 'source': 'urdf'}
 
 
-def robot_recording_row(bag: Path, tid: str, urdf: Optional[str] = None) -> IndexRow:
+def robot_recording_row(bag: Path, tid: str, urdf: Optional[str] = None,
+                        robot: str = DEFAULT_ROBOT) -> IndexRow:
     """The index row of one robot recording, labelled from the estimated state (module docs)."""
     from fall_predictor.data.estimation import estimated_measurements
     from fall_predictor.data.sensorbag import read_imu, read_robot_description
@@ -67,7 +69,7 @@ def robot_recording_row(bag: Path, tid: str, urdf: Optional[str] = None) -> Inde
         urdf = read_robot_description(bag)
         if urdf is None:
             raise DatasetError(f'{bag}: no /robot_description in the recording; give the URDF (--urdf)')
-    ms = estimated_measurements(bag, urdf=urdf)
+    ms = estimated_measurements(bag, urdf=urdf, robot=robot)
     if len(ms) < 2:
         raise DatasetError(f'{bag}: the estimator gave {len(ms)} states; needs /joint_states, '
                            '/imu/data and the foot wrenches')
@@ -88,23 +90,25 @@ def robot_recording_row(bag: Path, tid: str, urdf: Optional[str] = None) -> Inde
 
 
 def import_robot_recordings(bags: Iterable[str | os.PathLike], out: str | os.PathLike,
-                            urdf: Optional[str] = None) -> tuple[list[IndexRow], dict[str, str]]:
-    """A new dataset directory ``out`` from robot recordings (module docs); returns its rows and
-    the recordings rejected, with the reason."""
+                            urdf: Optional[str] = None,
+                            robot: str = DEFAULT_ROBOT) -> tuple[list[IndexRow], dict[str, str]]:
+    """A new dataset directory ``out`` from robot recordings (module docs) of the robot whose
+    profile is ``robot`` (name or path); returns its rows and the recordings rejected, with the
+    reason."""
     out = Path(out)
     if out.exists():
         raise DatasetError(f'{out}: exists; import into a new directory')
     sources = [Path(b).resolve() for b in bags]
     (out / 'bags').mkdir(parents=True)
     (out / 'index').mkdir()
-    rows, rejected, robot = [], {}, None
+    rows, rejected, described = [], {}, None
     for source in sources:
         tid = trajectory_id(len(rows))
         try:
-            row = robot_recording_row(source, tid, urdf)
-            if robot is None:
+            row = robot_recording_row(source, tid, urdf, robot)
+            if described is None:
                 from fall_predictor.data.sensorbag import read_robot_description
-                robot = robot_from_urdf(urdf or read_robot_description(source))
+                described = robot_from_urdf(urdf or read_robot_description(source))
         except (DatasetError, BagError) as error:
             rejected[str(source)] = str(error)
             continue
@@ -112,7 +116,8 @@ def import_robot_recordings(bags: Iterable[str | os.PathLike], out: str | os.Pat
         atomic_write_text(out / 'index' / f'{tid}.json', json.dumps(asdict(row), sort_keys=True))
         rows.append(row)
     manifest = {'format': FORMAT, 'source': 'robot_recordings', 'bags': [str(s) for s in sources],
-                'robot': robot, 'ground_truth': False, 'sensors': {'recorded_on': 'robot'},
+                'robot': None if described is None else {**described, 'profile': str(robot)},
+                'ground_truth': False, 'sensors': {'recorded_on': 'robot'},
                 'fall_rule': {'height_fraction': FALLEN_HEIGHT_FRACTION, 'tilt_deg': FALLEN_TILT_DEG,
                               'standing_window_s': STANDING_WINDOW_S}}
     if urdf is not None:                 # recordings without /robot_description

@@ -26,7 +26,9 @@ the sole frames) and one synchronised sample of joint encoders, IMU and foot for
   ``max_slip_s``, the closest is used). The base follows from the point by kinematics;
 * **CoM and centroidal momentum**: ``pinocchio.computeCentroidalMomentum`` (linear momentum,
   angular momentum about the CoM);
-* **contacts and CoP**: a sole with normal force above ``contact_force_n`` is loaded; each foot's
+* **contacts and CoP**: a sole with normal force above ``contact_force_n`` is loaded (a foot without
+  a force sensor, one of ``effort_feet``: its wrench from the leg's joint efforts, or with no
+  efforts from statics, :mod:`~fall_predictor.monitor.effort_wrench`); each foot's
   wrench is taken in its sensor's frame (the sample's ``wrench_frames``; empty: the sole frame) and
   carried to the sole frame, where the CoP is (-ty / fz, tx / fz); the whole-body CoP is the
   force-weighted mean. The contacts handed to the feature code are the sole's corners that lie
@@ -53,6 +55,7 @@ from typing import Optional, Sequence
 import numpy as np
 import pinocchio as pin
 
+from fall_predictor.monitor.effort_wrench import EffortWrench
 from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2, Measurement
 from fall_predictor.monitor.robot_description import SIDES, DescriptionError, RobotDescription
 from fall_predictor.monitor.sensor_records import SensorSample
@@ -73,6 +76,11 @@ class EstimatorConfig:
     #: After every loaded sole has slipped for this long [s], the closest one is trusted.
     max_slip_s: float = 0.02
     max_gap_s: float = 0.05
+    #: Without foot F/T sensors or efforts: soles this close to the lowest are on the ground [m].
+    kinematic_contact_height_m: float = 0.003
+    #: Feet whose wrench comes from joint efforts: a sole higher than this above the lowest is in
+    #: the air whatever its effort-derived force (a swinging leg's inertia reads as up to ~40 N).
+    effort_contact_height_m: float = 0.015
     initial_yaw_rad: float = 0.0
     #: World xy of the loaded soles' midpoint at the first sample [m].
     initial_xy_m: tuple[float, float] = (0.0, 0.0)
@@ -140,8 +148,13 @@ class StateEstimator:
     """Streams :class:`SensorSample` in, :class:`Measurement` out (see the module docstring)."""
 
     def __init__(self, robot: RobotDescription, config: EstimatorConfig = EstimatorConfig(),
-                 imu_frame: str = '') -> None:
+                 imu_frame: str = '', effort_feet: tuple[str, ...] = ()) -> None:
         self.robot = robot
+        #: Feet without a force sensor: their wrench from the joint efforts (monitor.effort_wrench).
+        self.effort_feet = tuple(effort_feet)
+        self._effort = EffortWrench(robot) if self.effort_feet else None
+        #: Where the last sample's effort-less feet took their wrench from: 'efforts', 'statics'.
+        self.wrench_source = 'sensors'
         self.config = config
         self.model, self.data = robot.model, robot.data
         #: The IMU frame of samples that do not name one (the robot profile's IMU link).
@@ -204,6 +217,26 @@ class StateEstimator:
         f = placement.rotation @ w[:3]
         tau = placement.rotation @ w[3:] + _cross(placement.translation, f)
         return np.concatenate([f, tau])
+
+    def _wrenches_without_sensors(self, s: SensorSample, order: Optional[np.ndarray],
+                                  kin: _Kinematics) -> dict[str, Optional[np.ndarray]]:
+        """The wrenches of the feet without a force sensor: from the joint efforts when the sample
+        has them all, else from the kinematics and statics (monitor.effort_wrench)."""
+        tau = np.asarray(s.tau, dtype=float)
+        if tau.shape == (len(s.joint_names),) and np.isfinite(tau).all():
+            v = kin.v.copy()
+            v[3:6] = kin.omega_b
+            found = self._effort.wrenches(kin.q, v, kin.rot, tau if order is None else tau[order])
+            lowest = min(kin.sole_pos[side][2] for side in SIDES)
+            for side in SIDES:
+                if kin.sole_pos[side][2] > lowest + self.config.effort_contact_height_m:
+                    found[side] = None
+            self.wrench_source = 'efforts'
+        else:
+            found = self._effort.kinematic(kin.q, kin.rot, kin.sole_pos, kin.sole_rot,
+                                           self.config.kinematic_contact_height_m)
+            self.wrench_source = 'statics'
+        return {side: found[side] for side in self.effort_feet}
 
     def _kinematics(self, s: SensorSample, q_j: np.ndarray, dq_j: np.ndarray, dt: float,
                     first: bool) -> _Kinematics:
@@ -271,6 +304,8 @@ class StateEstimator:
                                    ('r', s.right_wrench, s.wrench_frames[1])):
                 w = self._wrench(w)
                 wrenches[side] = None if w is None else self._sole_wrench(side, w, frame)
+            if self._effort is not None:
+                wrenches.update(self._wrenches_without_sensors(s, order, kin))
         except DescriptionError as error:
             self._reject(str(error))
             return None

@@ -25,7 +25,7 @@ from typing import Optional
 
 from fall_predictor.monitor.estimator import EstimatorConfig, StateEstimator
 from fall_predictor.monitor.records import Measurement
-from fall_predictor.monitor.robot_description import RobotDescription
+from fall_predictor.monitor.robot_description import SIDES, RobotDescription
 from fall_predictor.monitor.sensor_records import ImuReading, JointStateReading, WrenchReading
 from fall_predictor.monitor.sensor_sync import SensorSync, SyncConfig
 from fall_predictor.monitor.timeline import Stamp, StampTimeline, TimelineConfig
@@ -72,7 +72,9 @@ class SensorPipeline:
                  topics: Optional[dict[str, str]] = None) -> None:
         self.config = config
         self.robot = robot
-        self.estimator = StateEstimator(robot, config.estimator, imu_frame=imu_frame)
+        # Feet without a force/torque sensor: their wrench from the joint efforts (or statics).
+        self.estimator = StateEstimator(robot, config.estimator, imu_frame=imu_frame,
+                                        effort_feet=tuple(s for s in SIDES if s not in force_sensors))
         weight_n = robot.total_mass_kg * 9.81
         self.sync = SensorSync(robot.joint_names, force_sensors, weight_n, config.sync,
                                robot.joint_bounds, topics)

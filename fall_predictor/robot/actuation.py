@@ -17,7 +17,8 @@ Gains are per joint group. They were chosen so that (1) the stance leg deflects 
 inverted-pendulum gravity stiffness m g h ~ 250 N m/rad of this 42 kg robot), (2) each loop is
 near critically damped on the inertia it drives when its limb is in the air, with the
 reflected armature included (damping ratio 0.5 to 1), and (3) the explicit 1 ms loop is stable
-on that inertia (Kd dt / I < 1 and sqrt(Kp / I) dt < 0.5). The table is in the README.
+on that inertia (Kd dt / I < 1 and sqrt(Kp / I) dt < 0.5). The table is the robot profile's
+(``servo_gains``), shown in the README.
 """
 from __future__ import annotations
 
@@ -25,36 +26,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fall_predictor.robot import model as rm
+from fall_predictor.profiles import ServoGains
+from fall_predictor.profiles import asimo_like_urdf as rm
 
 
-@dataclass(frozen=True)
-class ServoGains:
-    """One joint's PD loop and drive: gains, passive damping and reflected rotor inertia."""
-
-    kp_nm_per_rad: float
-    kd_nms_per_rad: float
-    damping_nms: float
-    armature_kgm2: float
-
-
-#: Joint group (the joint's name without its side prefix) -> servo gains.
-SERVO_GAINS: dict[str, ServoGains] = {
-    'hip_yaw': ServoGains(1800.0, 30.0, 0.5, 0.03),
-    'hip_roll': ServoGains(7500.0, 90.0, 0.5, 0.06),
-    'hip_pitch': ServoGains(7500.0, 90.0, 0.5, 0.06),
-    'knee_pitch': ServoGains(7500.0, 75.0, 0.5, 0.06),
-    'ankle_pitch': ServoGains(4500.0, 24.0, 0.3, 0.03),
-    'ankle_roll': ServoGains(3000.0, 18.0, 0.3, 0.03),
-    'shoulder_pitch': ServoGains(200.0, 4.0, 0.2, 0.02),
-    'shoulder_roll': ServoGains(200.0, 4.0, 0.2, 0.02),
-    'shoulder_yaw': ServoGains(100.0, 2.0, 0.1, 0.01),
-    'elbow_pitch': ServoGains(100.0, 2.0, 0.1, 0.01),
-    'wrist_yaw': ServoGains(10.0, 0.1, 0.02, 0.002),
-    'hand': ServoGains(10.0, 0.15, 0.02, 0.002),
-    'head_pan': ServoGains(40.0, 0.8, 0.05, 0.005),
-    'head_tilt': ServoGains(60.0, 1.5, 0.05, 0.005),
-}
+#: Joint group (the joint's name without its side prefix) -> servo gains: the robot profile's.
+SERVO_GAINS: dict[str, ServoGains] = rm.PROFILE.servo_gains
 
 
 def joint_group(joint_name: str) -> str:

@@ -15,7 +15,7 @@ from typing import Optional
 import numpy as np
 
 from fall_predictor.robot import kinematics as kin
-from fall_predictor.robot import model as rm
+from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.robot.stabilizer import Stabilizer, StabilizerConfig
 from fall_predictor.robot.gait import GRAVITY, Footstep, PreviewController, WalkingPlan, plan_walk, swing_position
 from fall_predictor.monitor.records import Measurement
@@ -23,10 +23,8 @@ from fall_predictor.monitor.records import Measurement
 N_JOINTS = len(rm.JOINT_NAMES)
 _LEG_SLICE = {'l': slice(0, 6), 'r': slice(6, 12)}
 
-#: Arms hang slightly away from the body, elbows bent; head straight.
-_UPPER_BODY_POSTURE = {
-    'l_shoulder_roll': 0.15, 'r_shoulder_roll': -0.15, 'l_elbow_pitch': -0.4, 'r_elbow_pitch': -0.4,
-}
+#: The posture held outside the legs: the robot profile's.
+_UPPER_BODY_POSTURE = rm.PROFILE.posture
 
 
 @dataclass(frozen=True)

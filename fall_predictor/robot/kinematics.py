@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from fall_predictor.robot import model as rm
+from fall_predictor.profiles import asimo_like_urdf as rm
 
 THIGH = rm.THIGH_LENGTH_M
 SHANK = rm.SHANK_LENGTH_M

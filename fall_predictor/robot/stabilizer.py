@@ -35,7 +35,7 @@ import numpy as np
 
 from fall_predictor.monitor.geometry import closest_point_on_boundary, convex_hull, point_in_convex_polygon
 from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2, Measurement
-from fall_predictor.robot import model as rm
+from fall_predictor.profiles import asimo_like_urdf as rm
 
 SIDES = rm.SIDES
 

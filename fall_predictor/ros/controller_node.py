@@ -33,7 +33,7 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, String
 
-from fall_predictor.robot import model as rm
+from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.robot.controllers import BalanceController, ControllerSwitch, GaitConfig, ReflexConfig
 from fall_predictor.ros.endpoints import create_publisher, create_subscription

@@ -25,7 +25,7 @@ from fall_predictor.ros.endpoints import create_publisher, create_subscription
 from fall_predictor.ros.health import HANDLED_ERRORS, InputErrors, guarded, steady_clock
 from fall_predictor.ros.markers import view_markers
 from fall_predictor.ros.parameters import ParamSpec, declare_parameters
-from fall_predictor.ros.robots import ROBOT_PARAM, robot_mass_for
+from fall_predictor.ros.robots import ROBOT_PARAM, profile_for
 from fall_predictor.ros.runner import run_node
 
 NODE_NAME = 'monitor_markers'
@@ -39,7 +39,7 @@ class MarkerNode(Node):
     def __init__(self, **kwargs: object) -> None:
         super().__init__(NODE_NAME, **kwargs)
         p = declare_parameters(self, PARAMS)
-        self._mass_kg = robot_mass_for(str(p['robot']))
+        self._mass_kg = profile_for(str(p['robot'])).total_mass_kg
         self._bad_inputs = InputErrors(self)
         self._measurement: Optional[messages.StampedMeasurement] = None
         self._state: Optional[tuple[int, MonitorState]] = None

@@ -61,7 +61,7 @@ from fall_predictor.ros.lifecycle import AUTOSTART, MonitorLifecycleNode
 from fall_predictor.ros.parameters import (FROM_MODEL, MAX_MODEL_BYTES, MODEL_PATH, ParamSpec,
                                            declare_parameters, feature_setting_params,
                                            load_model_for)
-from fall_predictor.ros.robots import ROBOT_PARAM, fallen_config_for, robot_mass_for
+from fall_predictor.ros.robots import ROBOT_PARAM, fallen_config_for, profile_for
 from fall_predictor.ros.runner import run_node
 
 NODE_NAME = 'predictor_node'
@@ -138,8 +138,13 @@ class PredictorNode(MonitorLifecycleNode):
         if tau_his_s == FROM_MODEL:         # the model's recommended window, shown as the value
             tau_his_s = min(metadata.recommended_tau_his_s or 0.0, MAX_TAU_HIS_S)
             self.set_parameters([Parameter('tau_his_s', value=float(tau_his_s))])
-        mass_kg = (ROBOT_MASS.value_or_none(p['robot_mass_kg'])
-                   or getattr(metadata, 'robot_mass_kg', None) or robot_mass_for(robot))
+        profile = profile_for(robot)
+        mass_kg = ROBOT_MASS.value_or_none(p['robot_mass_kg']) or profile.total_mass_kg
+        model_mass_kg = getattr(metadata, 'robot_mass_kg', None)
+        if model_mass_kg and abs(model_mass_kg - profile.total_mass_kg) > 0.05 * profile.total_mass_kg:
+            self.get_logger().warning(
+                f'the model was trained on a robot of {model_mass_kg:.1f} kg; robot {profile.name!r} '
+                f'weighs {profile.total_mass_kg:.1f} kg: its alarms are those of another robot')
         self._monitor = FallMonitor(lists, float(tau_his_s), fallen_config_for(robot),
                                     settings.sample_period_s, settings.guard_com_height_m,
                                     float(mass_kg), getattr(metadata, 'time_to_fall', None))

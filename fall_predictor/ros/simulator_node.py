@@ -65,7 +65,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool, Trigger
 
-from fall_predictor.robot import model as rm
+from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.robot.controllers import BalanceController
 from fall_predictor.ros.endpoints import create_publisher, create_subscription

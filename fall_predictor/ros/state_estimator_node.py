@@ -55,7 +55,7 @@ from fall_predictor.ros.health import (HANDLED_ERRORS, Diagnostics, FaultLog, In
 from fall_predictor.ros.in_process import Output
 from fall_predictor.ros.lifecycle import AUTOSTART, MonitorLifecycleNode
 from fall_predictor.ros.parameters import ParamSpec, declare_parameters
-from fall_predictor.ros.robots import ROBOT_PARAM, sensor_layout_for
+from fall_predictor.ros.robots import ROBOT_PARAM, profile_for
 from fall_predictor.ros.runner import run_node
 
 NODE_NAME = 'state_estimator_node'
@@ -124,7 +124,7 @@ class StateEstimatorNode(MonitorLifecycleNode):
         self.start(bool(p['autostart']))
 
     def _configure(self) -> None:
-        self._layout = sensor_layout_for(str(self._params['robot']))
+        self._layout = profile_for(str(self._params['robot'])).sensor_layout()
         # The foot sensors the robot has (its profile's).
         for side, spec in (('l', LEFT_FOOT_WRENCH), ('r', RIGHT_FOOT_WRENCH)):
             if side in self._layout.force_sensors:

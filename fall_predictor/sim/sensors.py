@@ -43,14 +43,14 @@ import numpy as np
 import pybullet as pb
 
 from fall_predictor.monitor.sensor_records import SensorSample
-from fall_predictor.robot import model as rm
+from fall_predictor.profiles import asimo_like_urdf as rm
 
 SAMPLE_RATE_HZ = 1000.0
 _NYQUIST_SQRT = math.sqrt(SAMPLE_RATE_HZ / 2.0)
 _DEG = math.pi / 180.0
 _G = 9.81
 #: What the monitor needs to know of the simulated robot's sensors beyond its URDF.
-SENSOR_LAYOUT = rm.SENSOR_LAYOUT
+SENSOR_LAYOUT = rm.PROFILE.sensor_layout()
 #: IMU position in the torso link frame [m] (at the torso frame origin).
 IMU_POSITION_IN_TORSO_M = (0.0, 0.0, 0.0)
 
@@ -266,7 +266,7 @@ class SensorSuite:
         ft = self._delayed('ft', (wrenches['l'], wrenches['r']))
         return SensorSample(t=truth.t, joint_names=rm.JOINT_NAMES, q=enc[0], dq=enc[1], tau=enc[2],
                             imu_quat_xyzw=imu[0], gyro_rad_s=imu[1], accel_m_s2=imu[2],
-                            left_wrench=ft[0], right_wrench=ft[1], imu_frame=rm.IMU_LINK,
+                            left_wrench=ft[0], right_wrench=ft[1], imu_frame=rm.PROFILE.imu_frame,
                             wrench_frames=rm.SOLE_FRAMES)
 
 

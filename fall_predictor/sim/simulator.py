@@ -14,7 +14,7 @@ from typing import Optional, Sequence
 import numpy as np
 import pybullet as pb
 
-from fall_predictor.robot import model as rm
+from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.robot.actuation import ServoArrays, servo_arrays, servo_torques
 from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2, Measurement, PushSpec
 

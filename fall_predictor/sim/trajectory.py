@@ -18,7 +18,7 @@ import pybullet as pb
 from fall_predictor.robot.controllers import BalanceController, ControllerSwitch, GaitConfig, ReflexConfig
 from fall_predictor.robot.stabilizer import StabilizerConfig
 from fall_predictor.monitor.records import Measurement, PushSpec
-from fall_predictor.robot import model as rm
+from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.sim.sensors import sensor_truth
 from fall_predictor.sim.simulator import Simulator, SimulatorConfig
 

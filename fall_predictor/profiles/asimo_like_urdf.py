@@ -1,9 +1,10 @@
-"""The ASIMO-like humanoid of SPEC §1: dimensions, masses, joints, and its URDF.
+"""The ASIMO-like humanoid of method §1: its links, joints and masses, and its URDF.
 
-The URDF shipped in ``fall_predictor/robot/asimo_like.urdf`` is generated from the tables
-below by ``python -m fall_predictor.robot.model`` (a test checks the file is up to date), so
-that the geometry the controller's inverse kinematics uses and the geometry PyBullet
-simulates come from one source.
+The robot's profile (``profiles/asimo_like/profile.yaml``) holds what the rest of the package
+knows of it (total mass, soles, IMU, gains); the tables below are the geometry of its links, from
+which ``python -m fall_predictor.profiles.asimo_like_urdf`` writes the profile's two URDFs (a test checks they
+are up to date). The controller reads its leg geometry back from the URDF, as it does for any
+robot (robot/leg_geometry.py).
 
 Frames: x forward, y left, z up. The base link is the torso (pelvis and trunk are one rigid
 body: the robot has no waist joint); its frame origin is the midpoint between the hip joints,
@@ -17,27 +18,28 @@ from dataclasses import dataclass
 from pathlib import Path
 from xml.sax.saxutils import escape
 
-from fall_predictor.monitor.records import SoleGeometry
-from fall_predictor.monitor.robot_description import SensorLayout
+from fall_predictor.profiles import load_profile
 
+PROFILE = load_profile('asimo_like')
 #: The robot description (``/robot_description``, Pinocchio): with the sole frames.
-URDF_PATH = Path(__file__).with_name("asimo_like.urdf")
+URDF_PATH = PROFILE.urdf_path
 #: The same robot for PyBullet, without the sole frames: PyBullet numbers joints depth-first,
 #: so fixed joints under the feet would shift the joint indices (and merging them with
 #: URDF_MERGE_FIXED_LINKS prints to stdout). Generated from the same tables.
-SIM_URDF_PATH = Path(__file__).with_name("asimo_like_pybullet.urdf")
+SIM_URDF_PATH = PROFILE.sim_urdf_path
 
-TOTAL_MASS_KG = 42.1
+TOTAL_MASS_KG = PROFILE.total_mass_kg
 # Leg geometry [m]
 HIP_DROP_M = 0.06            # torso origin to the hip joint centre, downwards
 HIP_HALF_WIDTH_M = 0.09      # lateral offset of each hip joint from the torso origin
 THIGH_LENGTH_M = 0.28        # hip pitch axis to knee axis
 SHANK_LENGTH_M = 0.28        # knee axis to ankle axis
-ANKLE_HEIGHT_M = 0.07        # ankle axis above the sole
-SOLE_LENGTH_M = 0.225        # SPEC §1
-SOLE_WIDTH_M = 0.157         # SPEC §1
+_LEFT_FOOT = PROFILE.feet['l']
+ANKLE_HEIGHT_M = -_LEFT_FOOT.sole_origin_in_foot_m[2]          # ankle axis above the sole
+SOLE_LENGTH_M = _LEFT_FOOT.sole_length_m
+SOLE_WIDTH_M = _LEFT_FOOT.sole_width_m
 SOLE_THICKNESS_M = 0.04
-SOLE_FORWARD_OFFSET_M = 0.02  # sole centre ahead of the ankle axis
+SOLE_FORWARD_OFFSET_M = _LEFT_FOOT.sole_origin_in_foot_m[0]    # sole centre ahead of the ankle axis
 
 LEG_JOINTS = ('hip_yaw', 'hip_roll', 'hip_pitch', 'knee_pitch', 'ankle_pitch', 'ankle_roll')
 ARM_JOINTS = ('shoulder_pitch', 'shoulder_roll', 'shoulder_yaw', 'elbow_pitch', 'wrist_yaw', 'hand')
@@ -50,19 +52,13 @@ JOINT_NAMES: tuple[str, ...] = (
     + tuple(f'{s}_{j}' for s in SIDES for j in ARM_JOINTS)
     + HEAD_JOINTS
 )
-FOOT_LINKS = ('l_foot', 'r_foot')
+FOOT_LINKS = tuple(PROFILE.feet[side].foot_link for side in SIDES)
 #: Sole frames (massless links on fixed joints, after the 26 joints in the URDF): origin at the
 #: centre of the sole's underside, axes parallel to the foot's. The ankle F/T sensors report
 #: their wrenches in these frames.
-SOLE_FRAMES = ('l_sole', 'r_sole')
-#: The link the torso IMU is fixed to (at its frame origin, with its axes).
-IMU_LINK = 'torso'
-#: The soles as the state estimator sees them (the frames are in the URDF).
-SOLES = {side: SoleGeometry(frame, SOLE_LENGTH_M, SOLE_WIDTH_M) for side, frame in zip(SIDES, SOLE_FRAMES)}
-#: What the monitor needs to know of this robot beyond its URDF.
-SENSOR_LAYOUT = SensorLayout(SOLES, IMU_LINK, SIDES)
+SOLE_FRAMES = tuple(PROFILE.feet[side].sole_frame for side in SIDES)
 #: Sole frame origin in the foot link frame (the ankle centre) [m].
-SOLE_ORIGIN_IN_FOOT_M = (SOLE_FORWARD_OFFSET_M, 0.0, -ANKLE_HEIGHT_M)
+SOLE_ORIGIN_IN_FOOT_M = _LEFT_FOOT.sole_origin_in_foot_m
 
 
 @dataclass(frozen=True)
@@ -178,7 +174,7 @@ def _limb_mass() -> float:
     return sum(lk.mass_kg for lk in links)
 
 
-#: Torso (pelvis + trunk): takes the mass the limbs leave to reach SPEC's 42.1 kg; its CoM
+#: Torso (pelvis + trunk): takes the mass the limbs leave to reach the profile's total mass; its CoM
 #: height above the torso origin is set so the whole-body CoM is 0.59 m in the walking posture.
 TORSO = LinkSpec('torso', round(TOTAL_MASS_KG - _limb_mass(), 4), (0.0, 0.0, 0.112), (0.20, 0.30, 0.50))
 TORSO_SHAPE_CENTRE_Z_M = 0.19
@@ -209,7 +205,7 @@ def urdf_xml(sole_frames: bool = True) -> str:
     """The robot's URDF text (``sole_frames=False``: the PyBullet variant)."""
     links, joints = all_links_and_joints()
     out = ['<?xml version="1.0"?>',
-           '<!-- Generated by fall_predictor.robot.model; do not edit by hand. -->',
+           '<!-- Generated by fall_predictor.profiles.asimo_like_urdf; do not edit by hand. -->',
            '<robot name="asimo_like">',
            '  <material name="shell"><color rgba="0.85 0.85 0.88 1"/></material>']
     for lk in links:

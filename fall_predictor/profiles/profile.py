@@ -1,0 +1,258 @@
+"""Robot profiles: everything the package knows of a robot beyond its URDF, in one file per robot.
+
+A profile is a YAML file (``profiles/<name>/profile.yaml`` for the shipped robots, or any path a
+user gives with ``--robot PATH`` or the nodes' ``robot`` parameter). Paths inside it are relative
+to the file. What it holds (method §1, §10):
+
+- the robot description: the URDF the monitor and Pinocchio read, and the one the simulator loads
+  (which may differ: PyBullet needs meshes, and numbers joints depth-first);
+- the feet: the link each sole is fixed to, the sole frame (taken from the URDF when it has it,
+  else added at ``sole_origin_in_foot_m`` in the foot link's frame), the sole rectangle, and the
+  foot's force/torque sensor frame, or none;
+- the IMU frame of readings that name none; the total mass;
+- when the robot is down and the CoM guard (method §4, §6), scaled to the robot's size;
+- joint groups (legs in hip-to-ankle order, arms, head), servo gains per group, the posture held
+  outside the legs, and the push forces that make the dataset's fall fraction (method §3).
+
+Nothing here imports the simulator or ROS: the onboard monitor loads profiles too.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Optional, Union
+
+import yaml
+
+from fall_predictor.monitor.records import SoleGeometry
+from fall_predictor.monitor.robot_description import SIDES, SensorLayout
+
+PROFILES_DIR = Path(__file__).resolve().parent
+PROFILE_FILE = 'profile.yaml'
+#: The robot every command and node serves unless told otherwise.
+DEFAULT_ROBOT = 'asimo_like'
+
+
+class ProfileError(ValueError):
+    """A robot profile is missing or malformed; the message names the file and the key."""
+
+
+@dataclass(frozen=True)
+class FootProfile:
+    """One foot: where its sole is and what measures its contact."""
+
+    side: str                                   #: 'l' or 'r'
+    foot_link: str                              #: the URDF link the sole is fixed to
+    sole_frame: str                             #: origin at the sole's centre, x forward, z up
+    sole_length_m: float
+    sole_width_m: float
+    #: The sole frame's origin in the foot link's frame [m] (used when the URDF lacks the frame).
+    sole_origin_in_foot_m: tuple[float, float, float]
+    #: The frame the foot's force/torque sensor reports in; None: the foot has no F/T sensor.
+    force_torque_frame: Optional[str]
+
+    def sole(self) -> SoleGeometry:
+        return SoleGeometry(self.sole_frame, self.sole_length_m, self.sole_width_m,
+                            self.foot_link, self.sole_origin_in_foot_m)
+
+
+@dataclass(frozen=True)
+class ServoGains:
+    """One joint's PD loop and drive: gains, passive damping and reflected rotor inertia."""
+
+    kp_nm_per_rad: float
+    kd_nms_per_rad: float
+    damping_nms: float
+    armature_kgm2: float
+
+
+@dataclass(frozen=True)
+class RobotProfile:
+    """One robot, as :func:`load_profile` reads it from its profile file."""
+
+    name: str
+    description: str
+    source: Path                                #: the profile file
+    urdf_path: Path                             #: the robot description (monitor, Pinocchio)
+    sim_urdf_path: Path                         #: what the simulator loads
+    total_mass_kg: float
+    imu_frame: str
+    feet: dict[str, FootProfile]
+    fallen_com_height_m: float                  #: below this CoM height the robot is down
+    guard_com_height_m: float                   #: the CoM guard of the predictor (method §6)
+    joint_groups: dict[str, tuple[str, ...]]
+    servo_gains: dict[str, ServoGains] = field(default_factory=dict)
+    push_force_n: tuple[float, float] = (0.0, 0.0)
+    #: Settings of the walking controller that depend on the robot's size (GaitConfig fields).
+    gait: dict[str, float] = field(default_factory=dict)
+    #: Joint angles [rad] of the posture the controller holds outside the legs (others: zero).
+    posture: dict[str, float] = field(default_factory=dict)
+
+    # -- what the monitor needs --------------------------------------------------------------
+    def sensor_layout(self) -> SensorLayout:
+        """Soles, IMU frame and the feet with a force/torque sensor."""
+        return SensorLayout({side: self.feet[side].sole() for side in SIDES}, self.imu_frame,
+                            tuple(side for side in SIDES if self.feet[side].force_torque_frame))
+
+    def urdf_xml(self) -> str:
+        """The robot description's text (``/robot_description``)."""
+        return self.urdf_path.read_text()
+
+    # -- joints --------------------------------------------------------------------------------
+    def leg_joints(self, side: str) -> tuple[str, ...]:
+        """The joints of leg ``side`` from hip to ankle."""
+        return self.joint_groups[f'{side}_leg']
+
+    def group_of(self, joint: str) -> str:
+        """The joint group ``joint`` belongs to (ProfileError if none)."""
+        for group, joints in self.joint_groups.items():
+            if joint in joints:
+                return group
+        raise ProfileError(f'{self.source}: joint {joint!r} is in no joint group')
+
+    def gains_for(self, joint: str) -> ServoGains:
+        """The servo gains of ``joint``: by its name without the side prefix, else by its name."""
+        for key in (joint, _unsided(joint)):
+            if key in self.servo_gains:
+                return self.servo_gains[key]
+        raise ProfileError(f'{self.source}: no servo_gains entry for joint {joint!r} '
+                           f'(looked for {joint!r} and {_unsided(joint)!r})')
+
+
+def _unsided(joint: str) -> str:
+    for prefix in ('l_', 'r_', 'left_', 'right_'):
+        if joint.startswith(prefix):
+            return joint[len(prefix):]
+    return joint
+
+
+def available_profiles() -> tuple[str, ...]:
+    """The names of the shipped robot profiles."""
+    return tuple(sorted(p.parent.name for p in PROFILES_DIR.glob(f'*/{PROFILE_FILE}')))
+
+
+def profile_path(robot: Union[str, Path]) -> Path:
+    """The profile file of ``robot``: a shipped profile's name, or a path to a profile file."""
+    text = str(robot)
+    if text.endswith(('.yaml', '.yml')) or '/' in text:
+        path = Path(text).expanduser()
+        if not path.is_file():
+            raise ProfileError(f'robot profile {text!r}: no such file')
+        return path.resolve()
+    path = PROFILES_DIR / text / PROFILE_FILE
+    if not path.is_file():
+        raise ProfileError(f'unknown robot {text!r}: the shipped profiles are '
+                           f'{", ".join(available_profiles())}; or give the path to a profile file')
+    return path
+
+
+_CACHE: dict[Path, RobotProfile] = {}
+
+
+def load_profile(robot: Union[str, Path] = DEFAULT_ROBOT) -> RobotProfile:
+    """Read and check the profile of ``robot`` (a name or a path); ProfileError says what is wrong."""
+    path = profile_path(robot)
+    cached = _CACHE.get(path)
+    if cached is None:
+        try:
+            raw = yaml.safe_load(path.read_text())
+        except yaml.YAMLError as exc:
+            raise ProfileError(f'{path}: not valid YAML: {exc}') from exc
+        cached = _CACHE[path] = _parse(path, raw)
+    return cached
+
+
+class _Reader:
+    """Typed access to one mapping of the profile, naming the file and key in every error."""
+
+    def __init__(self, path: Path, raw: Any, where: str = '') -> None:
+        if not isinstance(raw, dict):
+            raise ProfileError(f'{path}: {where or "the file"} must be a mapping')
+        self.path, self.raw, self.where = path, raw, where
+
+    def _key(self, key: str) -> str:
+        return f'{self.where}.{key}' if self.where else key
+
+    def get(self, key: str, default: Any = ...) -> Any:
+        if key not in self.raw:
+            if default is ...:
+                raise ProfileError(f'{self.path}: missing key {self._key(key)!r}')
+            return default
+        return self.raw[key]
+
+    def text(self, key: str, default: Any = ...) -> Any:
+        value = self.get(key, default)
+        if value is not None and not isinstance(value, str):
+            raise ProfileError(f'{self.path}: {self._key(key)} must be a string, got {value!r}')
+        return value
+
+    def number(self, key: str, low: float = -math.inf, high: float = math.inf,
+               default: Any = ...) -> float:
+        value = self.get(key, default)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not low <= value <= high:
+            raise ProfileError(f'{self.path}: {self._key(key)} must be a number in '
+                               f'[{low:g}, {high:g}], got {value!r}')
+        return float(value)
+
+    def vector(self, key: str, n: int, default: Any = ...) -> tuple[float, ...]:
+        value = self.get(key, default)
+        if (not isinstance(value, (list, tuple)) or len(value) != n
+                or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in value)):
+            raise ProfileError(f'{self.path}: {self._key(key)} must be a list of {n} numbers, '
+                               f'got {value!r}')
+        return tuple(float(v) for v in value)
+
+    def child(self, key: str, default: Any = ...) -> '_Reader':
+        return _Reader(self.path, self.get(key, default), self._key(key))
+
+    def file(self, key: str, default: Any = ...) -> Path:
+        rel = self.text(key, default)
+        path = (self.path.parent / rel).resolve()
+        if not path.is_file():
+            raise ProfileError(f'{self.path}: {self._key(key)} names {rel!r}, which is not a file '
+                               f'(looked for {path})')
+        return path
+
+
+def _parse(path: Path, raw: Any) -> RobotProfile:
+    r = _Reader(path, raw)
+    feet = {}
+    for side in SIDES:
+        f = r.child('feet').child(side)
+        feet[side] = FootProfile(
+            side, f.text('foot_link'), f.text('sole_frame'),
+            f.number('sole_length_m', 0.01, 1.0), f.number('sole_width_m', 0.01, 1.0),
+            f.vector('sole_origin_in_foot_m', 3, (0.0, 0.0, 0.0)),
+            f.text('force_torque_frame', None))
+    groups_raw = r.child('joint_groups')
+    groups = {}
+    for group, joints in groups_raw.raw.items():
+        if not isinstance(joints, list) or not all(isinstance(j, str) for j in joints):
+            raise ProfileError(f'{path}: joint_groups.{group} must be a list of joint names')
+        groups[str(group)] = tuple(joints)
+    for side in SIDES:
+        if f'{side}_leg' not in groups:
+            raise ProfileError(f'{path}: joint_groups needs {side}_leg (hip to ankle)')
+    gains = {}
+    for key, value in r.get('servo_gains', {}).items():
+        g = _Reader(path, {'v': value}, f'servo_gains.{key}').vector('v', 4)
+        gains[str(key)] = ServoGains(*g)
+    monitor = r.child('monitor')
+    fallen = monitor.number('fallen_com_height_m', 0.05, 3.0)
+    guard = monitor.number('guard_com_height_m', fallen, 3.0)
+    gait = {str(k): _Reader(path, {'v': v}, f'gait.{k}').number('v')
+            for k, v in r.get('gait', {}).items()}
+    posture = {str(k): _Reader(path, {'v': v}, f'posture.{k}').number('v', -math.pi, math.pi)
+               for k, v in r.get('posture', {}).items()}
+    unknown = sorted(set(posture) - {j for joints in groups.values() for j in joints})
+    if unknown:
+        raise ProfileError(f'{path}: posture names joints in no joint group: {unknown}')
+    urdf = r.file('urdf')
+    return RobotProfile(
+        name=r.text('name'), description=r.text('description', ''), source=path,
+        urdf_path=urdf, sim_urdf_path=r.file('sim_urdf', str(urdf)),
+        total_mass_kg=r.number('total_mass_kg', 1.0, 1000.0), imu_frame=r.text('imu_frame'),
+        feet=feet, fallen_com_height_m=fallen, guard_com_height_m=guard, joint_groups=groups,
+        servo_gains=gains,
+        push_force_n=r.vector('push_force_n', 2, (0.0, 0.0)), gait=gait, posture=posture)
