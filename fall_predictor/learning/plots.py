@@ -20,7 +20,7 @@ if TYPE_CHECKING:
     from fall_predictor.learning.sweep import SweepConfig
 
 
-def _save(fig: Any, path: Path) -> None:
+def save_figure(fig: Any, path: Path) -> None:
     """Write ``fig`` to ``path`` (its suffix gives the format) atomically, then close it."""
     import matplotlib.pyplot as plt
 
@@ -75,7 +75,7 @@ def plot_sweep(out_dir: Path, points: Sequence[SweepPoint], pareto: Sequence[Swe
     ax.grid(alpha=0.3)
     paths.append(out_dir / 'fig10_tradeoff.png')
     fig.tight_layout()
-    _save(fig, paths[-1])
+    save_figure(fig, paths[-1])
 
     # Fig. 11 (left column): statistics against tau_plus.
     fig, axes = plt.subplots(3, 1, figsize=(6.5, 8.5), sharex=True)
@@ -104,7 +104,7 @@ def plot_sweep(out_dir: Path, points: Sequence[SweepPoint], pareto: Sequence[Swe
         ax.grid(alpha=0.3)
     paths.append(out_dir / 'fig11_parameters.png')
     fig.tight_layout()
-    _save(fig, paths[-1])
+    save_figure(fig, paths[-1])
 
     # Fig. 11 (right column): learning curve.
     if learning_curve:
@@ -125,5 +125,5 @@ def plot_sweep(out_dir: Path, points: Sequence[SweepPoint], pareto: Sequence[Swe
             ax.grid(alpha=0.3)
         paths.append(out_dir / 'fig11_learning_curve.png')
         fig.tight_layout()
-        _save(fig, paths[-1])
+        save_figure(fig, paths[-1])
     return paths
