@@ -6,7 +6,7 @@ Each file is written atomically (:func:`fall_predictor.monitor.fileio.atomic_out
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -14,10 +14,8 @@ from fall_predictor.learning.baselines import pareto_front
 from fall_predictor.learning.crossval import SweepPoint
 from fall_predictor.learning.evaluation import BaselineCurves
 from fall_predictor.learning.selection import PaperPredictor
+from fall_predictor.learning.sweep_results import SweepConfig
 from fall_predictor.monitor.fileio import atomic_output
-
-if TYPE_CHECKING:
-    from fall_predictor.learning.sweep import SweepConfig
 
 
 def save_figure(fig: Any, path: Path) -> None:
