@@ -13,7 +13,8 @@ def cmd_sweep(args) -> int:
 
     from fall_predictor.data.dataset import DatasetError
     from fall_predictor.learning.selection import pareto_mean_lead
-    from fall_predictor.learning.sweep import SweepConfig, run_sweep
+    from fall_predictor.learning.sweep_files import run_sweep
+    from fall_predictor.learning.sweep_results import SweepConfig
 
     settings = {'folds': args.folds, 'seed': args.seed, 'learner_name': args.learner,
                 'learner_params': dict(args.param), 'sample_stride': args.stride,

@@ -13,7 +13,7 @@ from fall_predictor.learning.crossval import SweepPoint
 from fall_predictor.learning.evaluation import BaselineCurves
 from fall_predictor.learning.metrics import EvaluationResult
 from fall_predictor.learning.selection import select_paper_analogues
-from fall_predictor.learning.sweep import SweepConfig, SweepResult, SweepTiming
+from fall_predictor.learning.sweep_results import SweepConfig, SweepResult, SweepTiming
 
 
 @pytest.fixture(scope='session')

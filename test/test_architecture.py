@@ -1,7 +1,8 @@
 """The package's layout as its sub-package docstrings state it: who may import whom.
 
-Reads every module's source (imports at module level and inside functions alike) rather than
-importing it, so a forbidden import is found even on a code path no other test runs.
+Reads every module's source (imports at module level, inside functions and under
+``if TYPE_CHECKING:`` alike) rather than importing it, so a forbidden import or an import cycle is
+found even on a code path no other test runs.
 """
 from __future__ import annotations
 
@@ -55,8 +56,10 @@ def sub_package(module: str) -> str:
 
 
 def imports(path: Path) -> list[tuple[str, bool]]:
-    """(imported module, inside a function) for every import statement of a module. For
-    ``from X import name`` the module ``X.name`` is recorded if it is a module of this package."""
+    """(imported module, lazy) for every import statement of a module; lazy: not run when the
+    module is imported (inside a function, or under ``if TYPE_CHECKING:``, which a type checker
+    follows). For ``from X import name`` the module ``X.name`` is recorded if it is a module of
+    this package."""
     tree = ast.parse(path.read_text(), str(path))
     found: list[tuple[str, bool]] = []
 
@@ -64,7 +67,11 @@ def imports(path: Path) -> list[tuple[str, bool]]:
         for child in ast.iter_child_nodes(node):
             inner = lazy or isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef))
             if isinstance(child, ast.If) and 'TYPE_CHECKING' in ast.unparse(child.test):
-                continue                                # typing only, never executed
+                for statement in child.body:            # typing only: seen, as lazy
+                    visit(ast.Module(body=[statement], type_ignores=[]), True)
+                for statement in child.orelse:          # run at import time
+                    visit(ast.Module(body=[statement], type_ignores=[]), lazy)
+                continue
             if isinstance(child, ast.Import):
                 found.extend((alias.name, lazy) for alias in child.names)
             elif isinstance(child, ast.ImportFrom) and child.level == 0 and child.module:
@@ -112,7 +119,7 @@ def test_imports_follow_the_layout(module):
         other = sub_package(target)
         if other in ('', own) or other in eager or (lazy and other in lazy_only):
             continue
-        bad.append(f'{target} ({"inside a function" if lazy else "module level"})')
+        bad.append(f'{target} ({"inside a function or TYPE_CHECKING" if lazy else "module level"})')
     assert not bad, f'{module} may not import: {bad}'
 
 
@@ -132,16 +139,30 @@ def test_the_monitor_uses_numpy_only(module):
     assert third_party <= MONITOR_THIRD_PARTY, f'{module} imports {third_party - MONITOR_THIRD_PARTY}'
 
 
-def test_no_import_cycles():
-    edges = {m: {t for t, _ in found if t in MODULES and t != m} for m, found in GRAPH.items()}
-    # A package's __init__ is imported with each of its modules: an edge to a sub-module is
-    # also an edge to its package, which imports nothing here.
+def import_edges(graph: dict[str, list[tuple[str, bool]]], modules: set[str]) -> dict[str, set[str]]:
+    """Module -> the package modules it imports, at module level, inside functions or for typing.
+    Importing ``a.b.c`` also runs ``a/__init__`` and ``a/b/__init__``: an edge to a module is also
+    an edge to each package above it."""
+    edges: dict[str, set[str]] = {}
+    for module, found in graph.items():
+        targets = set()
+        for target, _ in found:
+            parts = target.split('.')
+            targets.update(p for p in ('.'.join(parts[:n]) for n in range(1, len(parts) + 1))
+                           if p in modules)
+        edges[module] = targets - {module}
+    return edges
+
+
+def find_cycles(edges: dict[str, set[str]]) -> list[list[str]]:
+    """Import cycles, each as [a, b, ..., a]; empty iff the graph has none (every cycle has a
+    back edge in a depth-first search)."""
     state: dict[str, int] = {}
     cycles: list[list[str]] = []
 
     def walk(node: str, path: list[str]) -> None:
         state[node] = 1
-        for nxt in sorted(edges[node]):
+        for nxt in sorted(edges.get(node, ())):
             if state.get(nxt) == 1:
                 cycles.append(path[path.index(nxt):] + [nxt])
             elif nxt not in state:
@@ -151,7 +172,32 @@ def test_no_import_cycles():
     for module in sorted(edges):
         if module not in state:
             walk(module, [module])
-    assert not cycles, f'import cycles: {cycles}'
+    return cycles
+
+
+def test_no_import_cycles():
+    cycles = find_cycles(import_edges(GRAPH, set(MODULES)))
+    assert not cycles, 'import cycles: ' + '; '.join(' -> '.join(c) for c in cycles)
+
+
+def test_the_checker_sees_cycles_through_function_and_type_checking_imports(tmp_path):
+    """A cycle closed only by a function-level import, or only by one under TYPE_CHECKING, is
+    found and named; the same modules without the closing import are not a cycle."""
+    a, b, c = tmp_path / 'a.py', tmp_path / 'b.py', tmp_path / 'c.py'
+    a.write_text('from fall_predictor.fake_b import g\n')
+    b.write_text('def g():\n    from fall_predictor.fake_c import h\n')
+    c.write_text('from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n'
+                 '    from fall_predictor.fake_a import A\nelse:\n    import numpy\n')
+    names = {'fall_predictor.fake_a': a, 'fall_predictor.fake_b': b, 'fall_predictor.fake_c': c}
+    graph = {name: imports(path) for name, path in names.items()}
+    assert ('fall_predictor.fake_a', True) in graph['fall_predictor.fake_c']
+    assert ('numpy', False) in graph['fall_predictor.fake_c']
+    assert find_cycles(import_edges(graph, set(names))) == [
+        ['fall_predictor.fake_a', 'fall_predictor.fake_b', 'fall_predictor.fake_c',
+         'fall_predictor.fake_a']]
+    c.write_text('import numpy\n')
+    graph['fall_predictor.fake_c'] = imports(c)
+    assert find_cycles(import_edges(graph, set(names))) == []
 
 
 def test_the_checker_sees_a_forbidden_import(tmp_path):

@@ -1,6 +1,7 @@
 """Bring-up: the nodes as processes, two pushes in a row, JSON lines, clean shutdown."""
 from __future__ import annotations
 
+import dataclasses
 import io
 import json
 from pathlib import Path
@@ -12,6 +13,7 @@ from test_nodes_support import test_domain_id, write_momentum_model
 from fall_predictor.data.bagio import read_trajectory
 from fall_predictor.cli import build_parser
 from fall_predictor.ros.bringup import run_bringup
+from fall_predictor.monitor.records import PushSpec
 from fall_predictor.sim.pushes import PushDistribution, trajectory_seed
 
 SEED = 4            # two strong pushes (472 N and 490 N) at about 2.2 s: short runs
@@ -116,15 +118,48 @@ def test_recordings_where_c_fall_took_over_are_rejected(tmp_path: Path) -> None:
     assert report.rows == [] and 'C_fall took over' in next(iter(report.rejected.values()))
 
 
+class _Pushes:
+    """The given pushes, one per run, in order (run_bringup asks its push distribution for one
+    push per run)."""
+
+    def __init__(self, *pushes: PushSpec):
+        self._pushes = iter(pushes)
+
+    def sample(self, rng) -> PushSpec:
+        return next(self._pushes)
+
+
+#: SEED's first push (472 N at 4 deg, 0.24 m, 2.213 s into the default walk) and the same push
+#: at 100 N. Offline (sim.trajectory.run_trajectory, C_bal throughout, 3 s after the push) the
+#: robot survives this push at 0 to 250 N and falls from 300 N; at 472 N it falls 0.66 s after
+#: the push ends. The 100 N push raises the horizontal momentum to 14.4 kg m/s (9.6 while
+#: walking), under the hand-built model's 25; the 472 N push passes 25 at 2.256 s.
+LARGE_PUSH = PushDistribution().sample(trajectory_seed(SEED, 0))
+SMALL_PUSH = dataclasses.replace(LARGE_PUSH, force_n=100.0)
+SENSORS_HORIZON_S = 0.8     # past the fall with C_bal (0.66 s) and with C_fall (0.43 s)
+
+
 def test_bringup_with_sensors_runs_the_estimator_in_the_loop(tmp_path: Path) -> None:
     # The simulator publishes only sensor topics (and the truth on its own topic); the
-    # measurement every other node reads comes from state_estimator_node.
+    # measurement every other node reads comes from state_estimator_node. What the estimated
+    # state makes of the two pushes is what the physics gives: the small one is neither
+    # predicted nor a fall, the large one is predicted during the push and the robot falls.
     domain = test_domain_id(155)
-    results = run_bringup(1, SEED, None, domain_id=domain,
-                          model_path=write_momentum_model(tmp_path / 'model.json'),
-                          horizon_s=0.5, log_dir=tmp_path / 'logs', sensors=True)
+    small, large = run_bringup(2, SEED, None, domain_id=domain,
+                               model_path=write_momentum_model(tmp_path / 'model.json'),
+                               horizon_s=SENSORS_HORIZON_S, log_dir=tmp_path / 'logs',
+                               sensors=True, push_distribution=_Pushes(SMALL_PUSH, LARGE_PUSH))
     assert _node_processes_on(domain) == []
-    assert len(results) == 1 and results[0]['outcome'] in ('fall_predicted', 'fall_missed', 'predicted_no_fall', 'no_fall')
+    assert small['push']['force_n'] == SMALL_PUSH.force_n
+    assert small['outcome'] == 'no_fall'
+    assert small['t_predict'] is None and small['controller_mode'] == 'balance'
+    assert small['stopped_by'] == 'horizon'
+    assert small['t_end'] >= SMALL_PUSH.t_force_end + SENSORS_HORIZON_S - 1e-9
+    assert large['push']['force_n'] == LARGE_PUSH.force_n
+    assert large['outcome'] == 'fall_predicted'
+    assert LARGE_PUSH.t_push <= large['t_predict'] <= LARGE_PUSH.t_force_end
+    assert large['controller_mode'] == 'fall' and large['stopped_by'] == 'fallen'
+    assert large['t_predict'] < large['t_fallen'] < LARGE_PUSH.t_force_end + SENSORS_HORIZON_S
     log = (tmp_path / 'logs' / 'state_estimator_node.log').read_text()
     assert 'robot description: 42.10 kg, 26 joints' in log
 

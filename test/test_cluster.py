@@ -13,13 +13,12 @@ import threading
 import time
 from pathlib import Path
 
+import distributed        # a declared dependency (requirements.txt: .[cluster]): missing is a failure
 import pytest
 
 from fall_predictor.cli import main
 from fall_predictor.data import parallel
 from fall_predictor.data.generation import GenerationConfig, generate_dataset
-
-distributed = pytest.importorskip('distributed')
 
 TRAJECTORIES = 4
 SEED = 11

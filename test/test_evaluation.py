@@ -11,11 +11,11 @@ from fall_predictor.data.bagio import read_trajectory
 from fall_predictor.data.dataset import read_index, robot_total_mass_kg
 from fall_predictor.learning.evaluation import (capture_point_distances_cached, evaluate_model,
                                                 evaluation_json, json_float)
-from fall_predictor.learning.intervals import wilson_interval
-from fall_predictor.learning.metrics import evaluate_lists
-from fall_predictor.learning.training import load_dataset, train_model
+from fall_predictor.learning.training import load_dataset
 from fall_predictor.monitor.capture_point import capture_point_distances
-from fall_predictor.monitor.model_file import save_model
+from fall_predictor.monitor.decision_list import DecisionList, PerModeDecisionLists
+from fall_predictor.monitor.model_file import ModelMetadata, save_model
+from fall_predictor.monitor.records import FALLING, N_CONTACT_MODES
 
 from learning_fixtures import fixture_dataset  # noqa: F401  (a pytest fixture)
 
@@ -41,43 +41,68 @@ def test_capture_point_distances_are_kept_in_the_feature_cache(fixture_dataset):
         np.testing.assert_array_equal(a, capture_point_distances(ms, robot_total_mass_kg(fixture_dataset)))
 
 
+def always_falling() -> PerModeDecisionLists:
+    """Lists that say falling in every contact mode (no rules, default falling): rule size 0."""
+    return PerModeDecisionLists(tuple(DecisionList(default=FALLING) for _ in range(N_CONTACT_MODES)))
+
+
+def known_answers(dataset) -> dict:
+    """SPEC §5 figures of a predictor that says falling at every sample, from the dataset's
+    index files as the generator wrote them: every balanced trajectory is a false positive, every
+    trajectory has a pre-push alarm (the features start 0.5 s before the push, longer than any
+    history window used here), and the lead of a fallen one is t_fallen - t_push (the first
+    sample at or after the push), the oracle lead. Wilson's lower bound for k = n is
+    n / (n + z^2), the upper 1."""
+    rows = [json.loads(f.read_text()) for f in sorted((dataset / 'index').glob('traj_*.json'))]
+    fallen = [r for r in rows if r['fallen']]
+    n_balanced = len(rows) - len(fallen)
+    assert fallen and n_balanced and all(r['t_push'] - r['t_start'] >= 0.5 - 1e-9 for r in rows)
+    lead = sum(r['t_fallen'] - r['t_push'] for r in fallen) / len(fallen)
+    return {'n_trajectories': len(rows), 'n_fallen': len(fallen), 'n_balanced': n_balanced,
+            'n_false_positives': n_balanced, 'fpr': 1.0, 'tau_lead_s': lead, 'n_missed': 0,
+            'n_pre_push_alarms': len(rows), 'oracle_lead_s': lead, 'lead_fraction': 1.0,
+            'mean_rule_size': 0.0, 'fpr_ci95': [n_balanced / (n_balanced + 1.959964 ** 2), 1.0]}
+
+
 def test_evaluate_model_with_baselines(fixture_dataset):
-    lists, metadata = train_model(fixture_dataset, -0.25, 'tree', {'max_depth': 4})
-    evaluation = evaluate_model(fixture_dataset, lists, 0.06, baselines=True)
-    trajectories = load_dataset(fixture_dataset).trajectories
-    assert evaluation.result == evaluate_lists(trajectories, lists, (0.06,))[0.06]
-    assert evaluation.dataset_fingerprint == metadata.dataset_fingerprint
+    expected = known_answers(fixture_dataset)
+    evaluation = evaluate_model(fixture_dataset, always_falling(), 0.06, baselines=True)
     assert evaluation.unreadable == {}
     payload = evaluation_json(evaluation)
     json.dumps(payload, allow_nan=False)                       # NaN and infinity are null
-    assert payload['tau_his_s'] == 0.06 and payload['n_pre_push_alarms'] == \
-        evaluation.result.n_pre_push_alarms
+    assert payload['tau_his_s'] == 0.06
+    for key, value in expected.items():
+        assert payload[key] == pytest.approx(value, abs=1e-6), key
+    r = evaluation.result
+    assert (r.n_pre_push_alarms_balanced, r.n_pre_push_alarms_fallen) == \
+        (expected['n_balanced'], expected['n_fallen'])
+    assert r.n_missed_lists_only == 0 and r.tau_lead_lists_only_s == pytest.approx(expected['tau_lead_s'])
     assert set(payload['baselines']) == {'com_height', 'momentum', 'capture_point'}
     assert all(payload['baselines'].values())
+    # Lists that never say falling: with the CoM guard off every fall is missed.
+    never = evaluate_model(fixture_dataset, PerModeDecisionLists.empty(), 0.06).result
+    assert never.n_missed_lists_only == expected['n_fallen'] and never.tau_lead_lists_only_s == 0.0
     with pytest.raises(ValueError, match='tau_his'):
-        evaluate_model(fixture_dataset, lists, -0.01)
+        evaluate_model(fixture_dataset, always_falling(), -0.01)
 
 
 def test_cli_evaluate(fixture_dataset, tmp_path, capsys):
-    lists, metadata = train_model(fixture_dataset, -0.25, recommended_tau_his_s=0.06)
+    expected = known_answers(fixture_dataset)
     model = tmp_path / 'model.json'
-    save_model(model, lists, metadata)
+    save_model(model, always_falling(), ModelMetadata(
+        tau_plus_s=0.0, balanced_weight=4.0, falling_weight=1.0, learner_name='hand-built',
+        learner_params={}, dataset_fingerprint=load_dataset(fixture_dataset).fingerprint,
+        recommended_tau_his_s=0.06))
     code = cli.main(['evaluate', '--data', str(fixture_dataset), '--model', str(model), '--json'])
     captured = capsys.readouterr()
     assert code == 0, captured.err
     evaluation = json.loads(captured.out)
-    expected = evaluate_lists(load_dataset(fixture_dataset).trajectories, lists, (0.06,))[0.06]
-    assert evaluation['tau_his_s'] == 0.06 and evaluation['fpr'] == pytest.approx(expected.fpr)
-    assert evaluation['tau_lead_s'] == pytest.approx(expected.tau_lead_s)
-    assert evaluation['trained_on_this_dataset'] is True
-    for key in ('n_missed', 'n_pre_push_alarms', 'oracle_lead_s', 'lead_fraction', 'mean_rule_size'):
-        assert key in evaluation
-    # SPEC §11 figures: Wilson interval of the FPR counts, lists alone never better than with guard
-    low, high = evaluation['fpr_ci95']
-    assert low <= evaluation['fpr'] <= high
-    assert [low, high] == pytest.approx(list(wilson_interval(expected.n_false_positives,
-                                                             expected.n_balanced)))
-    assert evaluation['misses_lists_only'] >= evaluation['n_missed']
-    assert evaluation['tau_lead_lists_only'] <= evaluation['tau_lead_s'] + 1e-12
+    assert evaluation['tau_his_s'] == 0.06                     # the model's recommendation
+    for key, value in expected.items():
+        assert evaluation[key] == pytest.approx(value, abs=1e-6), key
+    assert evaluation['trained_on_this_dataset'] is True       # same fingerprint in the model
+    # SPEC §11 figures: the lists alone are the same predictor here (always falling).
+    assert evaluation['misses_lists_only'] == 0
+    assert evaluation['tau_lead_lists_only'] == pytest.approx(expected['tau_lead_s'])
     lead_low, lead_high = evaluation['tau_lead_ci95']
     assert lead_low <= evaluation['tau_lead_s'] <= lead_high

@@ -1,86 +1,30 @@
-"""The launch files, run against a minimal stand-in of the ``launch``/``launch_ros`` API.
+"""The launch files and params files, checked for facts a real ``ros2 launch`` relies on.
 
-The ``launch`` packages are not installed here (no full ROS 2), so each launch file's
-``generate_launch_description()`` runs with small recording stand-ins of the classes it uses.
-The checks are what a real ``ros2 launch`` would rely on: every node is a console script of
-the package, its params file exists in ``config/``, the namespace argument reaches every node,
-and the monitor launch starts either ``fall_monitor`` or the two nodes, never both.
+``launch_ros`` is not installed here (no full ROS 2), so the launch files are read, not run:
+each parses as Python and defines ``generate_launch_description``; every executable it names
+is a console script of ``setup.py``; every ``LaunchConfiguration`` it reads is a declared launch
+argument; its default params file exists in ``config/`` (installed by ``setup.py``); its
+``PythonExpression`` texts are Python for every value of the switches they read; and every
+parameter it sets, and every parameter of the params files, is one that the node it reaches
+declares (asked of the nodes themselves, built with rclpy): ROS 2 ignores an undeclared
+parameter without a word.
 """
 from __future__ import annotations
 
-import importlib.util
+import ast
+import itertools
 import re
-import sys
-import types
 from pathlib import Path
 
 import pytest
+import rclpy
+import yaml
 
 REPO = Path(__file__).resolve().parents[1]
-
-
-class Recorded:
-    """A stand-in object that remembers how it was built."""
-
-    def __init__(self, *args, **kwargs):
-        self.args, self.kwargs = args, kwargs
-
-
-class LaunchConfiguration(Recorded):
-    @property
-    def name(self):
-        return self.args[0]
-
-
-class Condition(Recorded):
-    pass
-
-
-class PythonExpression(Recorded):
-    def evaluate(self, values: dict[str, str]) -> object:
-        """The expression with the launch arguments substituted, evaluated as launch would."""
-        text = ''.join(values[part.name] if isinstance(part, LaunchConfiguration) else part
-                       for part in self.args[0])
-        return eval(text)  # noqa: S307 - the launch file's own expression
-
-
-class IfCondition(Condition):
-    negate = False
-
-
-class UnlessCondition(Condition):
-    negate = True
-
-
-def _stand_in_modules(monkeypatch: pytest.MonkeyPatch) -> None:
-    names = {
-        'launch': {'LaunchDescription': Recorded},
-        'launch.actions': {'DeclareLaunchArgument': Recorded},
-        'launch.conditions': {'IfCondition': IfCondition, 'UnlessCondition': UnlessCondition},
-        'launch.substitutions': {'LaunchConfiguration': LaunchConfiguration,
-                                 'PathJoinSubstitution': Recorded,
-                                 'PythonExpression': PythonExpression},
-        'launch_ros': {},
-        'launch_ros.actions': {'Node': Recorded},
-        'launch_ros.parameter_descriptions': {'ParameterValue': Recorded},
-        'launch_ros.substitutions': {'FindPackageShare': Recorded},
-    }
-    for name, attributes in names.items():
-        module = types.ModuleType(name)
-        module.__dict__.update(attributes)
-        monkeypatch.setitem(sys.modules, name, module)
-
-
-def _description(monkeypatch: pytest.MonkeyPatch, file_name: str):
-    _stand_in_modules(monkeypatch)
-    spec = importlib.util.spec_from_file_location(file_name[:-3].replace('.', '_'),
-                                                  REPO / 'launch' / file_name)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    entities = module.generate_launch_description().args[0]
-    arguments = {e.args[0]: e.kwargs.get('default_value') for e in entities if not e.kwargs.get('package')}
-    nodes = [e for e in entities if e.kwargs.get('package') == 'fall_predictor']
-    return arguments, nodes
+LAUNCH_FILES = ('fall_predictor.launch.py', 'monitor.launch.py')
+#: Executables that run several nodes in one process (fall_monitor: the estimator with --estimator).
+PROCESS_NODES = {'simulated_robot': ('simulator_node', 'controller_node'),
+                 'fall_monitor': ('state_estimator_node', 'feature_node', 'predictor_node')}
 
 
 def _console_scripts() -> set[str]:
@@ -88,83 +32,153 @@ def _console_scripts() -> set[str]:
     return set(re.findall(r"'(\w+) = fall_predictor\.ros\.\w+:main'", text))
 
 
-def _params_file(arguments) -> str:
-    default = arguments['params_file']
-    parts = default.args[0]
-    assert parts[1] == 'config'
-    assert (REPO / 'config' / parts[2]).is_file()
-    return parts[2]
+@pytest.fixture(scope='module')
+def declared() -> dict[str, set[str]]:
+    """Node name -> the parameters the node declares, from the node classes themselves."""
+    from fall_predictor.ros.controller_node import ControllerNode
+    from fall_predictor.ros.feature_node import FeatureNode
+    from fall_predictor.ros.marker_node import MarkerNode
+    from fall_predictor.ros.predictor_node import PredictorNode
+    from fall_predictor.ros.recorder_node import RecorderNode
+    from fall_predictor.ros.simulator_node import SimulatorNode
+    from fall_predictor.ros.state_estimator_node import StateEstimatorNode
+
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=231)
+    names: dict[str, set[str]] = {}
+    try:
+        for cls in (SimulatorNode, ControllerNode, StateEstimatorNode, FeatureNode, PredictorNode,
+                    RecorderNode, MarkerNode):
+            node = cls(context=context)
+            names[node.get_name()] = set(node._parameters)
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
+    return names
 
 
-def test_simulation_launch_file(monkeypatch):
-    arguments, nodes = _description(monkeypatch, 'fall_predictor.launch.py')
-    assert _params_file(arguments) == 'fall_predictor.yaml'
-    assert arguments['namespace'] == ''
-    assert arguments['composed_robot'] == 'false'
-    executables = [n.kwargs['executable'] for n in nodes]
-    assert executables == ['simulated_robot', 'simulator_node', 'state_estimator_node',
-                           'controller_node', 'feature_node', 'predictor_node', 'recorder_node']
-    assert set(executables) <= _console_scripts()
-    for n in nodes:
-        assert n.kwargs['namespace'].name == 'namespace'
-        # Single-node processes are named after their executable; simulated_robot's two
-        # nodes keep their own names (no renaming).
-        assert n.kwargs['name'] == (None if n.kwargs['executable'] == 'simulated_robot'
-                                    else n.kwargs['executable'])
-    # composed_robot switches between simulated_robot and the two separate processes.
-    for composed in ('true', 'false'):
-        started = [n.kwargs['executable'] for n in nodes
-                   if 'condition' not in n.kwargs
-                   or n.kwargs['condition'].args[0].name != 'composed_robot'
-                   or (composed == 'true') != n.kwargs['condition'].negate]
-        robot = (['simulated_robot'] if composed == 'true'
-                 else ['simulator_node', 'controller_node'])
-        assert [e for e in started if e in ('simulated_robot', 'simulator_node',
-                                           'controller_node')] == robot, composed
-    by_executable = {n.kwargs['executable']: n for n in nodes}
-    assert by_executable['simulated_robot'].kwargs['parameters'][1] is \
-        by_executable['simulator_node'].kwargs['parameters'][1]    # the same overrides
-    recorder, estimator = by_executable['recorder_node'], by_executable['state_estimator_node']
-    assert isinstance(recorder.kwargs['condition'], IfCondition)
-    assert recorder.kwargs['condition'].args[0].name == 'record'
-    assert estimator.kwargs['condition'].args[0].name == 'sensors'
+class LaunchFile:
+    """What a launch file states, read from its syntax tree."""
+
+    def __init__(self, file_name: str):
+        self.tree = ast.parse((REPO / 'launch' / file_name).read_text(), file_name)
+        functions = {f.name: f for f in ast.walk(self.tree) if isinstance(f, ast.FunctionDef)}
+        assert 'generate_launch_description' in functions
+        self.calls = [c for c in ast.walk(self.tree) if isinstance(c, ast.Call)]
+        #: Names bound to dict literals (parameter overrides kept in a variable).
+        self.dicts = {t.id: node.value for node in ast.walk(self.tree)
+                      if isinstance(node, ast.Assign) and isinstance(node.value, ast.Dict)
+                      for t in node.targets if isinstance(t, ast.Name)}
+        #: The local helper that wraps launch_ros' Node(...): a function with a Node call.
+        self.helpers = {name: f for name, f in functions.items() if name != 'generate_launch_description'
+                        and any(self._called(c) == 'Node' for c in ast.walk(f) if isinstance(c, ast.Call))}
+
+    @staticmethod
+    def _called(call: ast.Call) -> str:
+        return call.func.id if isinstance(call.func, ast.Name) else getattr(call.func, 'attr', '')
+
+    def calls_to(self, name: str) -> list[ast.Call]:
+        return [c for c in self.calls if self._called(c) == name]
+
+    def launch_arguments(self) -> dict[str, ast.expr]:
+        return {c.args[0].value: next((k.value for k in c.keywords if k.arg == 'default_value'), None)
+                for c in self.calls_to('DeclareLaunchArgument')}
+
+    def configurations(self) -> set[str]:
+        return {c.args[0].value for c in self.calls_to('LaunchConfiguration')}
+
+    def _parameter_names(self, node: ast.AST) -> set[str]:
+        """Keys of the parameter dicts under ``node`` (dict literals, or names bound to one)."""
+        names = set()
+        for sub in ast.walk(node):
+            mapping = sub if isinstance(sub, ast.Dict) else (
+                self.dicts.get(sub.id) if isinstance(sub, ast.Name) else None)
+            if mapping is not None:
+                names |= {k.value for k in mapping.keys if isinstance(k, ast.Constant)}
+        return names
+
+    def nodes(self) -> list[tuple[str, set[str]]]:
+        """(executable, names of the parameters set on it) of every node the file starts."""
+        started = []
+        for call in self.calls_to('Node'):
+            executable = next(k.value for k in call.keywords if k.arg == 'executable')
+            if isinstance(executable, ast.Constant):
+                started.append((executable.value, self._parameter_names(call)))
+        for name, helper in self.helpers.items():
+            inner = self._parameter_names(helper)
+            for call in self.calls_to(name):
+                assert isinstance(call.args[0], ast.Constant), ast.unparse(call)
+                started.append((call.args[0].value, inner | self._parameter_names(call)))
+        return started
+
+    def python_expressions(self) -> list[list]:
+        """Each PythonExpression's parts: strings, and the names of the LaunchConfigurations."""
+        expressions = []
+        for call in self.calls_to('PythonExpression'):
+            parts = []
+            for part in call.args[0].elts:
+                if isinstance(part, ast.Constant):
+                    parts.append(part.value)
+                else:
+                    assert isinstance(part, ast.Name), ast.unparse(part)
+                    parts.append(self._configuration_bound_to(part.id))
+            expressions.append(parts)
+        return expressions
+
+    def _configuration_bound_to(self, variable: str) -> tuple[str]:
+        for node in ast.walk(self.tree):
+            if (isinstance(node, ast.Assign) and any(isinstance(t, ast.Name) and t.id == variable
+                                                     for t in node.targets)
+                    and isinstance(node.value, ast.Call) and self._called(node.value) == 'LaunchConfiguration'):
+                return (node.value.args[0].value,)
+        raise AssertionError(f'{variable} is not a LaunchConfiguration')
 
 
-def test_monitor_launch_file(monkeypatch):
-    arguments, nodes = _description(monkeypatch, 'monitor.launch.py')
-    assert _params_file(arguments) == 'monitor.yaml'
-    assert set(arguments) >= {'namespace', 'model_path', 'measurement_topic', 'single_process',
-                              'estimator'}
-    executables = [n.kwargs['executable'] for n in nodes]
-    assert executables == ['fall_monitor', 'state_estimator_node', 'feature_node',
-                           'predictor_node']
-    assert set(executables) <= _console_scripts()
-    # Which nodes start, for each combination of the two switches: fall_monitor (with or
-    # without --estimator) in one process, or each node in its own; never both.
-    for single in ('true', 'false'):
-        for estimator in ('true', 'false'):
-            values = {'single_process': single, 'estimator': estimator}
-            started = []
-            for n in nodes:
-                condition = n.kwargs['condition']
-                switch = condition.args[0]
-                on = (switch.evaluate(values) if isinstance(switch, PythonExpression)
-                      else values[switch.name] == 'true')
-                if on != condition.negate:
-                    extra = [a.evaluate(values) for a in n.kwargs.get('arguments', [])]
-                    started.append(' '.join([n.kwargs['executable'], *filter(None, extra)]))
-            expected = ({('true', 'true'): ['fall_monitor --estimator'],
-                         ('true', 'false'): ['fall_monitor'],
-                         ('false', 'true'): ['state_estimator_node', 'feature_node',
-                                             'predictor_node'],
-                         ('false', 'false'): ['feature_node', 'predictor_node']})[single, estimator]
-            assert started == expected, values
-    for n in nodes:
-        assert n.kwargs['namespace'].name == 'namespace'
-        (source, target), = n.kwargs['remappings']
-        assert source == 'fall_predictor/measurement' and target.name == 'measurement_topic'
-    # The one-process executable keeps its nodes' own names (no renaming).
-    assert nodes[0].kwargs['name'] is None
+@pytest.mark.parametrize('file_name', LAUNCH_FILES)
+def test_launch_file_names_installed_executables_and_declared_arguments(file_name):
+    launch = LaunchFile(file_name)
+    nodes = launch.nodes()
+    assert nodes
+    unknown = {executable for executable, _ in nodes} - _console_scripts()
+    assert not unknown, f'not console scripts of setup.py: {sorted(unknown)}'
+    arguments = launch.launch_arguments()
+    undeclared = launch.configurations() - set(arguments)
+    assert not undeclared, f'LaunchConfiguration without DeclareLaunchArgument: {sorted(undeclared)}'
+    config = arguments['params_file']
+    parts = [p.value for p in config.args[0].elts if isinstance(p, ast.Constant)]
+    assert parts[0] == 'config' and (REPO / 'config' / parts[1]).is_file()
+    assert "glob('config/*.yaml')" in (REPO / 'setup.py').read_text()    # installed to share/
+
+
+def test_the_monitor_launch_file_expressions_are_python_for_every_switch_value():
+    expressions = LaunchFile('monitor.launch.py').python_expressions()
+    assert expressions
+    for parts in expressions:
+        switches = sorted({p[0] for p in parts if isinstance(p, tuple)})
+        for values in itertools.product(('true', 'false'), repeat=len(switches)):
+            chosen = dict(zip(switches, values))
+            text = ''.join(chosen[p[0]] if isinstance(p, tuple) else p for p in parts)
+            eval(compile(text, 'PythonExpression', 'eval'), {})   # noqa: S307 - launch evaluates it so
+
+
+@pytest.mark.parametrize('file_name', LAUNCH_FILES)
+def test_parameters_set_by_a_launch_file_are_declared_by_a_node_they_reach(file_name, declared):
+    receivers: dict[str, set[str]] = {}
+    for executable, parameters in LaunchFile(file_name).nodes():
+        for parameter in parameters:
+            receivers.setdefault(parameter, set()).update(PROCESS_NODES.get(executable, (executable,)))
+    assert receivers
+    for parameter, nodes in receivers.items():
+        assert any(parameter in declared[n] for n in nodes), (parameter, sorted(nodes))
+
+
+@pytest.mark.parametrize('file_name', ('fall_predictor.yaml', 'monitor.yaml'))
+def test_params_file_parameters_are_declared_by_their_node(file_name, declared):
+    sections = yaml.safe_load((REPO / 'config' / file_name).read_text())
+    for key, section in sections.items():
+        node = key.removeprefix('/**/')
+        unknown = set(section['ros__parameters']) - declared[node]
+        assert not unknown, f'{file_name} {key}: {sorted(unknown)} not declared by {node}'
 
 
 def test_params_files_use_wildcard_sections_for_every_node():

@@ -2,8 +2,10 @@
 decision-list learners (``learners``), metrics such as FPR and tau_lead (``metrics``),
 hand-coded baselines (``baselines``), training on a dataset (``training``), evaluating a model
 on one (``evaluation``), cross-validation (``crossval``), choosing among predictors
-(``selection``), the tau_plus x tau_his sweep (``sweep``), and its report (``report``) and
-figures (``plots``).
+(``selection``), the tau_plus x tau_his sweep (``sweep`` computes it, ``sweep_results`` holds
+its settings and results as data), its report (``report``) and figures (``plots``,
+``plots_intervals``), which read the results, and ``sweep_files``, which runs the sweep and
+writes them.
 
 May import: fall_predictor.monitor, fall_predictor.data, numpy, scikit-learn, joblib,
 matplotlib, tqdm.

@@ -183,7 +183,7 @@ def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: f
     ``state``: the features come from the true or the estimated state (data/dataset.py).
 
     No cross-validation: use a dataset the model was not trained on (or
-    :func:`~fall_predictor.learning.sweep.run_sweep`).
+    :func:`~fall_predictor.learning.sweep.compute_sweep`).
     """
     if not (math.isfinite(tau_his_s) and tau_his_s >= 0.0):
         raise ValueError(f'tau_his_s must be a finite number >= 0, got {tau_his_s!r}')

@@ -9,14 +9,12 @@ and the lists-alone figures as any evaluation.
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, Optional
+from typing import Any, Optional
 
 from fall_predictor.learning.evaluation import evaluation_result_json
 from fall_predictor.learning.metrics import evaluate_lists
+from fall_predictor.learning.sweep_results import SweepResult
 from fall_predictor.learning.training import PathLike, fit_strided, load_dataset, make_learner
-
-if TYPE_CHECKING:
-    from fall_predictor.learning.sweep import SweepResult
 
 
 def chosen_settings(nested_document: Optional[dict[str, Any]]) -> dict[str, tuple[float, float]]:

@@ -6,7 +6,7 @@ Each file is written atomically (:func:`fall_predictor.monitor.fileio.atomic_out
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -14,13 +14,11 @@ from fall_predictor.learning.baselines import pareto_front
 from fall_predictor.learning.crossval import SweepPoint
 from fall_predictor.learning.evaluation import BaselineCurves
 from fall_predictor.learning.selection import PaperPredictor
+from fall_predictor.learning.sweep_results import SweepConfig
 from fall_predictor.monitor.fileio import atomic_output
 
-if TYPE_CHECKING:
-    from fall_predictor.learning.sweep import SweepConfig
 
-
-def _save(fig: Any, path: Path) -> None:
+def save_figure(fig: Any, path: Path) -> None:
     """Write ``fig`` to ``path`` (its suffix gives the format) atomically, then close it."""
     import matplotlib.pyplot as plt
 
@@ -75,7 +73,7 @@ def plot_sweep(out_dir: Path, points: Sequence[SweepPoint], pareto: Sequence[Swe
     ax.grid(alpha=0.3)
     paths.append(out_dir / 'fig10_tradeoff.png')
     fig.tight_layout()
-    _save(fig, paths[-1])
+    save_figure(fig, paths[-1])
 
     # Fig. 11 (left column): statistics against tau_plus.
     fig, axes = plt.subplots(3, 1, figsize=(6.5, 8.5), sharex=True)
@@ -104,7 +102,7 @@ def plot_sweep(out_dir: Path, points: Sequence[SweepPoint], pareto: Sequence[Swe
         ax.grid(alpha=0.3)
     paths.append(out_dir / 'fig11_parameters.png')
     fig.tight_layout()
-    _save(fig, paths[-1])
+    save_figure(fig, paths[-1])
 
     # Fig. 11 (right column): learning curve.
     if learning_curve:
@@ -125,5 +123,5 @@ def plot_sweep(out_dir: Path, points: Sequence[SweepPoint], pareto: Sequence[Swe
             ax.grid(alpha=0.3)
         paths.append(out_dir / 'fig11_learning_curve.png')
         fig.tight_layout()
-        _save(fig, paths[-1])
+        save_figure(fig, paths[-1])
     return paths

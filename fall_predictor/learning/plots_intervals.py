@@ -14,7 +14,7 @@ from typing import Any, Optional, Sequence
 from fall_predictor.learning.baselines import pareto_front
 from fall_predictor.learning.crossval import FoldFit
 from fall_predictor.learning.nested import fixed_setting
-from fall_predictor.learning.plots import _save
+from fall_predictor.learning.plots import save_figure
 
 
 def _errorbar(ax: Any, pooled: dict, **style: Any) -> None:
@@ -61,5 +61,5 @@ def plot_pareto_intervals(path: Path, fits: Sequence[FoldFit], points: Sequence[
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc='lower right')
     ax.set_title('Pareto front and nested operating points with 95 % intervals')
-    _save(fig, path)
+    save_figure(fig, path)
     return path

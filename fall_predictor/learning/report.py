@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import TYPE_CHECKING, Any, Optional
+from typing import Any, Optional
 
 from fall_predictor.learning.baselines import pareto_front
 from fall_predictor.learning.crossval import SweepPoint
@@ -15,10 +15,8 @@ from fall_predictor.learning.evaluation import curve_point_json, evaluation_resu
 from fall_predictor.learning.nested import nested_report_json, nested_table_lines
 from fall_predictor.learning.selection import (PAPER_PREDICTORS, PARETO_MAX_FPR, SELECTION_RULE,
                                               pareto_mean_lead)
+from fall_predictor.learning.sweep_results import SweepResult
 from fall_predictor.learning.training import make_learner
-
-if TYPE_CHECKING:
-    from fall_predictor.learning.sweep import SweepResult
 
 
 def _point_json(point: SweepPoint, with_folds: bool = True) -> dict[str, Any]:
