@@ -1,10 +1,10 @@
-"""How often the double-stance contact-mode folds happen on a dataset (issue 12).
+"""How often the double-stance contact-mode folds happen on a dataset.
 
 For every 1 kHz measurement of the first ``--limit`` trajectories of ``--data`` (every one by
 default) the support polygon is built as :mod:`fall_predictor.monitor.contact_modes` does and,
 for double-stance samples whose CoP lies only on lateral edges (outward normal nearer +-y than
 +-x), it counts how the fold resolves: to LR-FRONT, to LR-BACK (diagonal edges, by the sign of
-the normal's sagittal component) or to LR-INSIDE (a purely lateral edge). Before issue 12 all of
+the normal's sagittal component) or to LR-INSIDE (a purely lateral edge). Before these folds, all of
 them were LR-INSIDE. Prints one JSON object; ``--out`` also writes it.
 
 Usage: ``python benchmarks/bench_contact_folds.py --data DATA [--limit N] [--out F.json]``

@@ -1,6 +1,6 @@
 """State estimation error against ground truth as the sensor noise grows (0x, 1x, 2x, 4x).
 
-Simulates ``--trajectories`` pushed walks of the default gait (pushes from the SPEC §3
+Simulates ``--trajectories`` pushed walks of the default gait (pushes from the method §3
 distribution, seeded), records their exact sensor quantities once, and for each noise scale
 applies the sensor model (same seeds) and runs the estimator (aligned at the first sample like
 ``estimation-error``). Prints one JSON object and writes ``benchmarks/results/estimation_noise.json``:

@@ -7,7 +7,7 @@ Prints one JSON object and writes it to ``benchmarks/results/estimator_cpu.json`
 ``cpu_us`` and ``wall_us`` (median, p90, p99), the sample count and the load average.
 
 Usage: ``python benchmarks/bench_estimator.py [--duration 4.0] [--repeats 3]``; the aim
-(issue 10) is a median of at most 150 us.
+is a median of at most 150 us.
 """
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
-"""Dataset generation against bare physics on one core, side by side in one run (issue 13).
+"""Dataset generation against bare physics on one core, side by side in one run.
 
-For trajectories 0..N-1 of a dataset seed (the SPEC §3 pushes and gaits) this measures, by
+For trajectories 0..N-1 of a dataset seed (the method §3 pushes and gaits) this measures, by
 process CPU time per simulated second:
 
 * ``generation``: what ``fall-predictor generate`` does per trajectory (simulate with C_bal,
@@ -13,7 +13,7 @@ process CPU time per simulated second:
   fresh world, then ``stepSimulation``. The replay must end where the simulation ended (checked:
   the base pose matches to 1e-9 m), so both step the same contacts, not a collapsed robot.
 
-The ratio ``generation / bare_physics`` is issue 13's aim (<= 1.3). With ``--profile`` it also
+The ratio ``generation / bare_physics`` is the aim (<= 1.3). With ``--profile`` it also
 writes the top of a cProfile of the generation pass (``--profile-out``).
 
     .venv/bin/python benchmarks/bench_generation_speed.py --trajectories 10 \

@@ -1,4 +1,4 @@
-"""Mirror augmentation and a third learner on a train / held-out test split (issue 12 items 8, 9).
+"""Mirror augmentation and a third learner on a train / held-out test split.
 
 Trains on ``--train`` (every ``--stride``-th sample, tau_plus ``--tau-plus``) and evaluates on
 ``--test`` (another seed) at ``--tau-his``, CoM guard on, with Wilson / bootstrap intervals:

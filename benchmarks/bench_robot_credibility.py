@@ -1,4 +1,4 @@
-"""Robot credibility of the previous and the current robot on the SPEC §3 push protocol (issue 9).
+"""Robot credibility of the previous and the current robot on the method §3 push protocol.
 
 'previous': PyBullet position motors, stabilizer off; 'current': PD torque servos and the
 closed-loop stabilizer (the defaults). Both use today's walking plan and reflex.

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The same N trajectories with ``generate --jobs 2`` (loky) and on a local Dask cluster of two
 single-threaded workers (a ``dask scheduler`` and two ``dask worker`` processes started here),
-one after the other (issue 13). Writes wall and CPU seconds, the overhead ratio, each dataset's
+one after the other. Writes wall and CPU seconds, the overhead ratio, each dataset's
 ``generation`` cost record, and whether the two datasets' index rows are identical.
 
     .venv/bin/python benchmarks/bench_scale_out.py --trajectories 30 --work-dir /tmp/scale \

@@ -1,6 +1,6 @@
 """Prediction on the estimated state against the true state: same trajectories, same settings.
 
-Issue 10's side-by-side. For each state source (``true``: the simulator's exact state;
+The side-by-side of the two state sources. For each state source (``true``: the simulator's exact state;
 ``estimated``: the state estimator over the bags' sensor topics, as the live node runs it) the
 predictor at fixed settings (default: FP-L2's tau_plus -0.25 s, tau_his 0.06 s; no selection)
 is
@@ -30,7 +30,7 @@ from fall_predictor.learning.metrics import evaluate_lists
 from fall_predictor.learning.nested import fixed_setting, pool_results, pooled_json
 from fall_predictor.learning.training import fit_strided, load_dataset, make_learner
 
-#: Issue 10's aim for the estimated-state figures against the true-state ones.
+#: The aim for the estimated-state figures against the true-state ones.
 AIM_LEAD_S, AIM_FPR = 0.05, 0.02
 
 

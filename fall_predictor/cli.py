@@ -300,7 +300,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser('generate', help='generate push trajectories as rosbag2 (MCAP) bags',
-                       description='Generate N push trajectories (SPEC §3, C_bal throughout) into DIR: one '
+                       description='Generate N push trajectories (method §3, C_bal throughout) into DIR: one '
                                    'rosbag2 bag per trajectory plus an index. Deterministic per seed; '
                                    'rerunning finishes an interrupted run without redoing finished trajectories.')
     p.add_argument('--trajectories', type=argtypes.positive_int, required=True)
@@ -318,7 +318,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help='joint state rate with --sensor-timing robot [Hz]')
     p.add_argument('--fixed-gait', action='store_true',
                    help='every trajectory walks the default gait (faster: the walk is simulated once per '
-                        'process) instead of drawing its gait (SPEC §3 amendment)')
+                        'process) instead of drawing its gait (method §3 amendment)')
     argtypes.add_scheduler_argument(p, 'the simulations (bags come back here and are written to --out)')
     p.add_argument('--json', action='store_true')
     p.set_defaults(func=cmd_generate)
@@ -357,7 +357,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_bringup)
 
     p = sub.add_parser('train', help='learn per-mode decision lists and write a model file',
-                       description='Train one decision list per foot contact mode (SPEC §8) on every '
+                       description='Train one decision list per foot contact mode (method §8) on every '
                                    'trajectory of a dataset and write the JSON model file. Falling states '
                                    'before t_height_drop + tau_plus are withheld; balanced states weigh 4, '
                                    'falling states 1 (per 1 kHz sample). Exit code 2 if the dataset or a '
@@ -391,7 +391,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser('evaluate', help='FPR, lead time and misses of a model on a dataset',
                        description='Run a model over every trajectory of a dataset (the online predictor: '
-                                   'decision lists, history window tau_his, CoM guard) and report SPEC §5\'s '
+                                   'decision lists, history window tau_his, CoM guard) and report method §5\'s '
                                    'metrics: FPR, tau_lead, misses, pre-push false alarms, oracle lead, lead '
                                    'fraction and mean rule size; with --baselines also the Pareto fronts of '
                                    'the hand-coded baselines. Not cross-validated: use a dataset the model '

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
-"""Calibration of C_bal against SPEC §3 (issue: simulated humanoid, §5).
+"""Calibration of C_bal against method §3 (issue: simulated humanoid, §5).
 
-Runs N random pushes drawn per SPEC §3 (C_bal throughout, no predictor) and writes JSON:
+Runs N random pushes drawn per method §3 (C_bal throughout, no predictor) and writes JSON:
 the fall fraction, the fall fraction by force band, and the time from the end of the push
 to the fall (which justifies the dataset horizon). Usage:
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 12's evaluation in one command: the cross-validated sweep with nested operating points,
+# The evaluation in one command: the cross-validated sweep with nested operating points,
 # Wilson / bootstrap intervals, lists-alone misses and leads, baselines over the tau_his grid with
 # thresholds chosen on training folds, and the chosen predictors on a held-out test dataset.
 #

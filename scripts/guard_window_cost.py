@@ -1,4 +1,4 @@
-"""What putting the CoM guard through the tau_his window costs, on a dataset (issue 14).
+"""What putting the CoM guard through the tau_his window costs, on a dataset.
 
 Until the fault-injection work the CoM guard bypassed the history window: one sample with a low
 CoM (a glitch) latched a fall. Now the guard needs the same confirmation as the decision lists.

@@ -31,7 +31,7 @@ $FP evaluate --data data/t300s --state true --model data/true_state_model.json -
 $FP robustness --jobs "$JOBS" --json --out benchmarks/results/robustness.json > /dev/null
 .venv/bin/python benchmarks/bench_robot_credibility.py --trajectories 100 > /dev/null
 .venv/bin/python scripts/fig2_force_sweep.py --model models/default_model.json --tau-his 0.06 --jobs "$JOBS"
-# The monitor on a robot (issues 11 and 14): timing benchmarks, each on an otherwise idle machine.
+# The monitor on a robot: timing benchmarks, each on an otherwise idle machine.
 .venv/bin/python benchmarks/bench_monitor_cpu.py --out docs/bench_monitor_cpu.json > /dev/null
 .venv/bin/python benchmarks/bench_monitor_latency.py --seconds 30 --out docs/bench_monitor_latency.json > /dev/null
 .venv/bin/python benchmarks/bench_latency.py --duration 60 --single-process-monitor --composed-robot --out data/full_composed.json > /dev/null

@@ -1,5 +1,5 @@
 """``--scheduler``: generate, sweep and robustness on a Dask cluster give what a local run gives
-(issue 13), and an interrupted or damaged cluster run still ends in the same dataset.
+and an interrupted or damaged cluster run still ends in the same dataset.
 
 The cluster is a ``distributed.LocalCluster`` of 2 worker processes (1 thread each) started by
 this module: the same scheduler protocol as workers on other machines.

@@ -8,7 +8,7 @@ from fall_predictor.monitor.contact_modes import (ContactMode, classify_contact_
 from fall_predictor.monitor.records import CONTACT_MODE_NAMES, Measurement
 
 M = ContactMode
-LENGTH, WIDTH = 0.225, 0.157            # SPEC §1 foot sole
+LENGTH, WIDTH = 0.225, 0.157            # method §1 foot sole
 HL, HW = LENGTH / 2, WIDTH / 2
 LEFT_FOOT = (0.0, 0.1, 0.0)             # sole centre x, y, yaw
 RIGHT_FOOT = (0.0, -0.1, 0.0)
@@ -92,7 +92,7 @@ CASES = [
     # Staggered stance, left foot ahead: the hull has diagonal edges.
     ('LR staggered front', meas(corners((0.15, 0.1, 0.0)), R_FLAT, cop=(0.15 + HL, 0.1)),
      M.LR_FRONT),
-    # Issue 12: left foot 0.3 m ahead; the diagonal edges' normals are nearer +-y than +-x but
+    # left foot 0.3 m ahead; the diagonal edges' normals are nearer +-y than +-x but
     # fold by their sagittal sign (the back-left diagonal faces -x, the front-right one +x).
     ('LR staggered back-left diagonal', meas(corners((0.3, 0.1, 0.0)), R_FLAT,
                                              cop=(0.15 - HL, WIDTH / 2)), M.LR_BACK),

@@ -20,14 +20,14 @@ def test_each_trajectory_has_a_complete_bag_and_index_row(small_dataset):
     for row in rows:
         assert row.t_start == pytest.approx(row.t_push - 0.5)
         assert row.t_force_end == pytest.approx(row.t_push + 0.1)
-        # Each trajectory walked the gait it drew (SPEC §3 amendment), recorded in its row.
+        # Each trajectory walked the gait it drew (method §3 amendment), recorded in its row.
         assert 0.0 <= row.gait_speed_m_s <= 0.25 and 0.45 <= row.gait_single_support_s <= 0.7
         assert 0.16 <= row.gait_step_width_m <= 0.22 and row.gait_standing in (True, False)
         recorded = read_trajectory(small_dataset / row.bag)
         assert len(recorded.measurements) == row.samples
         assert recorded.measurements[0].t == pytest.approx(row.t_start)
         assert len(recorded.pushes) == 1 and recorded.pushes[0].t == pytest.approx(row.t_push)
-        # The recorded push force is the SPEC push: horizontal, of the sampled magnitude.
+        # The recorded push force is the method §3 push: horizontal, of the sampled magnitude.
         assert np.linalg.norm(recorded.pushes[0].force) == pytest.approx(row.force_n)
         assert recorded.joint_states is not None and recorded.joint_states.position.shape[1] == 26
         if row.fallen:

@@ -43,7 +43,7 @@ def random_trajectory(n=300, seed=0):
 
 
 def features_by_hand(traj, i, window_samples=10):
-    """SPEC §6 features of sample ``i`` computed directly, without the extractor: a rotation
+    """method §6 features of sample ``i`` computed directly, without the extractor: a rotation
     matrix into the heading frame, the CoP (or, with no contact, the CoM's ground projection)
     as origin, and momentum rates as differences to the sample ``window_samples`` back (or the
     first sample)."""

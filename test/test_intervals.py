@@ -17,7 +17,7 @@ def test_wilson_known_values():
 
 
 def test_wilson_issue_example_and_errors():
-    # issue 12: FP-L2's 28 false alarms of 529 -> about [0.037, 0.075]
+    # FP-L2's 28 false alarms of 529 -> about [0.037, 0.075]
     low, high = wilson_interval(28, 529)
     assert low == pytest.approx(0.037, abs=1e-3) and high == pytest.approx(0.075, abs=1e-3)
     assert all(math.isnan(v) for v in wilson_interval(0, 0))

@@ -1,4 +1,4 @@
-"""Mirror augmentation (issue 12 item 8) against the reflection y -> -y."""
+"""Mirror augmentation against the reflection y -> -y."""
 import numpy as np
 
 from fall_predictor.learning.learners import TreeListLearner

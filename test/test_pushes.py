@@ -1,4 +1,4 @@
-"""The push protocol (fall_predictor.sim.pushes): SPEC §3 ranges, gait variety, determinism."""
+"""The push protocol (fall_predictor.sim.pushes): method §3 ranges, gait variety, determinism."""
 import numpy as np
 import pytest
 

@@ -1,4 +1,4 @@
-"""A robot's own recordings as a dataset (data/robot_import.py, issue 10): falls found from the
+"""A robot's own recordings as a dataset (data/robot_import.py): falls found from the
 estimated state, features only from the estimated state, the robot read from its URDF.
 
 The "robot recordings" are generated bags cut down to what ``ros2 bag record`` of a robot's

@@ -1,4 +1,4 @@
-"""The URDF read back through PyBullet matches SPEC §1."""
+"""The URDF read back through PyBullet matches method §1."""
 import pybullet as pb
 import pytest
 

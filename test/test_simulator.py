@@ -47,7 +47,7 @@ def test_free_fall_momentum_rate_is_the_weight(sim):
 
 
 def test_free_fall_conserves_angular_momentum_about_the_com(sim):
-    # Also checks SPEC's zero link damping, which PyBullet cannot report back: damping would
+    # Also checks the method's zero link damping, which PyBullet cannot report back: damping would
     # bleed the spin away.
     first = _free_fall(sim, angular_velocity=(0.8, -0.5, 1.2))
     assert np.linalg.norm(first.ang_mom) > 1.0          # a real spin, not a trivial zero

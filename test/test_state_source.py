@@ -1,4 +1,4 @@
-"""Features from the true or the estimated state (``--state``, data/dataset.py, issue 10).
+"""Features from the true or the estimated state (``--state``, data/dataset.py).
 
 The estimated path must be what the robot runs: the state estimator fed one sensor sample at a
 time and the streaming feature extractor, as ``state_estimator_node`` and ``feature_node`` do.

@@ -1,4 +1,4 @@
-"""Time-to-fall trees (issue 12 item 6) and the fall-direction ground truth (item 7)."""
+"""Time-to-fall trees and the fall-direction ground truth (item 7)."""
 import dataclasses
 import json
 import math

@@ -148,7 +148,7 @@ PUSH_REQUEST_FRAME = HEADING_FRAME
 #: simulation time (a time already past means "at the next step"); ``wrench.force`` = the
 #: horizontal force [N] in :data:`PUSH_REQUEST_FRAME`; ``wrench.torque`` = its moment about
 #: the CoM [N m], ``(0, 0, h) x force`` for an application point ``h`` metres above the CoM.
-#: The force lasts ``PUSH_DURATION_S`` (0.1 s, SPEC §3).
+#: The force lasts ``PUSH_DURATION_S`` (0.1 s, method §3).
 PUSH_REQUEST = TopicSpec(
     '/fall_predictor/push_request', 'geometry_msgs/msg/WrenchStamped', EVENT_QOS, None,
     PUSH_REQUEST_FRAME, None,
@@ -254,7 +254,7 @@ def check_controller_mode(mode: str) -> str:
 
 
 # --------------------------------------------------------------------------------------------
-# Robot sensor topics (issue 10): what a real robot publishes; the state estimator's input
+# Robot sensor topics: what a real robot publishes; the state estimator's input
 # --------------------------------------------------------------------------------------------
 #: The sensors' header.frame_id: frames of the robot's URDF, which its robot profile names (the
 #: IMU's link; the F/T sensors' frames). Shown in the interface table as placeholders.

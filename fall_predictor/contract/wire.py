@@ -337,7 +337,7 @@ class PredictorState:
     """The predictor's output for one source sample (``/fall_predictor/state``).
 
     ``falling`` is the published decision (history window applied); ``atomic`` the decision
-    list's raw output; ``guard`` the CoM guard (SPEC §5); ``latched`` whether falling was
+    list's raw output; ``guard`` the CoM guard (method §5); ``latched`` whether falling was
     predicted since the last reset. ``stale_reason`` set means degraded (no prediction; the
     reason goes to ``/diagnostics``, the wire carries only the status); ``enabled`` false means
     the monitor is switched off (no trigger).

@@ -67,7 +67,7 @@ class IndexRow:
     t_start: float
     t_end: float
     samples: int
-    #: The gait walked before the push (SPEC §3 amendment); None in datasets without gait variety.
+    #: The gait walked before the push (method §3 amendment); None in datasets without gait variety.
     gait_speed_m_s: Optional[float] = None
     gait_single_support_s: Optional[float] = None
     gait_step_width_m: Optional[float] = None

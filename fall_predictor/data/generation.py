@@ -60,7 +60,7 @@ class GenerationConfig:
     pre_push_s: float = 1.0
     joint_state_rate_hz: float = 100.0
     push_distribution: PushDistribution = field(default_factory=_default_push_distribution)
-    #: Each trajectory draws its gait (SPEC §3 amendment); False walks the one default gait,
+    #: Each trajectory draws its gait (method §3 amendment); False walks the one default gait,
     #: simulated once per worker and shared through snapshots.
     gait_variety: bool = True
     #: Record the robot's sensor topics (sim/sensors.py model at this noise scale; 1 kHz
@@ -319,7 +319,7 @@ def _recorded_row(bag: Path, tid: str) -> IndexRow:
     recorded = read_trajectory(bag)
     if not recorded.pushes or len(recorded.pushes) != 1:
         raise DatasetError(f'{bag}: {len(recorded.pushes or [])} pushes recorded; a training trajectory '
-                           'holds exactly one (SPEC §3)')
+                           'holds exactly one (method §3)')
     modes = [m.msg.data for m in iter_messages(bag, [CONTROLLER_MODE.name])]
     if 'fall' in modes:
         raise DatasetError(f'{bag}: C_fall took over during the recording; hindsight labels need C_bal '

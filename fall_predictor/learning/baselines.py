@@ -1,7 +1,7 @@
 """Hand-coded fall predictors (the paper's Sec. 4 baselines), evaluated like learned ones.
 
 Each baseline says falling (atomically) when one physical quantity crosses a threshold; the
-CoM guard of SPEC §5 is added like for every predictor, and an optional history window
+CoM guard of method §5 is added like for every predictor, and an optional history window
 ``tau_his_s`` is applied exactly as by :class:`~fall_predictor.monitor.predictor.OnlinePredictor`
 (the paper's baselines use none: default 0). Sweeping the threshold gives a curve of
 :class:`CurvePoint` (threshold, FPR, tau_lead):

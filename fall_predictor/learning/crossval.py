@@ -1,4 +1,4 @@
-"""The cross-validation of the package (SPEC §5, §9): k-fold by trajectory, stratified by outcome.
+"""The cross-validation of the package (method §5, §9): k-fold by trajectory, stratified by outcome.
 
 A trajectory is never split between training and test (:func:`stratified_trajectory_folds`).
 :func:`cross_validate_grid` trains once per (training size, fold, ``tau_plus``); the test fold's
@@ -230,7 +230,7 @@ def cross_validated_evaluation(trajectories: Sequence[TrajectoryFeatures],
                                tau_his_values: Sequence[float], folds: int = 10, seed: int = 0,
                                sample_stride: int = DEFAULT_SAMPLE_STRIDE, jobs: int = 1,
                                progress: bool = False) -> list[SweepPoint]:
-    """k-fold cross-validated SPEC §5 metrics of one ``tau_plus_s`` [s], one point per
+    """k-fold cross-validated method §5 metrics of one ``tau_plus_s`` [s], one point per
     ``tau_his`` in ``tau_his_values`` [s]."""
     fits = cross_validate_grid(trajectories, learner, (tau_plus_s,), tau_his_values, folds, seed,
                                sample_stride, jobs=jobs, progress=progress)

@@ -1,4 +1,4 @@
-"""Evaluating a trained model on a dataset (SPEC §5), the hand-coded baselines next to it, and
+"""Evaluating a trained model on a dataset (method §5), the hand-coded baselines next to it, and
 their JSON form.
 
 :func:`evaluate_model` runs a model over every trajectory of a dataset (no cross-validation:
@@ -138,7 +138,7 @@ def _json_value(value: Any) -> Any:
 
 def evaluation_result_json(result: EvaluationResult) -> dict[str, Any]:
     """The fields of ``result`` (NaN and infinity -> null; intervals as ``[low, high]``), plus the
-    short names of the SPEC §11 figures: ``misses_lists_only`` and ``tau_lead_lists_only``."""
+    short names of the method §11 figures: ``misses_lists_only`` and ``tau_lead_lists_only``."""
     payload = {key: _json_value(value) for key, value in dataclasses.asdict(result).items()
                if key != 'leads_s'}
     payload['misses_lists_only'] = result.n_missed_lists_only
@@ -164,7 +164,7 @@ class ModelEvaluation:
     dataset_fingerprint: str
     unreadable: dict[str, str]             #: trajectories left out (unreadable bags)
     baselines: Optional[BaselineCurves] = None
-    #: |predicted - true| time to fall [s] at the triggers: {median, p90, max, n} (issue 12)
+    #: |predicted - true| time to fall [s] at the triggers: {median, p90, max, n}
     time_to_fall_error_s: Optional[dict[str, Any]] = None
     #: capture-point fall direction's angular error [deg] at the triggers: {median, p90, max, n}
     direction_error_deg: Optional[dict[str, Any]] = None
@@ -176,7 +176,7 @@ def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: f
                    baselines: bool = False, jobs: int = 1, skip_unreadable: bool = False,
                    progress: bool = False, time_to_fall: Optional[Any] = None,
                    robot_mass_kg: Optional[float] = None, state: str = 'true') -> ModelEvaluation:
-    """SPEC §5 metrics of the predictor ``lists`` with history window ``tau_his_s`` [s] over
+    """method §5 metrics of the predictor ``lists`` with history window ``tau_his_s`` [s] over
     every trajectory of ``data_dir``; with ``baselines``, the hand-coded baselines too.
     With a ``time_to_fall`` regressor and/or ``robot_mass_kg`` [kg], the time-to-fall and
     fall-direction errors at the triggers (:mod:`fall_predictor.learning.when_where`).

@@ -1,4 +1,4 @@
-"""Baselines evaluated as fairly as the learned lists (SPEC §11): the same ``tau_his`` grid, and
+"""Baselines evaluated as fairly as the learned lists (method §11): the same ``tau_his`` grid, and
 thresholds chosen on training folds.
 
 A hand-coded baseline has nothing to train, but its threshold *is* chosen; choosing it on all

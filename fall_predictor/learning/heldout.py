@@ -1,4 +1,4 @@
-"""The held-out test dataset of a sweep (SPEC §11): the sweep's chosen predictors evaluated on
+"""The held-out test dataset of a sweep (method §11): the sweep's chosen predictors evaluated on
 a dataset drawn with another seed that took no part in any choice.
 
 Which predictors: each nested operating point's setting as chosen on *all* folds of the sweep

@@ -1,4 +1,4 @@
-"""Confidence intervals for the reported figures (SPEC §11).
+"""Confidence intervals for the reported figures (method §11).
 
 * :func:`wilson_interval`: the Wilson score interval of a binomial proportion (used for every
   FPR: ``k`` false positives among ``n`` balanced trajectories).

@@ -1,4 +1,4 @@
-"""Hindsight labels (SPEC §4) and the training selection and weights (SPEC §8).
+"""Hindsight labels (method §4) and the training selection and weights (method §8).
 
 Labels are made on trajectories run with the balance controller throughout:
 
@@ -39,7 +39,7 @@ def label_states(t: np.ndarray, t_push: float, t_fallen: Optional[float]) -> np.
 def training_mask_and_weights(traj: TrajectoryFeatures, tau_plus_s: float,
                               balanced_weight: float = 4.0, falling_weight: float = 1.0
                               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Which samples of ``traj`` to train on, their labels and weights (SPEC §8).
+    """Which samples of ``traj`` to train on, their labels and weights (method §8).
 
     Returns ``mask`` (N,) bool, ``y`` (N,) int8 state labels for all samples (as
     :func:`label_states`), and ``w`` (N,) float weights, zero outside the mask. Trained on:

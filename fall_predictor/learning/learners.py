@@ -1,4 +1,4 @@
-"""Learning decision lists (SPEC §8): two rule learners and the per-mode training entry point.
+"""Learning decision lists (method §8): two rule learners and the per-mode training entry point.
 
 Both learners are scikit-learn style estimators: ``__init__`` stores the hyper-parameters
 verbatim, :meth:`fit` validates them and learns, the fitted state lives in attributes ending
@@ -12,7 +12,7 @@ class (default balanced) from weighted samples:
   rule by FOIL gain over quantile-binned thresholds, prune it on held-out trajectories, remove
   the samples it covers, repeat.
 
-:func:`fit_predictor` builds the weighted training set of SPEC §8 from trajectories and trains
+:func:`fit_predictor` builds the weighted training set of method §8 from trajectories and trains
 one list per foot contact mode.
 """
 from __future__ import annotations
@@ -409,7 +409,7 @@ def learner_description(learner: RuleListLearner) -> dict:
 def training_set(trajectories: Sequence[TrajectoryFeatures], tau_plus_s: float,
                  balanced_weight: float = 4.0, falling_weight: float = 1.0
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The weighted training samples of SPEC §8 from all ``trajectories``.
+    """The weighted training samples of method §8 from all ``trajectories``.
 
     Returns ``X`` (M, 15), ``y`` (M,) BALANCED/FALLING, ``w`` (M,) weights, ``modes`` (M,)
     contact mode indices and ``groups`` (M,) the index of each sample's trajectory, over the
@@ -429,7 +429,7 @@ def training_set(trajectories: Sequence[TrajectoryFeatures], tau_plus_s: float,
 def fit_predictor(trajectories: Sequence[TrajectoryFeatures], tau_plus_s: float,
                   learner: RuleListLearner, balanced_weight: float = 4.0,
                   falling_weight: float = 1.0) -> PerModeDecisionLists:
-    """Train one decision list per contact mode on the SPEC §8 training set.
+    """Train one decision list per contact mode on the method §8 training set.
 
     ``tau_plus_s`` [s] withholds falling states before ``t_height_drop + tau_plus_s``;
     ``balanced_weight``/``falling_weight`` weigh the classes (the paper: 4 to 1). Each mode gets

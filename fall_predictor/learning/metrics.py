@@ -1,4 +1,4 @@
-"""Evaluation of fall predictors (SPEC §5): FPR, lead time, misses, pre-push alarms.
+"""Evaluation of fall predictors (method §5): FPR, lead time, misses, pre-push alarms.
 
 Definitions (per trajectory, from the predictor's falling output run over the whole
 trajectory from a reset state):
@@ -13,11 +13,11 @@ trajectory from a reset state):
   does not change ``t_predict`` (still the first output at or after the push) and does not
   count in FPR; on a balanced trajectory it is also a false positive.
 * **oracle lead**: mean over fallen trajectories of ``t_fallen - t_push``.
-* **lists alone / guard alone** (SPEC §11): the same lead and misses computed from the decision
+* **lists alone / guard alone** (method §11): the same lead and misses computed from the decision
   lists' windowed output with the CoM guard off (``tau_lead_lists_only_s``,
   ``n_missed_lists_only``) and from the CoM guard alone (``tau_lead_guard_only_s``), so that
   "no misses" is not credited to the guard.
-* **intervals** (SPEC §11): ``fpr_ci95`` is the Wilson 95 % interval of the FPR;
+* **intervals** (method §11): ``fpr_ci95`` is the Wilson 95 % interval of the FPR;
   ``tau_lead_ci95`` and ``tau_lead_lists_only_ci95`` are bootstrap 95 % intervals over the
   fallen trajectories (:mod:`fall_predictor.learning.intervals`).
 
@@ -59,7 +59,7 @@ def trajectory_alarms(t: np.ndarray, falling: np.ndarray, t_push: float) -> Traj
 
 @dataclass(frozen=True)
 class EvaluationResult:
-    """SPEC §5 metrics of one predictor over a set of trajectories (times in seconds)."""
+    """method §5 metrics of one predictor over a set of trajectories (times in seconds)."""
 
     n_trajectories: int
     n_balanced: int                   #: trajectories that never fall
@@ -125,7 +125,7 @@ def evaluate(trajectories: Sequence[TrajectoryFeatures], alarms: Sequence[Trajec
              mean_rule_size: Optional[float] = None,
              lists_only_alarms: Optional[Sequence[TrajectoryAlarms]] = None,
              guard_only_alarms: Optional[Sequence[TrajectoryAlarms]] = None) -> EvaluationResult:
-    """SPEC §5 metrics from each trajectory's alarm times (``alarms[i]`` for ``trajectories[i]``).
+    """method §5 metrics from each trajectory's alarm times (``alarms[i]`` for ``trajectories[i]``).
 
     ``lists_only_alarms`` (the predictor with the CoM guard off) and ``guard_only_alarms`` (the
     CoM guard by itself), when given, fill the lists-alone and guard-alone fields.

@@ -1,4 +1,4 @@
-"""Mirror augmentation (issue 12 item 8): every trajectory also as its left-right mirror image.
+"""Mirror augmentation: every trajectory also as its left-right mirror image.
 
 Reflecting the world in the robot's sagittal plane (y -> -y in the heading frame) maps a
 trajectory of the robot onto one of a mirrored robot, which for a left-right symmetric robot

@@ -1,4 +1,4 @@
-"""Nested selection of operating points (SPEC §11).
+"""Nested selection of operating points (method §11).
 
 An operating point that is *chosen* ("the longest lead at FPR <= 0.06", the analogues of the
 paper's Table 2) must not be reported on the data it was chosen on. With the cross-validated
@@ -139,7 +139,7 @@ def pooled_json(pooled: PooledFigures) -> dict:
 
 def nested_report_json(fits: Sequence[FoldFit], paper_settings: dict[str, Setting],
                        budgets: Sequence[float] = NESTED_FPR_BUDGETS) -> Optional[dict]:
-    """The sweep's SPEC §11 section: nested points per FPR budget, and the paper's own settings
+    """The sweep's method §11 section: nested points per FPR budget, and the paper's own settings
     (those in the grid) at fixed settings; None when there are no fold results."""
     if not fits:
         return None
@@ -173,7 +173,7 @@ def nested_table_lines(document: Optional[dict]) -> list[str]:
                 f"{pooled['tau_lead_s']:.2f} [{pooled['tau_lead_ci95'][0]:.2f}, "
                 f"{pooled['tau_lead_ci95'][1]:.2f}]")
 
-    lines = ['', '## Nested selection and fixed settings (SPEC §11)', '',
+    lines = ['', '## Nested selection and fixed settings (method §11)', '',
              f"Rule: {document['rule']}. Hindsight = chosen and reported on all folds (optimistic).",
              '', '| operating point | FPR [95 % CI] | tau_lead [s] [95 % CI] | misses | settings chosen |',
              '|---|---|---|---|---|']

@@ -1,4 +1,4 @@
-"""The Pareto fronts with interval bands (SPEC §11): ``pareto_intervals.png``.
+"""The Pareto fronts with interval bands (method §11): ``pareto_intervals.png``.
 
 For the learned predictors, each Pareto point of the cross-validated grid is pooled over the
 folds (:func:`~fall_predictor.learning.nested.fixed_setting`) and drawn with its Wilson FPR

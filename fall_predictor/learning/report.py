@@ -30,7 +30,7 @@ def _point_json(point: SweepPoint, with_folds: bool = True) -> dict[str, Any]:
 
 
 def _nested(result: SweepResult) -> Optional[dict[str, Any]]:
-    """SPEC §11 nested points and the paper's fixed settings, from the sweep's grid trainings."""
+    """method §11 nested points and the paper's fixed settings, from the sweep's grid trainings."""
     return nested_report_json(
         [fit for fit in result.fits if fit.train_size is None
          and fit.tau_plus_s in result.config.tau_plus_values_s],

@@ -1,4 +1,4 @@
-"""Choosing among predictors on the FPR / tau_lead trade-off (SPEC §9): the paper's Table 2
+"""Choosing among predictors on the FPR / tau_lead trade-off (method §9): the paper's Table 2
 predictors (FP-L1..3), the rule that picks their analogues on a sweep's Pareto front, and
 :func:`pareto_mean_lead`, one number for a family of predictors (the area under its front).
 """
@@ -13,7 +13,7 @@ from fall_predictor.learning.crossval import SweepPoint
 
 @dataclass(frozen=True)
 class PaperPredictor:
-    """A predictor of the paper's Table 2 (SPEC §9); times [s]."""
+    """A predictor of the paper's Table 2 (method §9); times [s]."""
 
     name: str
     tau_plus_s: float

@@ -1,4 +1,4 @@
-"""The cross-validated sweep (SPEC §9, :func:`compute_sweep`): it computes, it writes nothing.
+"""The cross-validated sweep (method §9, :func:`compute_sweep`): it computes, it writes nothing.
 
 k-fold cross-validation by trajectory (:mod:`fall_predictor.learning.crossval`: stratified by
 outcome, a trajectory is never split) over a grid of ``tau_plus`` (training) and ``tau_his``

@@ -21,10 +21,10 @@ from fall_predictor.learning.training import (BALANCED_WEIGHT, DEFAULT_SAMPLE_ST
                                               FALLING_WEIGHT, check_sample_stride, make_learner)
 
 
-#: SPEC §9's range of tau_plus [s] and the history windows [s] of the sweep.
+#: method §9's range of tau_plus [s] and the history windows [s] of the sweep.
 DEFAULT_TAU_PLUS_VALUES_S = (-1.5, -1.25, -1.0, -0.75, -0.5, -0.25, 0.0, 0.25, 0.5)
 DEFAULT_TAU_HIS_VALUES_S = (0.0, 0.004, 0.008, 0.016, 0.03, 0.044, 0.06, 0.08, 0.1)
-#: Learning curve: training-set sizes (trajectories) at FP-L2's settings (SPEC §9).
+#: Learning curve: training-set sizes (trajectories) at FP-L2's settings (method §9).
 DEFAULT_LEARNING_CURVE_SIZES = (50, 100, 250, 500, 900)
 LEARNING_CURVE_TAU_PLUS_S = -0.25
 LEARNING_CURVE_TAU_HIS_S = 0.06
@@ -141,7 +141,7 @@ class SweepResult:
     timing: SweepTiming
     command: Optional[str]                       #: the command line that ran the sweep, if any
     files: tuple[str, ...]
-    #: SPEC §11 baselines: tau_his grid, thresholds chosen on the other folds (nested)
+    #: method §11 baselines: tau_his grid, thresholds chosen on the other folds (nested)
     baselines_nested: Optional[dict[str, Any]] = None
 
     @property

@@ -1,4 +1,4 @@
-"""The fall detector most ROS humanoids run today, as a baseline (issue 12): torso tilt and
+"""The fall detector most ROS humanoids run today, as a baseline: torso tilt and
 angular-velocity thresholds with a smoothing time, in the style of the bit-bots humanoid control
 module's falling check (``bitbots_hcm``), computed from the IMU topic alone.
 

@@ -1,7 +1,7 @@
-"""Training the time-to-fall regressor (issue 12, item 6) with scikit-learn, exported to the
+"""Training the time-to-fall regressor with scikit-learn, exported to the
 numpy-free trees of :mod:`fall_predictor.monitor.time_to_fall`.
 
-Trained on the falling states (SPEC §5: ``t_push <= t < t_fallen`` of a falling trajectory) of
+Trained on the falling states (method §5: ``t_push <= t < t_fallen`` of a falling trajectory) of
 every falling trajectory, every ``sample_stride``-th sample; the target is ``t_fallen - t`` [s].
 One tree per contact mode with at least ``min_mode_samples`` such samples, and a fallback tree
 on all of them.

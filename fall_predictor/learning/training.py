@@ -1,4 +1,4 @@
-"""Training on a dataset (SPEC §8): the learner registry, the sample stride, loading a dataset's
+"""Training on a dataset (method §8): the learner registry, the sample stride, loading a dataset's
 features, training one decision list per contact mode, and a summary of the learned rules.
 
 Everything here is core library (no ROS) and importable by tests and scripts; the CLI
@@ -8,7 +8,7 @@ subcommands ``train`` and ``rules`` are thin wrappers.
 so learners are trained on every ``sample_stride``-th sample of each trajectory (indices 0,
 K, 2K, ... from its first sample) with both class weights multiplied by the stride: a kept
 sample stands for the K milliseconds around it. The balanced:falling weighting per unit time
-(4:1, SPEC §8) is unchanged, and so is the meaning of hyper-parameters expressed in weight
+(4:1, method §8) is unchanged, and so is the meaning of hyper-parameters expressed in weight
 (``CoveringListLearner.min_coverage``: falling milliseconds; a tree's
 ``min_weight_fraction_leaf``). Hyper-parameters counted in samples
 (``TreeListLearner.min_samples_leaf``) count kept samples, i.e. K ms each. Evaluation always
@@ -52,7 +52,7 @@ DEFAULT_LEARNER_PARAMS: dict[str, dict[str, Any]] = {
 
 #: Default training stride: every 10th 1 kHz sample, weights x10 (see the module docs).
 DEFAULT_SAMPLE_STRIDE = 10
-#: SPEC §8 class weights per sample at 1 kHz (balanced : falling = 4 : 1).
+#: method §8 class weights per sample at 1 kHz (balanced : falling = 4 : 1).
 BALANCED_WEIGHT = 4.0
 FALLING_WEIGHT = 1.0
 
@@ -101,11 +101,11 @@ def fit_strided(trajectories: Sequence[TrajectoryFeatures], tau_plus_s: float,
                 falling_weight: float = FALLING_WEIGHT, mirror: bool = False) -> PerModeDecisionLists:
     """:func:`~fall_predictor.learning.learners.fit_predictor` on every ``sample_stride``-th sample;
     with ``mirror``, on the trajectories and their left-right mirror images
-    (:mod:`fall_predictor.learning.mirror`, issue 12).
+    (:mod:`fall_predictor.learning.mirror`).
 
     The class weights (per 1 kHz sample) are multiplied by ``sample_stride`` so that the
     weight per second of trajectory, and so the 4:1 ratio per unit time, is unchanged.
-    ``tau_plus_s`` [s] as in SPEC §8.
+    ``tau_plus_s`` [s] as in method §8.
     """
     sample_stride = check_sample_stride(sample_stride)
     if mirror:
@@ -173,7 +173,7 @@ def train_model(data_dir: PathLike, tau_plus_s: float, learner_name: str = 'tree
     report = load_dataset(data_dir, jobs, skip_unreadable, progress, state)
     require_outcomes(report.trajectories, data_dir, need_balanced=False)
     lists = fit_strided(report.trajectories, tau_plus_s, learner, sample_stride, mirror=mirror)
-    # Issue 12: the time-to-fall trees and the robot mass (fall direction) ship in the model.
+    # the time-to-fall trees and the robot mass (fall direction) ship in the model.
     from fall_predictor.data.dataset import robot_total_mass_kg
     from fall_predictor.learning.time_to_fall_training import fit_time_to_fall
     time_to_fall = fit_time_to_fall(report.trajectories, sample_stride)
@@ -190,7 +190,7 @@ def train_model(data_dir: PathLike, tau_plus_s: float, learner_name: str = 'tree
 def rules_summary(lists: PerModeDecisionLists) -> dict[str, Any]:
     """Per contact mode: rule size, depth and the list in Fig. 8 form; plus the means.
 
-    ``mean_rule_size`` averages over all 16 modes (SPEC §8); ``mean_depth`` averages the
+    ``mean_rule_size`` averages over all 16 modes (method §8); ``mean_depth`` averages the
     number of rules over the non-empty lists only (the paper's "depths typically 5 to 10").
     """
     modes = [{'mode': name, 'rule_size': decision_list.rule_size, 'depth': decision_list.depth,

@@ -1,4 +1,4 @@
-"""When and where the robot falls, judged at trigger time (issue 12, items 6 and 7).
+"""When and where the robot falls, judged at trigger time.
 
 For every fallen trajectory on which the predictor triggers in time (its first falling output
 at or after the push and before ``t_fallen``), at the trigger sample ``k``:

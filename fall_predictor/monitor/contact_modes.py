@@ -1,4 +1,4 @@
-"""Foot contact modes (SPEC §7): where the CoP sits in the support polygon.
+"""Foot contact modes (method §7): where the CoP sits in the support polygon.
 
 The support is the set of feet with at least one ground contact (a row in
 ``Measurement.left_contacts`` / ``right_contacts``); the support polygon is the convex hull of
@@ -24,14 +24,14 @@ A CoP clearly outside the polygon can only come from numerical error (it is a we
 the contact points); it is moved to the closest point of the polygon's boundary. A NaN CoP
 with contacts falls back to the normal-force-weighted mean of the contact points.
 
-**Folding rule** (SPEC §7 lists 16 modes, not every combination): any direction component not
+**Folding rule** (method §7 lists 16 modes, not every combination): any direction component not
 listed for the support is dropped; if nothing is left, the mode is ``INSIDE`` of that support.
 The listed components are FRONT and BACK for every support, plus LEFT for the left foot alone
 and RIGHT for the right foot alone. So ``L-RIGHT -> L-INSIDE``, ``L-FRONT-RIGHT -> L-FRONT``,
 ``R-BACK-LEFT -> R-BACK``, ``LR-LEFT`` and ``LR-RIGHT -> LR-INSIDE``,
 ``LR-FRONT-LEFT -> LR-FRONT``. No contact at all is ``OUTSIDE``.
 
-**Double-stance edges fold by their sagittal sign** (issue 12): on a staggered double stance the
+**Double-stance edges fold by their sagittal sign**: on a staggered double stance the
 support polygon has diagonal edges whose outward normal is closer to +-y than to +-x; a CoP on
 such an edge is tipping over it, not inside. Such an LR edge is folded to FRONT or BACK by the
 sign of its outward normal's sagittal (heading-frame x) component, unless that component is
@@ -73,7 +73,7 @@ class ContactMode(IntEnum):
 
     @property
     def label(self) -> str:
-        """The SPEC spelling, e.g. ``'L-FRONT-LEFT'``."""
+        """The method §7 spelling, e.g. ``'L-FRONT-LEFT'``."""
         return CONTACT_MODE_NAMES[self.value]
 
 
@@ -82,7 +82,7 @@ SUPPORTS = ('L', 'R', 'LR')
 X_SIDES = ('FRONT', 'BACK')
 Y_SIDES = ('LEFT', 'RIGHT')
 
-#: The only LEFT/RIGHT component SPEC §7 lists per support (the outer side of a single foot).
+#: The only LEFT/RIGHT component method §7 lists per support (the outer side of a single foot).
 _LISTED_Y_SIDE: dict[str, Optional[str]] = {'L': 'LEFT', 'R': 'RIGHT', 'LR': None}
 
 #: An LR edge whose outward normal is within this angle [deg] of +-y is purely lateral and folds

@@ -1,4 +1,4 @@
-"""Decision lists (SPEC §8, Fig. 8 of the paper): the learned fall predictor's model.
+"""Decision lists (method §8, Fig. 8 of the paper): the learned fall predictor's model.
 
 A :class:`DecisionList` is an ordered list of if-then rules; each rule is a conjunction of
 threshold comparisons on the 15 real features (:data:`~fall_predictor.monitor.records.FEATURE_NAMES`)
@@ -110,7 +110,7 @@ def simplify_conditions(conditions: Sequence[Condition]) -> tuple[Condition, ...
 class DecisionList:
     """An ordered decision list: the first matching rule wins, else ``default``.
 
-    ``rule_size`` counts comparisons (SPEC §8: the paper's "rule size"), ``depth`` counts rules.
+    ``rule_size`` counts comparisons (method §8: the paper's "rule size"), ``depth`` counts rules.
     """
 
     rules: tuple[Rule, ...] = ()
@@ -133,7 +133,7 @@ class DecisionList:
 
     @property
     def rule_size(self) -> int:
-        """Number of comparisons in the whole list (SPEC §8)."""
+        """Number of comparisons in the whole list (method §8)."""
         return sum(rule.size for rule in self.rules)
 
     @property
@@ -221,7 +221,7 @@ class PerModeDecisionLists:
 
     @property
     def mean_rule_size(self) -> float:
-        """Mean rule size over all 16 modes (SPEC §8, the paper's "mean rule size").
+        """Mean rule size over all 16 modes (method §8, the paper's "mean rule size").
 
         Every mode counts, including modes that had no (falling) training data: their empty
         list says balanced and counts with size 0. The paper averages over its 16 lists.

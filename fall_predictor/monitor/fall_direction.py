@@ -2,7 +2,7 @@
 
 The monitor publishes, with each falling event, the horizontal direction in which the CoM is
 expected to leave. The physical default is the instantaneous capture point of the linear
-inverted pendulum, taken relative to the feature frame's origin (the CoP, SPEC §6): the
+inverted pendulum, taken relative to the feature frame's origin (the CoP, method §6): the
 point the CoM "aims at" is ``xi = c + v / omega`` with ``omega = sqrt(g / c_z)``; a robot
 whose capture point lies at bearing ``theta`` from the CoP tips towards ``theta``.
 
@@ -28,7 +28,7 @@ def capture_point_direction(x: Sequence[float], mass_kg: float) -> np.ndarray:
     """Unit vector (3,) in the heading frame from the CoP towards the capture point.
 
     Args:
-        x: the 15 features of one sample (SPEC §6, CoP frame).
+        x: the 15 features of one sample (method §6, CoP frame).
         mass_kg: total robot mass [kg], to turn the linear momentum into a CoM velocity.
 
     Returns:
@@ -55,13 +55,13 @@ def angular_error_rad(predicted: Sequence[float], actual: Sequence[float]) -> fl
 
 
 def momentum_direction(x: Sequence[float], mass_kg: float) -> np.ndarray:
-    """Unit vector (3,) in the heading frame along the horizontal linear momentum (issue 12).
+    """Unit vector (3,) in the heading frame along the horizontal linear momentum.
 
     Same signature as :func:`capture_point_direction` (``mass_kg`` is checked but does not
     change a direction). At trigger time the CoM already moves the way it falls, while the
     capture point relative to the CoP is dominated by the CoM's offset from a CoP that sits on
     the support edge: on 36 held-out trajectories the momentum's direction erred by 10 deg
-    (median) against 34 deg for the capture point (docs/results.md, issue 12).
+    (median) against 34 deg for the capture point (docs/results.md).
 
     Returns ``(nan, nan, nan)`` for non-finite or zero horizontal momentum.
     """

@@ -1,4 +1,4 @@
-"""The 15 real features and the contact mode of SPEC §6, sample by sample.
+"""The 15 real features and the contact mode of method §6, sample by sample.
 
 One implementation serves the live node and the training data: :class:`FeatureExtractor`
 consumes measurements one at a time, and :func:`extract_features` only runs it over a

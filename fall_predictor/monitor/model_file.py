@@ -105,7 +105,7 @@ class ModelMetadata:
     #: The state the training features came from: 'true' (the simulator's) or 'estimated'
     #: (the state estimator's, from the sensor topics); files without it were trained on 'true'.
     state: str = 'true'
-    #: Trained on the trajectories and their left-right mirror images (issue 12).
+    #: Trained on the trajectories and their left-right mirror images.
     mirror: bool = False
 
 

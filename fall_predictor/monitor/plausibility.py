@@ -170,7 +170,7 @@ def check_measurement_bounds(t: Optional[float], com: Sequence[float], lin_mom: 
 
 
 def check_feature_bounds(t: Optional[float], x: Sequence[float]) -> None:
-    """Raise :class:`ImplausibleSample` if a feature vector (SPEC §6, CoP frame) is out of bounds.
+    """Raise :class:`ImplausibleSample` if a feature vector (method §6, CoP frame) is out of bounds.
 
     Same table as the measurements; the rates use the rate bounds of this module (``t`` None:
     not checked here).

@@ -1,10 +1,10 @@
-"""The run-time fall predictor (SPEC §5 and §8): decision lists + history window + CoM guard.
+"""The run-time fall predictor (method §5 and §8): decision lists + history window + CoM guard.
 
 :class:`OnlinePredictor` is the one predictor used by the offline evaluator and by the ROS
 predictor node. Per sample at time ``t`` it computes
 
 * ``atomic``: the contact mode's decision list says falling for the feature vector ``x``;
-* ``guard``: the CoM height ``x[2]`` is below the guard height (0.48 m, SPEC §5);
+* ``guard``: the CoM height ``x[2]`` is below the guard height (0.48 m, method §5);
 * ``falling``: ``atomic or guard`` held at every sample of ``[t - tau_his, t]``;
 * ``latched``: falling has been output at least once since :meth:`OnlinePredictor.reset`.
 
@@ -76,7 +76,7 @@ class OnlinePredictor:
     ``lists``: one decision list per contact mode; ``tau_his_s`` [s]: history window length
     (run-time parameter, settable at any time, effective from the next step); ``dt_s`` [s]:
     nominal sample period (sets the time tolerance only); ``guard_com_height_m`` [m]: the CoM
-    guard height (SPEC §5).
+    guard height (method §5).
     """
 
     def __init__(self, lists: PerModeDecisionLists, tau_his_s: float, dt_s: float = 0.001,

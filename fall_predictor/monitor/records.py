@@ -12,7 +12,7 @@ from typing import Optional
 
 import numpy as np
 
-#: Names of the 15 real-valued features (SPEC §6), in column order. All are expressed in
+#: Names of the 15 real-valued features (method §6), in column order. All are expressed in
 #: the CoP frame: origin at the CoP (or the CoM ground projection in mode OUTSIDE),
 #: x along the pelvis heading, y to its left, z up.
 FEATURE_NAMES: tuple[str, ...] = (
@@ -24,7 +24,7 @@ FEATURE_NAMES: tuple[str, ...] = (
 )
 N_FEATURES = len(FEATURE_NAMES)
 
-#: The 16 foot contact modes of SPEC §7, in index order (the index is what data files store).
+#: The 16 foot contact modes of method §7, in index order (the index is what data files store).
 CONTACT_MODE_NAMES: tuple[str, ...] = (
     'LR-INSIDE', 'LR-FRONT', 'LR-BACK',
     'L-INSIDE', 'L-FRONT', 'L-BACK', 'L-LEFT', 'L-FRONT-LEFT', 'L-BACK-LEFT',
@@ -33,11 +33,11 @@ CONTACT_MODE_NAMES: tuple[str, ...] = (
 )
 N_CONTACT_MODES = len(CONTACT_MODE_NAMES)
 
-#: State classes of SPEC §4 (label values in data arrays).
+#: State classes of method §4 (label values in data arrays).
 BALANCED, FALLING, FALLEN = 0, 1, 2
 CLASS_NAMES = ('balanced', 'falling', 'fallen')
 
-#: SPEC §4 and §5 thresholds.
+#: method §4 and §5 thresholds.
 FALLEN_COM_HEIGHT_M = 0.33
 GUARD_COM_HEIGHT_M = 0.48
 PUSH_DURATION_S = 0.1
@@ -98,13 +98,13 @@ class Measurement:
 
     @property
     def fallen(self) -> bool:
-        """SPEC §4: CoM below 0.33 m, or any link other than the feet on the ground."""
+        """method §4: CoM below 0.33 m, or any link other than the feet on the ground."""
         return bool(self.com[2] < FALLEN_COM_HEIGHT_M or self.non_foot_contact)
 
 
 @dataclass(frozen=True, slots=True)
 class PushSpec:
-    """One push (SPEC §3): a constant horizontal force on the torso for ``duration_s``.
+    """One push (method §3): a constant horizontal force on the torso for ``duration_s``.
 
     ``angle_deg`` is measured from the robot's sagittal (heading) direction, counter-clockwise
     seen from above: 0 pushes forward, 90 pushes to the robot's left. ``height_m`` is the

@@ -1,7 +1,7 @@
-"""Time left until fallen: a per-contact-mode regression tree on the 15 features (issue 12).
+"""Time left until fallen: a per-contact-mode regression tree on the 15 features.
 
 With every falling prediction the monitor can say how many seconds remain until the robot is
-fallen (SPEC §5's ``t_fallen``). The model is one binary regression tree per contact mode,
+fallen (method §5's ``t_fallen``). The model is one binary regression tree per contact mode,
 trained (:mod:`fall_predictor.learning.time_to_fall_training`) on the falling states of falling
 trajectories, with the target ``t_fallen - t``; a mode with too few falling states uses the
 tree fitted on all modes (``fallback``). At run time a prediction is a walk down one tree:

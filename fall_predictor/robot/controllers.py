@@ -1,4 +1,4 @@
-"""Controllers of SPEC §2: C_bal (walking with a balance reflex) and C_fall (freeze).
+"""Controllers of method §2: C_bal (walking with a balance reflex) and C_fall (freeze).
 
 C_bal walks with ZMP preview control and closed-form leg IK. Its reflex fires when the
 horizontal linear momentum departs from the walking pattern's by more than a threshold
@@ -384,7 +384,7 @@ class FallController:
 
 @dataclass
 class ControllerSwitch:
-    """Runs C_bal until :meth:`trigger_fall`, then C_fall for good (SPEC §2: one-way)."""
+    """Runs C_bal until :meth:`trigger_fall`, then C_fall for good (method §2: one-way)."""
 
     balance: BalanceController
     fall: Optional[FallController] = None

@@ -217,8 +217,8 @@ def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
     not depend on it); ``record_dir`` also runs the recorder (one bag per push run);
     ``horizon_s`` is the simulation time [s] watched after a push ends if the robot does not
     fall; node logs go to ``log_dir`` (default: a new temporary directory);
-    ``push_distribution`` defaults to SPEC §3's. With ``fall_trigger`` false the predictor
-    still runs and is reported, but C_bal stays in charge throughout (SPEC §4: the recording
+    ``push_distribution`` defaults to method §3's. With ``fall_trigger`` false the predictor
+    still runs and is reported, but C_bal stays in charge throughout (method §4: the recording
     then carries valid hindsight labels for training). With ``sensors`` the simulator
     publishes the robot's sensor topics and its exact state on ``/fall_predictor/ground_truth``,
     and the state_estimator_node makes the measurement the other nodes read. Raises :class:`BringupError` if a node fails

@@ -1,5 +1,5 @@
 """controller_node: C_bal (walking with the balance reflex) until the predictor says falling,
-then C_fall (freeze) for good (SPEC §2).
+then C_fall (freeze) for good (method §2).
 
 For every ``fall_predictor/measurement`` (with ``ground_truth``: ``fall_predictor/ground_truth``,
 the simulator's exact state beside its sensors, as C_bal reads it in data generation) it runs
@@ -56,7 +56,7 @@ PARAMS = (
     ParamSpec('walk_duration_s', 300.0, 'length of the planned walk [s] of simulation time, '
               'from the start of a run; the robot stands afterwards', 1.0, 86400.0,
               read_only=True),
-    ParamSpec('reflex_enabled', True, "C_bal's stepping reflex on large momentum (SPEC §2)",
+    ParamSpec('reflex_enabled', True, "C_bal's stepping reflex on large momentum (method §2)",
               read_only=True),
     ParamSpec('fall_trigger_enabled', True, 'switch to C_fall when the trigger says falling; '
               'false: C_bal throughout (as in data generation)'),

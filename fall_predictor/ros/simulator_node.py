@@ -36,7 +36,7 @@ set ``autostart`` false and call ``~/reset`` once every node's ``/diagnostics`` 
 0 steps as fast as the controller answers (lock-step only). A pipeline slower than real time
 simply runs slower (the achieved factor is in ``/diagnostics``).
 
-**Pushes** (SPEC §3): a constant horizontal force for 0.1 s on the torso. A push request gives
+**Pushes** (method §3): a constant horizontal force for 0.1 s on the torso. A push request gives
 the onset (header stamp, simulation time; a past time means the next step), the force in the
 robot's heading frame and its torque about the CoM, ``(0, 0, h) x F``, from which the
 application height ``h`` above the CoM is recovered. With ``random_push_period_s`` > 0 the node
@@ -45,7 +45,7 @@ from :class:`~fall_predictor.sim.pushes.PushDistribution` seeded with ``random_p
 request while a push is still acting is rejected (logged and counted).
 
 **Fallen**: with ``stop_when_fallen`` the world stops stepping at the first fallen sample
-(SPEC §4); otherwise it keeps going. ``~/reset`` (std_srvs/Trigger) starts a fresh world at
+(method §4); otherwise it keeps going. ``~/reset`` (std_srvs/Trigger) starts a fresh world at
 t = 0 (the other nodes notice time going backwards and reset themselves); ``~/pause``
 (std_srvs/SetBool) holds the world (true) or lets it go on (false).
 """
@@ -108,7 +108,7 @@ PARAMS = (
     ParamSpec('autostart', True, 'start a run at launch; false: wait for the first ~/reset',
               read_only=True),
     ParamSpec('random_push_period_s', 0.0, 'push the robot every this many simulated seconds '
-              'with a push drawn from the SPEC §3 distribution; 0 = off', 0.0, 3600.0,
+              'with a push drawn from the method §3 distribution; 0 = off', 0.0, 3600.0,
               read_only=True),
     ParamSpec('random_push_seed', 0, 'seed of the random pushes', 0, 2**31 - 1,
               read_only=True),

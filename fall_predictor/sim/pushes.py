@@ -1,4 +1,4 @@
-"""The push protocol of SPEC §3: a random gait, then a random push at a random instant of its
+"""The push protocol of method §3: a random gait, then a random push at a random instant of its
 walk cycle."""
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from fall_predictor.monitor.records import PUSH_DURATION_S, PushSpec
 
 @dataclass(frozen=True)
 class PushDistribution:
-    """SPEC §3 ranges. The onset is drawn uniformly over one full walk cycle (two steps)
+    """method §3 ranges. The onset is drawn uniformly over one full walk cycle (two steps)
     starting ``settle_s`` into the walk, when the gait has reached its periodic pattern."""
 
     force_n: tuple[float, float] = (0.0, 500.0)
@@ -20,7 +20,7 @@ class PushDistribution:
     height_m: tuple[float, float] = (-0.05, 0.25)
     settle_s: float = 2.1
     duration_s: float = PUSH_DURATION_S
-    #: Gait variety (SPEC §3 amendment), drawn by :meth:`sample_with_gait` before the push:
+    #: Gait variety (method §3 amendment), drawn by :meth:`sample_with_gait` before the push:
     #: forward speed, single-support duration (double support fixed), step width between the
     #: sole centres, and the fraction of trajectories that stand still instead of walking.
     gait_speed_m_s: tuple[float, float] = (0.0, 0.25)
@@ -43,7 +43,7 @@ class PushDistribution:
                         t_push=round(onset, 3), duration_s=self.duration_s)
 
     def sample_gait(self, rng: np.random.Generator) -> GaitConfig:
-        """One gait of the SPEC §3 amendment (speed 0 steps in place); fixed order of draws."""
+        """One gait of the method §3 amendment (speed 0 steps in place); fixed order of draws."""
         speed = rng.uniform(*self.gait_speed_m_s)
         single = rng.uniform(*self.gait_single_support_s)
         width = rng.uniform(*self.gait_step_width_m)

@@ -1,7 +1,7 @@
 """Push robustness of C_bal: which impulses, from which directions, at which gait phases, the
-robot survives (issue 9's robustness table).
+robot survives (the robustness table in docs/results.md).
 
-Every push is the SPEC §3 push (a constant horizontal force for 0.1 s on the torso) with the
+Every push is the method §3 push (a constant horizontal force for 0.1 s on the torso) with the
 impulse, direction and onset on a grid: the onset at ``k / n_phases`` of one walk cycle after the
 gait has settled. A push is survived when the robot has not fallen ``horizon_s`` after it ends.
 """
@@ -25,7 +25,7 @@ class RobustnessGrid:
     #: 0 pushes forward, 90 to the robot's left, 180 backward.
     directions_deg: tuple[float, ...] = (0.0, 45.0, 90.0, 135.0, 180.0, -135.0, -90.0, -45.0)
     n_phases: int = 8
-    height_m: float = 0.1            #: application height above the CoM (mid SPEC §3 range)
+    height_m: float = 0.1            #: application height above the CoM (mid method §3 range)
     horizon_s: float = 3.0
 
     def __post_init__(self) -> None:

@@ -110,7 +110,7 @@ class Simulator:
         self.servo: ServoArrays = servo_arrays(self.config.servo_gain_scale)
         pb.changeDynamics(self.robot, -1, linearDamping=0.0, angularDamping=0.0, physicsClientId=c)
         for i in self.joint_indices:
-            # SPEC: no link (air) damping. The drive's viscous friction acts in step(); its
+            # method §2: no link (air) damping. The drive's viscous friction acts in step(); its
             # rotor's reflected inertia (armature) is added to the driven link's inertia about the
             # joint axis (exact for that joint; proximal joints see it too, a few % of theirs).
             info = pb.getJointInfo(self.robot, i, physicsClientId=c)
