@@ -47,7 +47,7 @@ def always_falling() -> PerModeDecisionLists:
 
 
 def known_answers(dataset) -> dict:
-    """SPEC §5 figures of a predictor that says falling at every sample, from the dataset's
+    """method §5 figures of a predictor that says falling at every sample, from the dataset's
     index files as the generator wrote them: every balanced trajectory is a false positive, every
     trajectory has a pre-push alarm (the features start 0.5 s before the push, longer than any
     history window used here), and the lead of a fallen one is t_fallen - t_push (the first
@@ -101,7 +101,7 @@ def test_cli_evaluate(fixture_dataset, tmp_path, capsys):
     for key, value in expected.items():
         assert evaluation[key] == pytest.approx(value, abs=1e-6), key
     assert evaluation['trained_on_this_dataset'] is True       # same fingerprint in the model
-    # SPEC §11 figures: the lists alone are the same predictor here (always falling).
+    # method §11 figures: the lists alone are the same predictor here (always falling).
     assert evaluation['misses_lists_only'] == 0
     assert evaluation['tau_lead_lists_only'] == pytest.approx(expected['tau_lead_s'])
     lead_low, lead_high = evaluation['tau_lead_ci95']

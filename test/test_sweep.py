@@ -68,7 +68,7 @@ def test_tiny_sweep_writes_json_table_and_figures(fixture_dataset, tmp_path, cap
     assert set(document['baselines']) == {'com_height', 'momentum', 'capture_point'}
     assert all(document['baselines'].values())
     assert document["timing"]["n_fits"] == 8
-    # SPEC §11: nested operating points (chosen on the other fold) with intervals
+    # method §11: nested operating points (chosen on the other fold) with intervals
     nested = document['nested_selection']
     for entry in nested['nested']:
         outer = entry['outer']
