@@ -242,7 +242,7 @@ def test_params_file_sections_match_under_the_namespace(robot: Robot) -> None:
     future = client.get_parameters(['max_sample_age_s', 'robot_mass_kg', 'use_sim_time'])
     assert robot.spin_until(future.done, 10.0)
     values = [v.double_value for v in future.result().values[:2]]
-    assert values == [0.15, 42.1]          # the user's override; the robot's mass (default)
+    assert values == [0.15, -1.0]          # the user's override; unset: the robot profile's mass
     assert future.result().values[2].bool_value is False
     # QoS by parameters (rclpy's QoSOverridingOptions): the override made the feature node
     # read the measurements reliably (best effort by default, REP 2003).

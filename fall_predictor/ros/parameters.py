@@ -73,7 +73,7 @@ class ParamSpec:
             if (self.low is not None and value < self.low) or (
                     self.high is not None and value > self.high):
                 unset = '' if self.unset is None else f' (or {self.unset} for unset)'
-                return f'{self.name} = {value!r} is outside [{self.low}, {self.high}]{unset}'
+                return f'{self.name} = {value!r} is outside its range [{self.low}, {self.high}]{unset}'
         return None
 
     def value_or_none(self, value: ParamValue) -> Optional[ParamValue]:

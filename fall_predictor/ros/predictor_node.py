@@ -78,7 +78,7 @@ SETTINGS = ('sample_period_s', 'guard_com_height_m')
 
 
 ROBOT_MASS = ParamSpec('robot_mass_kg', FROM_MODEL, 'total robot mass [kg] (fall direction); '
-                       '-1 = the model\'s, else the robot profile\'s', 1.0, 1000.0, read_only=True,
+                       '-1 = the robot profile\'s', 1.0, 1000.0, read_only=True,
                        unset=FROM_MODEL)
 TAU_HIS = ParamSpec('tau_his_s', FROM_MODEL, 'history window [s]: falling only when every atomic '
                     'prediction of the last tau_his_s was falling (method §8); settable at run '

@@ -1,0 +1,135 @@
+"""Leg inverse kinematics of any robot profile: where the controller's leg joints go so that each
+sole reaches its target pose with the base at its pose.
+
+Two solvers behind one interface (:class:`LegSolver`):
+
+- :class:`ClosedFormLegs`, for legs whose three hip axes meet in a point and whose two ankle axes
+  meet in a point, in the order hip yaw, roll, pitch, knee, ankle pitch, roll (the ASIMO-like
+  robot): the closed form of robot/kinematics.py, its geometry read from the URDF;
+- :class:`NumericLegs`, for any 6-joint leg (the G1's hip pitch-roll-yaw with offset axes):
+  damped least squares on Pinocchio's sole-frame Jacobian, warm-started from the previous solution
+  of the same leg, so that at 1 kHz one or two iterations suffice.
+
+Both take the base (the URDF's root link) pose and each sole's target pose in the world, and
+return the six leg angles in the profile's leg order (``joint_groups.<side>_leg``).
+"""
+from __future__ import annotations
+
+from typing import Optional
+
+import numpy as np
+import pinocchio as pin
+
+from fall_predictor.monitor.robot_description import SIDES, RobotDescription
+from fall_predictor.profiles import RobotProfile
+from fall_predictor.robot import kinematics as kin
+
+
+class LegSolver:
+    """The interface: :meth:`solve` and the indices of each leg's joints in the robot's joint
+    vector (the URDF order)."""
+
+    def __init__(self, profile: RobotProfile, robot: RobotDescription) -> None:
+        self.profile = profile
+        self.robot = robot
+        self.leg_indices = {side: np.array([robot.joint_names.index(j) for j in profile.leg_joints(side)])
+                            for side in SIDES}
+
+    def solve(self, side: str, base_pos: np.ndarray, base_rot: np.ndarray, sole_pos: np.ndarray,
+              sole_rot: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+
+class ClosedFormLegs(LegSolver):
+    """Closed-form IK (module docs); the hip and ankle centres and the link lengths from the URDF."""
+
+    def __init__(self, profile: RobotProfile, robot: RobotDescription) -> None:
+        super().__init__(profile, robot)
+        model, data = robot.model, robot.model.createData()
+        pin.framesForwardKinematics(model, data, robot.configuration(np.zeros(len(robot.joint_names))))
+        self.hip_in_base, self.ankle_in_sole = {}, {}
+        lengths = []
+        for side in SIDES:
+            joints = [model.getJointId(j) for j in profile.leg_joints(side)]
+            hip, knee, ankle = (data.oMi[joints[i]].translation for i in (0, 3, 4))
+            sole = data.oMf[robot.sole_ids[side]]
+            self.hip_in_base[side] = hip.copy()
+            self.ankle_in_sole[side] = sole.actInv(ankle).copy()
+            lengths.append((float(np.linalg.norm(knee - hip)), float(np.linalg.norm(ankle - knee))))
+        self.thigh_m, self.shank_m = lengths[0]
+
+    def solve(self, side, base_pos, base_rot, sole_pos, sole_rot):
+        hip = base_pos + base_rot @ self.hip_in_base[side]
+        ankle = sole_pos + sole_rot @ self.ankle_in_sole[side]
+        return kin.leg_ik(hip, base_rot, ankle, sole_rot, self.thigh_m, self.shank_m)
+
+
+class NumericLegs(LegSolver):
+    """Damped least squares on the sole frame (module docs)."""
+
+    def __init__(self, profile: RobotProfile, robot: RobotDescription, tolerance_m: float = 1e-5,
+                 max_iterations: int = 20, damping: float = 1e-4) -> None:
+        super().__init__(profile, robot)
+        self.data = robot.model.createData()
+        self.tolerance_m = tolerance_m
+        self.max_iterations = max_iterations
+        self.damping = damping
+        self.leg_q = {side: np.array([robot.model.joints[robot.model.getJointId(j)].idx_q
+                                      for j in profile.leg_joints(side)]) for side in SIDES}
+        self.leg_v = {side: np.array([robot.model.joints[robot.model.getJointId(j)].idx_v
+                                      for j in profile.leg_joints(side)]) for side in SIDES}
+        self.lower = {s: robot.model.lowerPositionLimit[self.leg_q[s]] for s in SIDES}
+        self.upper = {s: robot.model.upperPositionLimit[self.leg_q[s]] for s in SIDES}
+        self._warm: dict[str, Optional[np.ndarray]] = {side: None for side in SIDES}
+        self._q = pin.neutral(robot.model)
+        self.last_error = 0.0
+
+    def seed(self, side: str, q_leg: np.ndarray) -> None:
+        """Start the next solve of leg ``side`` from ``q_leg``."""
+        self._warm[side] = np.asarray(q_leg, dtype=float).copy()
+
+    def solve(self, side, base_pos, base_rot, sole_pos, sole_rot):
+        model, data = self.robot.model, self.data
+        target = pin.SE3(base_rot, base_pos).actInv(pin.SE3(sole_rot, sole_pos))   # in the base
+        q = self._q
+        iq, iv = self.leg_q[side], self.leg_v[side]
+        leg = self._warm[side]
+        q[iq] = leg if leg is not None else np.clip(0.0, self.lower[side], self.upper[side])
+        frame = self.robot.sole_ids[side]
+        err = np.full(6, np.inf)
+        for _ in range(self.max_iterations):
+            pin.forwardKinematics(model, data, q)
+            current = pin.updateFramePlacement(model, data, frame)
+            err = pin.log6(current.actInv(target)).vector
+            if float(np.abs(err).max()) < self.tolerance_m:
+                break
+            jac = pin.computeFrameJacobian(model, data, q, frame, pin.ReferenceFrame.LOCAL)[:, iv]
+            jac = pin.Jlog6(current.actInv(target)) @ jac
+            step = np.linalg.solve(jac.T @ jac + self.damping * np.eye(len(iv)), jac.T @ err)
+            q[iq] = np.clip(q[iq] + step, self.lower[side], self.upper[side])
+        self.last_error = float(np.abs(err).max())
+        self._warm[side] = q[iq].copy()
+        return q[iq].copy()
+
+
+def leg_solver(profile: RobotProfile) -> LegSolver:
+    """The closed form where the legs allow it (hip and ankle axes meeting in points), else numeric."""
+    robot = profile.sensor_layout().description(profile.urdf_xml())
+    return ClosedFormLegs(profile, robot) if _closed_form_applies(profile, robot) else NumericLegs(profile, robot)
+
+
+def _closed_form_applies(profile: RobotProfile, robot: RobotDescription) -> bool:
+    model = robot.model
+    for side in SIDES:
+        joints = [model.getJointId(j) for j in profile.leg_joints(side)]
+        # Consecutive hip joints (and the two ankle joints) at one point: zero offsets between them.
+        for b in (1, 2, 5):
+            if np.linalg.norm(model.jointPlacements[joints[b]].translation) > 1e-9:
+                return False
+        axes = []
+        for j in joints:
+            name = model.joints[j].shortname()
+            axes.append(name[-1] if name.startswith('JointModelR') and name[-1] in 'XYZ' else '?')
+        if axes != ['Z', 'X', 'Y', 'Y', 'Y', 'X']:
+            return False
+    return True
