@@ -81,9 +81,18 @@ def cmd_generate(args) -> int:
     from fall_predictor.data.dataset import DatasetError, read_manifest
     from fall_predictor.data.generation import GenerationConfig, generate_dataset
 
+    from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
+    from fall_predictor.sim.pushes import PushDistribution
+
+    profile = load_profile(args.robot)
+    # Another robot: its push range; a robot whose controller only stands draws no gait.
+    standing = bool(profile.controller.get('gait', {}).get('standing', False))
+    extra = {} if args.robot == DEFAULT_ROBOT else {
+        'robot': args.robot, 'push_distribution': PushDistribution.for_robot(profile)}
     config = GenerationConfig(seed=args.seed, horizon_after_push_s=args.horizon,
-                              gait_variety=not args.fixed_gait, sensor_noise_scale=args.sensor_noise,
-                              sensor_timing=_sensor_timing(args))
+                              gait_variety=not (args.fixed_gait or standing),
+                              sensor_noise_scale=args.sensor_noise,
+                              sensor_timing=_sensor_timing(args), **extra)
     start = time.perf_counter()
     try:
         rows = generate_dataset(args.out, args.trajectories, args.seed, jobs=args.jobs, config=config,
@@ -316,6 +325,7 @@ def build_parser() -> argparse.ArgumentParser:
                         'into legs and upper body, IMU and foot sensors 0.3 / 0.4 ms after them)')
     p.add_argument('--joint-rate-hz', type=argtypes.positive, default=500.0,
                    help='joint state rate with --sensor-timing robot [Hz]')
+    add_robot_argument(p)
     p.add_argument('--fixed-gait', action='store_true',
                    help='every trajectory walks the default gait (faster: the walk is simulated once per '
                         'process) instead of drawing its gait (method §3 amendment)')

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Optional
 
 import numpy as np
 
+from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
 from fall_predictor.data.bag_writer import BagWriter
 from fall_predictor.data.bagio import BagError, read_trajectory
 from fall_predictor.data.dataset import (FORMAT, DatasetError, IndexRow, read_index, trajectory_id,
@@ -43,11 +44,12 @@ def _default_push_distribution() -> PushDistribution:
     return PushDistribution()
 
 
-def simulated_robot() -> dict[str, Any]:
+def simulated_robot(robot: str = DEFAULT_ROBOT) -> dict[str, Any]:
     """What a dataset records about the simulated robot (the capture-point baseline needs its
-    mass)."""
-    from fall_predictor.sim.trajectory import ROBOT_CONTROL, ROBOT_NAME, ROBOT_TOTAL_MASS_KG
-    return {'name': ROBOT_NAME, 'total_mass_kg': ROBOT_TOTAL_MASS_KG, **ROBOT_CONTROL}
+    mass; its name is its profile's)."""
+    from fall_predictor.sim.trajectory import ROBOT_CONTROL
+    profile = load_profile(robot)
+    return {'name': profile.name, 'total_mass_kg': profile.total_mass_kg, **ROBOT_CONTROL}
 
 
 @dataclass(frozen=True)
@@ -70,12 +72,14 @@ class GenerationConfig:
     #: rates, stamp offsets, split joint states; simulation-time stamps); None: the simulator's
     #: own timing (every stream at 1 kHz, one stamp per step).
     sensor_timing: Optional[dict] = None
+    #: The simulated robot: a robot profile's name (or path).
+    robot: str = DEFAULT_ROBOT
 
     def manifest(self) -> dict:
         out = {'format': FORMAT, 'seed': self.seed, 'horizon_after_push_s': self.horizon_after_push_s,
                'pre_push_s': self.pre_push_s, 'joint_state_rate_hz': self.joint_state_rate_hz,
                'gait_variety': self.gait_variety,
-               'push_distribution': asdict(self.push_distribution), 'robot': simulated_robot()}
+               'push_distribution': asdict(self.push_distribution), 'robot': simulated_robot(self.robot)}
         if self.sensor_noise_scale is not None:
             from fall_predictor.sim.sensors import SensorParams
             out['sensors'] = SensorParams(noise_scale=self.sensor_noise_scale).to_dict()
@@ -127,15 +131,16 @@ def _walk_prefix(config: GenerationConfig):
     dist = config.push_distribution
     until = dist.settle_s + dist.walk_cycle_s()
     record = config.sensor_noise_scale is not None
-    return _WORKER.get(('prefix', dist.settle_s, dist.walk_cycle_s(), record), lambda: WalkPrefix(
-        Simulator(), until_s=until, walk_duration_s=until + config.horizon_after_push_s + 5.0,
-        record_sensors=record))
+    return _WORKER.get(('prefix', config.robot, dist.settle_s, dist.walk_cycle_s(), record),
+                       lambda: WalkPrefix(Simulator(profile=load_profile(config.robot)), until_s=until,
+                                          walk_duration_s=until + config.horizon_after_push_s + 5.0,
+                                          record_sensors=record))
 
 
-def _worker_simulator():
-    """One simulator per worker thread, reset for every trajectory."""
+def _worker_simulator(robot: str = DEFAULT_ROBOT):
+    """One simulator per worker thread and robot, reset for every trajectory."""
     from fall_predictor.sim.simulator import Simulator
-    return _WORKER.get('simulator', Simulator)
+    return _WORKER.get(('simulator', robot), lambda: Simulator(profile=load_profile(robot)))
 
 
 def _gait_fields(gait) -> dict:
@@ -160,7 +165,7 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
     """Simulate trajectory ``index`` and record it as a bag in a private temporary directory;
     return the bag's bytes. Writes nothing else, so it runs anywhere (a Dask worker included)."""
     from fall_predictor.sim.pushes import trajectory_seed
-    from fall_predictor.sim.trajectory import ROBOT_JOINT_NAMES, run_trajectory
+    from fall_predictor.sim.trajectory import run_trajectory
 
     cpu0, wall0 = time.thread_time(), time.perf_counter()
     tid = trajectory_id(index)
@@ -169,7 +174,7 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
     if config.gait_variety:
         gait, push = config.push_distribution.sample_with_gait(rng)
         duration_s = push.t_force_end + config.horizon_after_push_s
-        result = run_trajectory(push, duration_s, gait=gait, simulator=_worker_simulator(),
+        result = run_trajectory(push, duration_s, gait=gait, simulator=_worker_simulator(config.robot),
                                 record_sensors=config.sensor_noise_scale is not None)
     else:
         gait, push = None, config.push_distribution.sample(rng)
@@ -202,7 +207,8 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
                         write_sensor_message(bag, stream, reading)
                 elif k % joint_every == 0:
                     i = first + k
-                    bag.write_joint_state(m.t, ROBOT_JOINT_NAMES, result.joint_positions[i],
+                    bag.write_joint_state(m.t, load_profile(config.robot).joint_names,
+                                          result.joint_positions[i],
                                           result.joint_velocities[i])
         files = {f.name: f.read_bytes() for f in sorted(partial.iterdir())}
     row = IndexRow(trajectory_id=tid, bag=f'bags/{tid}', force_n=push.force_n, angle_deg=push.angle_deg,
@@ -228,9 +234,10 @@ def _sensor_readings(config: GenerationConfig, index: int, result, bag: BagWrite
 
     params = SensorParams(noise_scale=config.sensor_noise_scale)
     write_sensor_params(bag, {**params.to_dict(), 'timing': config.timing().to_dict()})
-    write_robot_description(bag, result.measurements[first].t, robot_description())
+    profile = load_profile(config.robot)
+    write_robot_description(bag, result.measurements[first].t, robot_description(profile))
     seed = int(np.random.SeedSequence([config.seed, index, 10]).generate_state(1)[0])
-    return apply_sensors(result.sensor_truths, params, seed=seed)
+    return apply_sensors(result.sensor_truths, params, seed=seed, profile=profile)
 
 
 def commit(out: Path, simulated: SimulatedTrajectory) -> IndexRow:

@@ -18,6 +18,7 @@ Nothing here imports the simulator or ROS: the onboard monitor loads profiles to
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -84,8 +85,9 @@ class RobotProfile:
     joint_groups: dict[str, tuple[str, ...]]
     servo_gains: dict[str, ServoGains] = field(default_factory=dict)
     push_force_n: tuple[float, float] = (0.0, 0.0)
-    #: Settings of the walking controller that depend on the robot's size (GaitConfig fields).
-    gait: dict[str, float] = field(default_factory=dict)
+    #: The balance controller's settings that differ for this robot: per part ('gait', 'reflex',
+    #: 'stabilizer'), field -> value (robot/controllers.py GaitConfig, ReflexConfig, ...).
+    controller: dict[str, dict[str, Union[float, bool]]] = field(default_factory=dict)
     #: Joint angles [rad] of the posture the controller holds outside the legs (others: zero).
     posture: dict[str, float] = field(default_factory=dict)
 
@@ -100,6 +102,15 @@ class RobotProfile:
         return self.urdf_path.read_text()
 
     # -- joints --------------------------------------------------------------------------------
+    @functools.cached_property
+    def joint_names(self) -> tuple[str, ...]:
+        """The movable joints in the simulator URDF's order (the order of the controller's joint
+        vectors; Pinocchio's own order may differ)."""
+        import xml.etree.ElementTree as ET
+        root = ET.parse(self.sim_urdf_path).getroot()
+        return tuple(j.get('name') for j in root.iter('joint')
+                     if j.get('type') in ('revolute', 'continuous', 'prismatic'))
+
     def leg_joints(self, side: str) -> tuple[str, ...]:
         """The joints of leg ``side`` from hip to ankle."""
         return self.joint_groups[f'{side}_leg']
@@ -241,8 +252,16 @@ def _parse(path: Path, raw: Any) -> RobotProfile:
     monitor = r.child('monitor')
     fallen = monitor.number('fallen_com_height_m', 0.05, 3.0)
     guard = monitor.number('guard_com_height_m', fallen, 3.0)
-    gait = {str(k): _Reader(path, {'v': v}, f'gait.{k}').number('v')
-            for k, v in r.get('gait', {}).items()}
+    controller = {}
+    for part, fields in r.get('controller', {}).items():
+        if part not in ('gait', 'reflex', 'stabilizer') or not isinstance(fields, dict):
+            raise ProfileError(f'{path}: controller.{part}: expected gait, reflex or stabilizer, '
+                               'each a mapping of settings')
+        controller[part] = {}
+        for k, v in fields.items():
+            if not isinstance(v, bool):
+                v = _Reader(path, {'v': v}, f'controller.{part}.{k}').number('v')
+            controller[part][str(k)] = v
     posture = {str(k): _Reader(path, {'v': v}, f'posture.{k}').number('v', -math.pi, math.pi)
                for k, v in r.get('posture', {}).items()}
     unknown = sorted(set(posture) - {j for joints in groups.values() for j in joints})
@@ -255,4 +274,5 @@ def _parse(path: Path, raw: Any) -> RobotProfile:
         total_mass_kg=r.number('total_mass_kg', 1.0, 1000.0), imu_frame=r.text('imu_frame'),
         feet=feet, fallen_com_height_m=fallen, guard_com_height_m=guard, joint_groups=groups,
         servo_gains=gains,
-        push_force_n=r.vector('push_force_n', 2, (0.0, 0.0)), gait=gait, posture=posture)
+        push_force_n=r.vector('push_force_n', 2, (0.0, 0.0)), controller=controller,
+        posture=posture)

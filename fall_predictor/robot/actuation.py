@@ -23,10 +23,11 @@ on that inertia (Kd dt / I < 1 and sqrt(Kp / I) dt < 0.5). The table is the robo
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Optional, Sequence
 
 import numpy as np
 
-from fall_predictor.profiles import ServoGains
+from fall_predictor.profiles import RobotProfile, ServoGains
 from fall_predictor.profiles import asimo_like_urdf as rm
 
 
@@ -51,19 +52,34 @@ class ServoArrays:
     velocity: np.ndarray
 
 
-def servo_arrays(gain_scale: float = 1.0) -> ServoArrays:
-    """Per-joint arrays of the servo table; ``gain_scale`` scales Kp and Kd (tests, studies)."""
+def servo_arrays(gain_scale: float = 1.0, profile: Optional[RobotProfile] = None,
+                 joint_names: Optional[Sequence[str]] = None) -> ServoArrays:
+    """Per-joint arrays of a robot's servos (its profile's gains, its URDF's effort and velocity
+    limits) in ``joint_names`` order (default: the URDF's); ``gain_scale`` scales Kp and Kd."""
     if not gain_scale > 0:
         raise ValueError(f'gain_scale must be > 0, got {gain_scale!r}')
-    specs = rm.joint_specs()
-    gains = [SERVO_GAINS[joint_group(name)] for name in rm.JOINT_NAMES]
+    profile = profile or rm.PROFILE
+    limits = _urdf_limits(profile.urdf_path)
+    names = tuple(joint_names) if joint_names is not None else tuple(limits)
+    gains = [profile.gains_for(name) for name in names]
     return ServoArrays(
         kp=gain_scale * np.array([g.kp_nm_per_rad for g in gains]),
         kd=gain_scale * np.array([g.kd_nms_per_rad for g in gains]),
         damping=np.array([g.damping_nms for g in gains]),
         armature=np.array([g.armature_kgm2 for g in gains]),
-        effort=np.array([specs[n].effort_nm for n in rm.JOINT_NAMES]),
-        velocity=np.array([specs[n].velocity_rad_s for n in rm.JOINT_NAMES]))
+        effort=np.array([limits[n][0] for n in names]),
+        velocity=np.array([limits[n][1] for n in names]))
+
+
+def _urdf_limits(path) -> dict[str, tuple[float, float]]:
+    """Joint name -> (effort [N m], velocity [rad/s]) of every movable joint, in URDF order."""
+    import xml.etree.ElementTree as ET
+    out = {}
+    for joint in ET.parse(path).getroot().iter('joint'):
+        if joint.get('type') in ('revolute', 'continuous', 'prismatic'):
+            limit = joint.find('limit')
+            out[joint.get('name')] = (float(limit.get('effort')), float(limit.get('velocity')))
+    return out
 
 
 def servo_torques(servo: ServoArrays, q_target: np.ndarray, q: np.ndarray, dq: np.ndarray) -> np.ndarray:

@@ -14,17 +14,20 @@ from typing import Optional
 
 import numpy as np
 
-from fall_predictor.robot import kinematics as kin
+from fall_predictor.monitor.robot_description import SIDES
+from fall_predictor.profiles import RobotProfile
 from fall_predictor.profiles import asimo_like_urdf as rm
+from fall_predictor.robot import kinematics as kin
+from fall_predictor.robot.legs import ClosedFormLegs, LegSolver, leg_solver
 from fall_predictor.robot.stabilizer import Stabilizer, StabilizerConfig
 from fall_predictor.robot.gait import GRAVITY, Footstep, PreviewController, WalkingPlan, plan_walk, swing_position
 from fall_predictor.monitor.records import Measurement
 
 N_JOINTS = len(rm.JOINT_NAMES)
-_LEG_SLICE = {'l': slice(0, 6), 'r': slice(6, 12)}
+_EYE = np.eye(3)
+#: Within a leg (the profile's hip-to-ankle order): the ankle pitch and roll joints.
+_ANKLE_PITCH, _ANKLE_ROLL = 4, 5
 
-#: The posture held outside the legs: the robot profile's.
-_UPPER_BODY_POSTURE = rm.PROFILE.posture
 
 
 @dataclass(frozen=True)
@@ -90,22 +93,28 @@ class BalanceController:
 
     def __init__(self, gait: GaitConfig = GaitConfig(), reflex: ReflexConfig = ReflexConfig(),
                  dt_s: float = 0.001, walk_duration_s: float = 3600.0,
-                 stabilizer: StabilizerConfig = StabilizerConfig(), model_mass_kg: float = rm.TOTAL_MASS_KG,
-                 com_bias_m: tuple[float, float, float] = (0.0, 0.0, 0.0)):
+                 stabilizer: StabilizerConfig = StabilizerConfig(), model_mass_kg: Optional[float] = None,
+                 com_bias_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
+                 profile: Optional[RobotProfile] = None, legs: Optional[LegSolver] = None):
+        #: The robot: its profile (posture, soles, mass) and its legs' inverse kinematics.
+        self.profile = profile or rm.PROFILE
+        self.legs = legs or leg_solver(self.profile)
+        self.joint_names = self.legs.joint_names
+        self.sides = SIDES
         self.gait = gait
         self.reflex = reflex
         self.stabilizer_config = stabilizer
         #: The mass the controller believes the robot has (a wrong model is a test case).
-        self.model_mass_kg = model_mass_kg
+        self.model_mass_kg = self.profile.total_mass_kg if model_mass_kg is None else model_mass_kg
         #: Error of the controller's CoM model: it sees the CoM displaced by this much [m].
         self.com_bias_m = np.asarray(com_bias_m, dtype=float)
         self.stabilizer: Optional[Stabilizer] = None
         self.dt_s = dt_s
         self.walk_duration_s = walk_duration_s
         self.reflex_event: Optional[ReflexEvent] = None
-        self.target = np.zeros(N_JOINTS)
-        for name, q in _UPPER_BODY_POSTURE.items():
-            self.target[rm.JOINT_NAMES.index(name)] = q
+        self.target = np.zeros(len(self.joint_names))
+        for name, q in self.profile.posture.items():     # held outside the legs
+            self.target[self.joint_names.index(name)] = q
         w = gait.stance_half_width_m
         self.feet = {'l': np.array([0.0, w]), 'r': np.array([0.0, -w])}
         self.com_offset = np.zeros(2)
@@ -116,7 +125,7 @@ class BalanceController:
     def initial_posture(self) -> tuple[np.ndarray, np.ndarray]:
         """Joint angles and torso position for standing on both feet at the walking height."""
         torso = np.array([0.0, 0.0, self.gait.torso_height_m])
-        self._set_legs(torso, {s: (self.feet[s][0], self.feet[s][1], 0.0) for s in rm.SIDES})
+        self._set_legs(torso, {s: (self.feet[s][0], self.feet[s][1], 0.0) for s in SIDES})
         return self.target.copy(), torso
 
     def _start(self, m: Measurement) -> None:
@@ -124,12 +133,14 @@ class BalanceController:
         # by initial_posture); the pattern is planned for the CoM and the torso follows at
         # that offset.
         self.com_offset = m.com[:2].copy()
-        self._tilt_ik_weight = {side: 0.0 for side in rm.SIDES}
+        self._tilt_ik_weight = {side: 0.0 for side in SIDES}
         self.com_height_m = float(m.com[2])
         self.omega = math.sqrt(GRAVITY / self.com_height_m)
         self.preview = PreviewController(self.dt_s, self.com_height_m, self.gait.preview_s)
         self.preview.reset(m.com[:2].copy())
-        self.stabilizer = Stabilizer(self.stabilizer_config, self.omega, self.dt_s, self.model_mass_kg)
+        sole = self.profile.feet['l']
+        self.stabilizer = Stabilizer(self.stabilizer_config, self.omega, self.dt_s, self.model_mass_kg,
+                                     (sole.sole_length_m, sole.sole_width_m))
         g = self.gait
         plan = plan_walk(tuple(self.feet['l']), tuple(self.feet['r']), m.t,
                          0.0 if g.standing else self.walk_duration_s,
@@ -180,7 +191,7 @@ class BalanceController:
                           self.torso_height - shorten])
         self._land_finished_steps(m, t)
         soles, swinging = {}, set()
-        for side in rm.SIDES:
+        for side in SIDES:
             step = self._active_step(side, t)
             if step is None:
                 soles[side] = (self.feet[side][0], self.feet[side][1], 0.0)
@@ -201,15 +212,15 @@ class BalanceController:
         state = self.preview.state
         pattern_zmp = state[0] - state[2] / self.omega ** 2
         corrections = self.stabilizer.update(m, state[0], state[1], pattern_zmp, self.feet, frozenset(swinging))
-        for side in rm.SIDES:
+        for side in SIDES:
             x, y, z = soles[side]
             soles[side] = (x, y, z + corrections[side].height_m)
         self._set_legs(torso, soles)
         self._swing_legs_for_measured_tilt(m, torso, soles, swinging)
-        for side in rm.SIDES:
-            legs = _LEG_SLICE[side]
-            self.target[legs.start + 4] += corrections[side].pitch_rad
-            self.target[legs.start + 5] += corrections[side].roll_rad
+        for side in SIDES:
+            leg = self.legs.leg_indices[side]
+            self.target[leg[_ANKLE_PITCH]] += corrections[side].pitch_rad
+            self.target[leg[_ANKLE_ROLL]] += corrections[side].roll_rad
         return self.target.copy()
 
     def _still_loaded(self, m: Measurement, side: str, step: Footstep, t: float) -> bool:
@@ -250,11 +261,19 @@ class BalanceController:
         # Torso upright and soles flat, both facing the walking direction (world +x): the
         # closed-form IK's parallel case.
         tx, ty, tz = float(torso[0]), float(torso[1]), float(torso[2])
-        for side in rm.SIDES:
+        legs = self.legs
+        for side in SIDES:
             x, y, z = soles[side]
-            hip = (tx, ty + (rm.HIP_HALF_WIDTH_M if side == 'l' else -rm.HIP_HALF_WIDTH_M), tz - rm.HIP_DROP_M)
-            ankle = (x - rm.SOLE_FORWARD_OFFSET_M, y, z + rm.ANKLE_HEIGHT_M)
-            self.target[_LEG_SLICE[side]] = kin.leg_ik_parallel(hip, ankle)
+            if isinstance(legs, ClosedFormLegs):
+                hx, hy, hz = legs.hip_in_base[side]
+                ax, ay, az = legs.ankle_in_sole[side]
+                hip = (tx + hx, ty + hy, tz + hz)
+                ankle = (x + ax, y + ay, z + az)
+                self.target[legs.leg_indices[side]] = kin.leg_ik_parallel(
+                    hip, ankle, thigh=legs.thigh_m, shank=legs.shank_m)
+            else:
+                self.target[legs.leg_indices[side]] = legs.solve(
+                    side, np.array([tx, ty, tz]), _EYE, np.array([x, y, z]), _EYE)
 
     def _swing_legs_for_measured_tilt(self, m: Measurement, torso: np.ndarray, soles: dict,
                                       swinging: set) -> None:
@@ -269,10 +288,10 @@ class BalanceController:
         weights = self._tilt_ik_weight
         decay = self.dt_s / self.gait.touchdown_blend_s
         reflex_side = self._reflex_step.side if self._reflex_step is not None else None
-        for side in rm.SIDES:
+        for side in SIDES:
             stepping = side in swinging and side == reflex_side
             weights[side] = 1.0 if stepping else max(0.0, weights[side] - decay)
-        active = [side for side in rm.SIDES if weights[side] > 0.0]
+        active = [side for side in SIDES if weights[side] > 0.0]
         if not active:
             return
         rot = m.torso_rotation
@@ -281,11 +300,9 @@ class BalanceController:
         for side in active:
             w = weights[side]
             body = kin.rot_y(pitch * w) @ kin.rot_x(roll * w)
-            lateral = rm.HIP_HALF_WIDTH_M if side == 'l' else -rm.HIP_HALF_WIDTH_M
-            hip = torso + body @ np.array([0.0, lateral, -rm.HIP_DROP_M])
             x, y, z = soles[side]
-            ankle = np.array([x - rm.SOLE_FORWARD_OFFSET_M, y, z + rm.ANKLE_HEIGHT_M])
-            self.target[_LEG_SLICE[side]] = kin.leg_ik(hip, body, ankle, np.eye(3))
+            self.target[self.legs.leg_indices[side]] = self.legs.solve(
+                side, np.asarray(torso, dtype=float), body, np.array([x, y, z]), np.eye(3))
 
     def _momentum_departed(self, m: Measurement) -> bool:
         mass = self.model_mass_kg
@@ -305,7 +322,7 @@ class BalanceController:
         capture = com + vel / self.omega
         ch, sh = math.cos(m.heading), math.sin(m.heading)
         left_dir = np.array([-sh, ch])
-        swinging = [s for s in rm.SIDES if self._active_step(s, t) is not None]
+        swinging = [s for s in SIDES if self._active_step(s, t) is not None]
         side = self._reflex_side(capture, left_dir, swinging)
         stance_side = 'r' if side == 'l' else 'l'
         steps: list[Footstep] = []
@@ -369,7 +386,18 @@ class BalanceController:
             return 'r'
         if swinging:
             return swinging[0]
-        return max(rm.SIDES, key=lambda s_: float(np.linalg.norm(self.feet[s_] - capture)))
+        return max(SIDES, key=lambda s_: float(np.linalg.norm(self.feet[s_] - capture)))
+
+
+def controller_configs(profile: RobotProfile) -> tuple[GaitConfig, ReflexConfig, StabilizerConfig]:
+    """The balance controller's settings for a robot: the defaults with its profile's changes."""
+    parts = profile.controller
+    try:
+        return (replace(GaitConfig(), **parts.get('gait', {})),
+                replace(ReflexConfig(), **parts.get('reflex', {})),
+                replace(StabilizerConfig(), **parts.get('stabilizer', {})))
+    except TypeError as error:           # a field the configuration does not have
+        raise ValueError(f'{profile.source}: controller: {error}') from error
 
 
 class FallController:

@@ -15,6 +15,7 @@ return the six leg angles in the profile's leg order (``joint_groups.<side>_leg`
 """
 from __future__ import annotations
 
+import math
 from typing import Optional
 
 import numpy as np
@@ -32,7 +33,9 @@ class LegSolver:
     def __init__(self, profile: RobotProfile, robot: RobotDescription) -> None:
         self.profile = profile
         self.robot = robot
-        self.leg_indices = {side: np.array([robot.joint_names.index(j) for j in profile.leg_joints(side)])
+        #: The controller's joint order (the simulator URDF's), and each leg's indices in it.
+        self.joint_names = profile.joint_names
+        self.leg_indices = {side: np.array([self.joint_names.index(j) for j in profile.leg_joints(side)])
                             for side in SIDES}
 
     def solve(self, side: str, base_pos: np.ndarray, base_rot: np.ndarray, sole_pos: np.ndarray,
@@ -45,17 +48,18 @@ class ClosedFormLegs(LegSolver):
 
     def __init__(self, profile: RobotProfile, robot: RobotDescription) -> None:
         super().__init__(profile, robot)
-        model, data = robot.model, robot.model.createData()
-        pin.framesForwardKinematics(model, data, robot.configuration(np.zeros(len(robot.joint_names))))
+        model = robot.model
         self.hip_in_base, self.ankle_in_sole = {}, {}
         lengths = []
         for side in SIDES:
             joints = [model.getJointId(j) for j in profile.leg_joints(side)]
-            hip, knee, ankle = (data.oMi[joints[i]].translation for i in (0, 3, 4))
-            sole = data.oMf[robot.sole_ids[side]]
-            self.hip_in_base[side] = hip.copy()
-            self.ankle_in_sole[side] = sole.actInv(ankle).copy()
-            lengths.append((float(np.linalg.norm(knee - hip)), float(np.linalg.norm(ankle - knee))))
+            # Read from the joint placements themselves (exact, not through a chain of products):
+            # the hip centre in the base, the knee from the hip, the ankle from the knee.
+            self.hip_in_base[side] = model.jointPlacements[joints[0]].translation.copy()
+            thigh, shank = (math.hypot(*model.jointPlacements[joints[i]].translation) for i in (3, 4))
+            lengths.append((thigh, shank))
+            # The ankle centre (the ankle roll joint's origin) seen from the sole frame.
+            self.ankle_in_sole[side] = model.frames[robot.sole_ids[side]].placement.inverse().translation.copy()
         self.thigh_m, self.shank_m = lengths[0]
 
     def solve(self, side, base_pos, base_rot, sole_pos, sole_rot):

@@ -115,7 +115,10 @@ class FootCorrection:
 class Stabilizer:
     """DCM tracking + foot force distribution + ankle admittance + force difference control."""
 
-    def __init__(self, config: StabilizerConfig, omega: float, dt_s: float, mass_kg: float):
+    def __init__(self, config: StabilizerConfig, omega: float, dt_s: float, mass_kg: float,
+                 sole_size_m: tuple[float, float] = (rm.SOLE_LENGTH_M, rm.SOLE_WIDTH_M)):
+        #: The sole rectangle (length, width) [m]: the robot profile's.
+        self.sole_length_m, self.sole_width_m = sole_size_m
         self.config = config
         self.omega = omega
         self.dt_s = dt_s
@@ -210,7 +213,7 @@ class Stabilizer:
         polygon = self._polygons.get(key)
         if polygon is None:
             margin = self.config.support_margin_m
-            hl, hw = rm.SOLE_LENGTH_M / 2 - margin, rm.SOLE_WIDTH_M / 2 - margin
+            hl, hw = self.sole_length_m / 2 - margin, self.sole_width_m / 2 - margin
             corners = [(x + dx, y + dy) for _, x, y in key for dx in (-hl, hl) for dy in (-hw, hw)]
             polygon = convex_hull(corners)
             if len(self._polygons) > 16:
@@ -221,7 +224,7 @@ class Stabilizer:
     def _inside_sole(self, point: np.ndarray, centre: np.ndarray) -> np.ndarray:
         """``point`` clamped into the sole around ``centre`` shrunk by the margin."""
         margin = self.config.support_margin_m
-        hl, hw = rm.SOLE_LENGTH_M / 2 - margin, rm.SOLE_WIDTH_M / 2 - margin
+        hl, hw = self.sole_length_m / 2 - margin, self.sole_width_m / 2 - margin
         return np.array([_clamp(float(point[0]), centre[0] - hl, centre[0] + hl),
                          _clamp(float(point[1]), centre[1] - hw, centre[1] + hw)])
 

@@ -29,6 +29,11 @@ class PushDistribution:
     gait_step_width_m: tuple[float, float] = (0.16, 0.22)
     standing_fraction: float = 0.1
 
+    @classmethod
+    def for_robot(cls, profile) -> 'PushDistribution':
+        """The protocol's distribution with the robot profile's force range."""
+        return cls(force_n=tuple(profile.push_force_n))
+
     def walk_cycle_s(self, gait: GaitConfig = GaitConfig()) -> float:
         return 2.0 * (gait.single_support_s + gait.double_support_s)
 

@@ -42,7 +42,9 @@ from typing import Optional
 import numpy as np
 import pybullet as pb
 
+from fall_predictor.monitor.robot_description import SIDES
 from fall_predictor.monitor.sensor_records import SensorSample
+from fall_predictor.profiles import RobotProfile
 from fall_predictor.profiles import asimo_like_urdf as rm
 
 SAMPLE_RATE_HZ = 1000.0
@@ -55,9 +57,9 @@ SENSOR_LAYOUT = rm.PROFILE.sensor_layout()
 IMU_POSITION_IN_TORSO_M = (0.0, 0.0, 0.0)
 
 
-def robot_description() -> str:
-    """The simulated robot's URDF with its sole frames (what ``/robot_description`` carries)."""
-    return rm.URDF_PATH.read_text()
+def robot_description(profile: Optional[RobotProfile] = None) -> str:
+    """A simulated robot's URDF with its sole frames (what ``/robot_description`` carries)."""
+    return (profile or rm.PROFILE).urdf_xml()
 
 
 @dataclass(frozen=True)
@@ -132,8 +134,8 @@ class SensorTruth:
     imu_quat_xyzw: np.ndarray
     imu_velocity_world: np.ndarray   #: velocity of the IMU point [m/s]
     gyro_rad_s: np.ndarray           #: torso frame
-    left_wrench: np.ndarray
-    right_wrench: np.ndarray
+    left_wrench: Optional[np.ndarray]    #: None: the foot has no F/T sensor
+    right_wrench: Optional[np.ndarray]
 
 
 def _ground_wrench(sim, side: str, contacts) -> np.ndarray:
@@ -142,7 +144,7 @@ def _ground_wrench(sim, side: str, contacts) -> np.ndarray:
     ls = pb.getLinkState(sim.robot, foot, computeForwardKinematics=1, physicsClientId=sim.client)
     # The foot's link frame is at the ankle centre; the sole frame has the same axes.
     rot = np.array(pb.getMatrixFromQuaternion(ls[5])).reshape(3, 3)
-    origin = np.asarray(ls[4]) + rot @ np.asarray(rm.SOLE_ORIGIN_IN_FOOT_M)
+    origin = np.asarray(ls[4]) + rot @ np.asarray(sim.profile.feet[side].sole_origin_in_foot_m)
     force = np.zeros(3)
     torque = np.zeros(3)
     for cp in contacts:
@@ -157,19 +159,42 @@ def _ground_wrench(sim, side: str, contacts) -> np.ndarray:
 def sensor_truth(sim) -> SensorTruth:
     """The exact sensor quantities of ``sim``'s current state (a :class:`Simulator`)."""
     c = sim.client
-    pos, orn = pb.getBasePositionAndOrientation(sim.robot, physicsClientId=c)
-    lin, ang = pb.getBaseVelocity(sim.robot, physicsClientId=c)
-    rot = np.array(pb.getMatrixFromQuaternion(orn)).reshape(3, 3)
-    # PyBullet's base frame is the torso's inertial frame (same axes, origin at its CoM).
-    imu_from_com = rot @ (np.asarray(IMU_POSITION_IN_TORSO_M) - np.asarray(rm.TORSO.com_xyz))
-    omega = np.asarray(ang)
-    v_imu = np.asarray(lin) + np.cross(omega, imu_from_com)
+    profile = sim.profile
+    imu_link = sim.link_index.get(profile.imu_frame)
+    if imu_link is None:
+        # The IMU on the base link, at its frame origin: PyBullet's base frame is the base's
+        # inertial frame (same axes, origin at its CoM).
+        pos, orn = pb.getBasePositionAndOrientation(sim.robot, physicsClientId=c)
+        lin, ang = pb.getBaseVelocity(sim.robot, physicsClientId=c)
+        rot = np.array(pb.getMatrixFromQuaternion(orn)).reshape(3, 3)
+        inertial = pb.getDynamicsInfo(sim.robot, -1, physicsClientId=c)[3]
+        imu_from_com = rot @ (np.asarray(IMU_POSITION_IN_TORSO_M) - np.asarray(inertial))
+        omega = np.asarray(ang)
+        v_imu = np.asarray(lin) + np.cross(omega, imu_from_com)
+    else:
+        # An IMU frame of its own (a massless link on a fixed joint): its pose from PyBullet, its
+        # velocity from the body it is fixed to (PyBullet's velocities of massless links are not
+        # those of their frames).
+        ls = pb.getLinkState(sim.robot, imu_link, computeForwardKinematics=1, physicsClientId=c)
+        orn = ls[5]
+        rot = np.array(pb.getMatrixFromQuaternion(orn)).reshape(3, 3)
+        parent = pb.getJointInfo(sim.robot, imu_link, physicsClientId=c)[16]
+        if parent < 0:
+            body_com, _ = pb.getBasePositionAndOrientation(sim.robot, physicsClientId=c)
+            lin, ang = pb.getBaseVelocity(sim.robot, physicsClientId=c)
+        else:
+            ps = pb.getLinkState(sim.robot, parent, computeLinkVelocity=1, computeForwardKinematics=1,
+                                 physicsClientId=c)
+            body_com, lin, ang = ps[0], ps[6], ps[7]
+        omega = np.asarray(ang)
+        v_imu = np.asarray(lin) + np.cross(omega, np.asarray(ls[4]) - np.asarray(body_com))
     contacts = pb.getContactPoints(bodyA=sim.robot, bodyB=sim.plane, physicsClientId=c)
     q, dq, tau = sim.joint_states()
+    wrenches = {side: _ground_wrench(sim, side, contacts) if foot.force_torque_frame else None
+                for side, foot in profile.feet.items()}
     return SensorTruth(t=sim.t, q=q, dq=dq, tau=tau, imu_quat_xyzw=np.asarray(orn, dtype=float),
                        imu_velocity_world=v_imu, gyro_rad_s=rot.T @ omega,
-                       left_wrench=_ground_wrench(sim, 'l', contacts),
-                       right_wrench=_ground_wrench(sim, 'r', contacts))
+                       left_wrench=wrenches['l'], right_wrench=wrenches['r'])
 
 
 def _quantise(x: np.ndarray, quantum: float) -> np.ndarray:
@@ -209,20 +234,25 @@ class SensorSuite:
     """
 
     def __init__(self, params: SensorParams = SensorParams(), seed: int = 0,
-                 dt_s: float = 1.0 / SAMPLE_RATE_HZ):
+                 dt_s: float = 1.0 / SAMPLE_RATE_HZ, profile: Optional[RobotProfile] = None):
         self.params = params
+        #: The robot whose sensors these are: its joint order and its sensors' frames.
+        profile = profile or rm.PROFILE
+        self.joint_names = profile.joint_names
+        self.imu_frame = profile.imu_frame
+        self.wrench_frames = tuple(profile.feet[side].force_torque_frame or '' for side in SIDES)
         self.dt_s = dt_s
         self.rng = np.random.default_rng(seed)
         k = params.noise_scale
         e, i, f = params.encoders, params.imu, params.force_torque
-        n = len(rm.JOINT_NAMES)
+        n = len(self.joint_names)
         self._q_bias = k * e.position_bias_rad * self.rng.standard_normal(n)
         self._gyro_bias = k * i.gyro_bias_rad_s * self.rng.standard_normal(3)
         self._accel_bias = k * i.accel_bias_m_s2 * self.rng.standard_normal(3)
         self._att_bias = k * np.array([i.tilt_bias_rad, i.tilt_bias_rad, i.yaw_bias_rad]) * self.rng.standard_normal(3)
         self._ft_bias = {s: k * np.concatenate([f.force_bias_n * self.rng.standard_normal(3),
                                                 f.torque_bias_nm * self.rng.standard_normal(3)])
-                         for s in rm.SIDES}
+                         for s in SIDES}
         self._delays = {name: max(0, int(round(lat / dt_s)))
                         for name, lat in (('enc', e.latency_s), ('imu', i.latency_s), ('ft', f.latency_s))}
         self._buffers = {name: deque(maxlen=d + 1) for name, d in self._delays.items()}
@@ -256,6 +286,9 @@ class SensorSuite:
         quat = _quat_mul(_small_rotation_quat(err), truth.imu_quat_xyzw)
         wrenches = {}
         for side, w in (('l', truth.left_wrench), ('r', truth.right_wrench)):
+            if w is None:                       # no F/T sensor on this foot
+                wrenches[side] = None
+                continue
             noise = k * np.concatenate([f.force_noise_n * rng.standard_normal(3),
                                         f.torque_noise_nm * rng.standard_normal(3)])
             raw = w + self._ft_bias[side] + noise
@@ -264,14 +297,15 @@ class SensorSuite:
         enc = self._delayed('enc', (q, dq, tau))
         imu = self._delayed('imu', (quat, gyro, accel))
         ft = self._delayed('ft', (wrenches['l'], wrenches['r']))
-        return SensorSample(t=truth.t, joint_names=rm.JOINT_NAMES, q=enc[0], dq=enc[1], tau=enc[2],
+        return SensorSample(t=truth.t, joint_names=self.joint_names, q=enc[0], dq=enc[1], tau=enc[2],
                             imu_quat_xyzw=imu[0], gyro_rad_s=imu[1], accel_m_s2=imu[2],
-                            left_wrench=ft[0], right_wrench=ft[1], imu_frame=rm.PROFILE.imu_frame,
-                            wrench_frames=rm.SOLE_FRAMES)
+                            left_wrench=ft[0], right_wrench=ft[1], imu_frame=self.imu_frame,
+                            wrench_frames=self.wrench_frames)
 
 
 def apply_sensors(truths: list[SensorTruth], params: SensorParams = SensorParams(),
-                  seed: int = 0) -> list[SensorSample]:
-    """Readings of a whole recorded run (the same :class:`SensorSuite` a live node steps)."""
-    suite = SensorSuite(params, seed)
+                  seed: int = 0, profile: Optional[RobotProfile] = None) -> list[SensorSample]:
+    """Readings of a whole recorded run (the same :class:`SensorSuite` a live node steps) of the
+    robot ``profile`` (default: the shipped robot)."""
+    suite = SensorSuite(params, seed, profile=profile)
     return [suite.read(t) for t in truths]

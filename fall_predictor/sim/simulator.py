@@ -14,9 +14,10 @@ from typing import Optional, Sequence
 import numpy as np
 import pybullet as pb
 
-from fall_predictor.profiles import asimo_like_urdf as rm
-from fall_predictor.robot.actuation import ServoArrays, servo_arrays, servo_torques
 from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2, Measurement, PushSpec
+from fall_predictor.profiles import DEFAULT_ROBOT, RobotProfile, load_profile
+from fall_predictor.robot.actuation import ServoArrays, servo_arrays, servo_torques
+from fall_predictor.sim.urdf_loading import pybullet_urdf
 
 GRAVITY = STANDARD_GRAVITY_M_S2
 DT_S = 0.001
@@ -67,8 +68,12 @@ def quaternions_to_matrices(q: np.ndarray) -> np.ndarray:
 class Simulator:
     """The robot in a fresh PyBullet world; :meth:`step` applies joint targets and measures."""
 
-    def __init__(self, config: SimulatorConfig = SimulatorConfig()):
+    def __init__(self, config: SimulatorConfig = SimulatorConfig(),
+                 profile: Optional[RobotProfile] = None):
         self.config = config
+        #: The simulated robot (its profile: URDF, feet, servo gains).
+        self.profile = profile or load_profile(DEFAULT_ROBOT)
+        self._urdf = str(pybullet_urdf(self.profile.sim_urdf_path))
         self.client = pb.connect(pb.GUI if config.gui else pb.DIRECT)
         if self.client < 0:
             raise RuntimeError('could not start a PyBullet physics client')
@@ -97,40 +102,58 @@ class Simulator:
         self.plane = pb.createMultiBody(0, plane_shape, physicsClientId=c)
         pb.changeDynamics(self.plane, -1, lateralFriction=self.config.ground_friction, physicsClientId=c)
         orn = pb.getQuaternionFromEuler((0, 0, torso_yaw_rad))
-        self.robot = pb.loadURDF(str(rm.SIM_URDF_PATH), torso_position, orn,
+        # The base link frame at torso_position (PyBullet's base pose is its inertial frame).
+        self.robot = pb.loadURDF(self._urdf, torso_position, orn,
                                  flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=c)
-        self.n_joints = pb.getNumJoints(self.robot, physicsClientId=c)
-        names = [pb.getJointInfo(self.robot, i, physicsClientId=c)[1].decode() for i in range(self.n_joints)]
-        if tuple(names) != rm.JOINT_NAMES:
-            raise RuntimeError(f'URDF joint order {names} differs from robot_model.JOINT_NAMES')
-        self.link_names = [pb.getJointInfo(self.robot, i, physicsClientId=c)[12].decode()
-                           for i in range(self.n_joints)]
-        self.foot_links = {side: self.link_names.index(f'{side}_foot') for side in rm.SIDES}
-        self.joint_indices = list(range(self.n_joints))
-        self.servo: ServoArrays = servo_arrays(self.config.servo_gain_scale)
+        infos = [pb.getJointInfo(self.robot, i, physicsClientId=c)
+                 for i in range(pb.getNumJoints(self.robot, physicsClientId=c))]
+        #: The actuated joints (fixed joints of frames and sensors aside), in the URDF's order.
+        self.joint_indices = [i for i, info in enumerate(infos) if info[2] != pb.JOINT_FIXED]
+        self.joint_names = tuple(infos[i][1].decode() for i in self.joint_indices)
+        self.n_joints = len(self.joint_indices)
+        self.link_names = [info[12].decode() for info in infos]
+        self.link_index = {name: i for i, name in enumerate(self.link_names)}
+        if self.joint_names != self.profile.joint_names:
+            raise RuntimeError(f'PyBullet numbers the joints {self.joint_names}, not in the URDF\'s '
+                               f'order {self.profile.joint_names}')
+        self.foot_links = {side: self.link_index[foot.foot_link]
+                           for side, foot in self.profile.feet.items()}
+        self.servo: ServoArrays = servo_arrays(self.config.servo_gain_scale, self.profile,
+                                               self.joint_names)
         pb.changeDynamics(self.robot, -1, linearDamping=0.0, angularDamping=0.0, physicsClientId=c)
-        for i in self.joint_indices:
+        for k, i in enumerate(self.joint_indices):
             # method §2: no link (air) damping. The drive's viscous friction acts in step(); its
             # rotor's reflected inertia (armature) is added to the driven link's inertia about the
             # joint axis (exact for that joint; proximal joints see it too, a few % of theirs).
             info = pb.getJointInfo(self.robot, i, physicsClientId=c)
-            inertia = np.array(pb.getDynamicsInfo(self.robot, i, physicsClientId=c)[2])
+            dynamics = pb.getDynamicsInfo(self.robot, i, physicsClientId=c)
+            inertia = np.array(dynamics[2])
             if self.config.actuation == 'pd_torque':
-                inertia += self.servo.armature[i] * np.abs(np.asarray(info[13]))
+                if np.allclose(dynamics[4], (0.0, 0.0, 0.0, 1.0)):
+                    # Principal axes along the link frame's: the armature about the joint axis.
+                    inertia += self.servo.armature[k] * np.abs(np.asarray(info[13]))
+                else:
+                    # Rotated principal axes (PyBullet takes a diagonal only): the armature on
+                    # every principal moment, exact about the joint axis (sum of u_i^2 = 1).
+                    inertia += self.servo.armature[k]
             pb.changeDynamics(self.robot, i, linearDamping=0.0, angularDamping=0.0, jointDamping=0.0,
                               localInertiaDiagonal=inertia.tolist(), physicsClientId=c)
         for link in self.foot_links.values():
             pb.changeDynamics(self.robot, link, lateralFriction=self.config.foot_friction, physicsClientId=c)
-        for i, q in enumerate(joint_positions):
+        for i, q in zip(self.joint_indices, joint_positions):
             pb.resetJointState(self.robot, i, q, 0.0, physicsClientId=c)
         if self.config.actuation == 'pd_torque':
             # Torque control: switch PyBullet's default velocity motors off.
             pb.setJointMotorControlArray(self.robot, self.joint_indices, pb.VELOCITY_CONTROL,
                                          forces=[0.0] * self.n_joints, physicsClientId=c)
+        #: Every body (base, then each link, fixed ones too) for the CoM and the momenta.
+        self.bodies = [-1] + list(range(len(infos)))
         self.masses = np.array([pb.getDynamicsInfo(self.robot, i, physicsClientId=c)[0]
-                                for i in [-1] + self.joint_indices])
+                                for i in self.bodies])
         self.inertias = np.array([pb.getDynamicsInfo(self.robot, i, physicsClientId=c)[2]
-                                  for i in [-1] + self.joint_indices])
+                                  for i in self.bodies])
+        self._sole_offsets = {side: np.asarray(foot.sole_origin_in_foot_m)
+                              for side, foot in self.profile.feet.items()}
         self.total_mass = float(self.masses.sum())
         self.t = 0.0
         self.tick = 0
@@ -247,7 +270,7 @@ class Simulator:
         c = self.client
         base_pos, base_orn = pb.getBasePositionAndOrientation(self.robot, physicsClientId=c)
         base_lin, base_ang = pb.getBaseVelocity(self.robot, physicsClientId=c)
-        links = pb.getLinkStates(self.robot, self.joint_indices, computeLinkVelocity=1,
+        links = pb.getLinkStates(self.robot, self.bodies[1:], computeLinkVelocity=1,
                                  computeForwardKinematics=1, physicsClientId=c)
         # One array of (position, quaternion, linear velocity, angular velocity) per body.
         rows = [(*base_pos, *base_orn, *base_lin, *base_ang)]
@@ -291,9 +314,10 @@ class Simulator:
             cop = np.full(3, np.nan)
         feet = {}
         for side, lk in self.foot_links.items():
-            # The foot link's CoM lies above the sole centre (exactly so when the foot is flat).
-            fp, fo = pos[lk + 1], rots[lk + 1]
-            feet[side] = np.array([fp[0], fp[1], math.atan2(fo[1, 0], fo[0, 0])])
+            # The sole centre: the foot link's frame (not its inertial frame) and the sole offset.
+            frame_rot = np.array(pb.getMatrixFromQuaternion(links[lk][5])).reshape(3, 3)
+            fp = np.asarray(links[lk][4]) + frame_rot @ self._sole_offsets[side]
+            feet[side] = np.array([fp[0], fp[1], math.atan2(frame_rot[1, 0], frame_rot[0, 0])])
         meas = Measurement(t=self.t, com=com, lin_mom=lin_mom, ang_mom=ang, heading=heading, cop=cop,
                            left_contacts=left, right_contacts=right, left_foot=feet['l'],
                            right_foot=feet['r'], non_foot_contact=non_foot, torso_rotation=rot0)

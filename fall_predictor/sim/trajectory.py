@@ -15,7 +15,9 @@ from typing import Callable, Optional
 import numpy as np
 import pybullet as pb
 
-from fall_predictor.robot.controllers import BalanceController, ControllerSwitch, GaitConfig, ReflexConfig
+from fall_predictor.profiles import RobotProfile
+from fall_predictor.robot.controllers import (BalanceController, ControllerSwitch, GaitConfig, ReflexConfig,
+                                              controller_configs)
 from fall_predictor.robot.stabilizer import StabilizerConfig
 from fall_predictor.monitor.records import Measurement, PushSpec
 from fall_predictor.profiles import asimo_like_urdf as rm
@@ -72,10 +74,19 @@ class _Run:
     sensor_truths: Optional[list] = None     #: None: not recorded
 
 
-def _new_run(sim: Simulator, gait: GaitConfig, reflex: ReflexConfig, walk_duration_s: float,
-             stabilizer: StabilizerConfig = StabilizerConfig(), record_sensors: bool = False) -> _Run:
+def _configs(sim: Simulator, gait: Optional[GaitConfig], reflex: Optional[ReflexConfig],
+             stabilizer: Optional[StabilizerConfig]) -> tuple:
+    """The controller settings given, else the simulated robot's (its profile's)."""
+    own = controller_configs(sim.profile)
+    return (gait or own[0], reflex or own[1], stabilizer or own[2])
+
+
+def _new_run(sim: Simulator, gait: Optional[GaitConfig], reflex: Optional[ReflexConfig],
+             walk_duration_s: float, stabilizer: Optional[StabilizerConfig] = None,
+             record_sensors: bool = False) -> _Run:
+    gait, reflex, stabilizer = _configs(sim, gait, reflex, stabilizer)
     balance = BalanceController(gait, reflex, sim.config.dt_s, walk_duration_s=walk_duration_s,
-                                stabilizer=stabilizer)
+                                stabilizer=stabilizer, profile=sim.profile)
     q0, torso0 = balance.initial_posture()
     m = sim.reset(q0, torso0)
     q, dq, _ = sim.joint_states()
@@ -99,7 +110,7 @@ def _advance(sim: Simulator, run: _Run, t_end: float, stop_when_fallen: bool,
         run.joint_velocities.append(dq)
         if run.sensor_truths is not None:
             run.sensor_truths.append(sensor_truth(sim))
-        if run.t_fallen is None and m.fallen:
+        if run.t_fallen is None and (m.com[2] < sim.profile.fallen_com_height_m or m.non_foot_contact):
             run.t_fallen = m.t
             if stop_when_fallen:
                 break
@@ -113,10 +124,11 @@ class WalkPrefix:
     """
 
     def __init__(self, sim: Simulator, until_s: float, walk_duration_s: float,
-                 gait: GaitConfig = GaitConfig(), reflex: ReflexConfig = ReflexConfig(),
-                 snapshot_every_s: float = 0.1, stabilizer: StabilizerConfig = StabilizerConfig(),
+                 gait: Optional[GaitConfig] = None, reflex: Optional[ReflexConfig] = None,
+                 snapshot_every_s: float = 0.1, stabilizer: Optional[StabilizerConfig] = None,
                  record_sensors: bool = False):
         self.sim = sim
+        gait, reflex, stabilizer = _configs(sim, gait, reflex, stabilizer)
         self.gait, self.reflex, self.stabilizer = gait, reflex, stabilizer
         self.walk_duration_s = walk_duration_s
         run = _new_run(sim, gait, reflex, walk_duration_s, stabilizer, record_sensors)
@@ -152,14 +164,15 @@ class WalkPrefix:
 
 
 def run_trajectory(push: Optional[PushSpec], duration_s: float,
-                   gait: GaitConfig = GaitConfig(), reflex: ReflexConfig = ReflexConfig(),
+                   gait: Optional[GaitConfig] = None, reflex: Optional[ReflexConfig] = None,
                    sim_config: SimulatorConfig = SimulatorConfig(),
                    stop_when_fallen: bool = True,
                    fall_trigger: Optional[Callable[[Measurement], bool]] = None,
                    simulator: Optional[Simulator] = None,
                    prefix: Optional[WalkPrefix] = None,
-                   stabilizer: StabilizerConfig = StabilizerConfig(),
-                   record_sensors: bool = False) -> TrajectoryResult:
+                   stabilizer: Optional[StabilizerConfig] = None,
+                   record_sensors: bool = False,
+                   profile: Optional[RobotProfile] = None) -> TrajectoryResult:
     """Simulate from the standing posture for up to ``duration_s`` seconds.
 
     Stops early when fallen (if ``stop_when_fallen``). ``fall_trigger`` (a predictor) is asked
@@ -167,7 +180,8 @@ def run_trajectory(push: Optional[PushSpec], duration_s: float,
     rest of the run. With a ``prefix`` the walk before the push is taken from it (same result,
     less simulation); it must have been made with the same gait, reflex and simulator settings.
     ``record_sensors`` keeps the exact sensor quantities of every step (the prefix must have
-    been made with it too).
+    been made with it too). Controller settings not given are the robot's (its profile's:
+    ``profile``, else the simulator's robot).
     """
     if prefix is not None and push is not None and push.t_push <= prefix.until_s:
         sim = prefix.sim
@@ -175,7 +189,7 @@ def run_trajectory(push: Optional[PushSpec], duration_s: float,
         own = False
     else:
         own = simulator is None and prefix is None
-        sim = prefix.sim if prefix is not None else (simulator or Simulator(sim_config))
+        sim = prefix.sim if prefix is not None else (simulator or Simulator(sim_config, profile))
         run = _new_run(sim, gait, reflex, walk_duration_s=duration_s + 5.0, stabilizer=stabilizer,
                        record_sensors=record_sensors)
     try:

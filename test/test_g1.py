@@ -1,0 +1,78 @@
+"""The Unitree G1 in the simulator under the balance controller (robot profile 'g1'): it stands,
+it survives a small push by itself and a lateral one by stepping, it falls from a large one; and
+its simulated sensors (efforts, pelvis IMU, no foot F/T) give the estimator its state."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fall_predictor.monitor.estimator import StateEstimator
+from fall_predictor.monitor.records import PushSpec
+from fall_predictor.profiles import load_profile
+from fall_predictor.sim.sensors import SensorParams, apply_sensors
+from fall_predictor.sim.simulator import GRAVITY, Simulator
+from fall_predictor.sim.trajectory import run_trajectory
+
+G1 = load_profile('g1')
+
+
+@pytest.fixture(scope='module')
+def sim():
+    with Simulator(profile=G1) as simulator:
+        yield simulator
+
+
+def test_the_simulated_g1_is_the_urdf_robot(sim):
+    """The PyBullet model weighs what the URDF says (no default 1 kg on its frame links) and
+    moves the profile's joints in the URDF's order."""
+    run_trajectory(None, 0.01, simulator=sim)
+    assert sim.total_mass == pytest.approx(G1.total_mass_kg, abs=1e-5)
+    assert sim.joint_names == G1.joint_names and len(sim.joint_names) == 29
+
+
+def test_g1_stands_ten_seconds(sim):
+    run = run_trajectory(None, 10.0, simulator=sim)
+    assert not run.fallen
+    com = np.array([m.com for m in run.measurements[1000:]])
+    # Still: the CoM moves less than 5 mm; the weight is on the soles; the feet stay put.
+    assert np.ptp(com, axis=0).max() < 0.005
+    last = run.measurements[-1]
+    normal = last.left_contacts[:, 2].sum() + last.right_contacts[:, 2].sum()
+    assert normal == pytest.approx(G1.total_mass_kg * GRAVITY, rel=0.02)
+    first = run.measurements[1000]
+    for a, b in ((first.left_foot, last.left_foot), (first.right_foot, last.right_foot)):
+        assert np.linalg.norm(a[:2] - b[:2]) < 0.002
+
+
+@pytest.mark.parametrize('push, falls, steps', [
+    (PushSpec(60.0, 0.0, 0.1, 1.0), False, False),      # forward, taken by the ankles
+    (PushSpec(100.0, 90.0, 0.1, 1.0), False, True),     # sideways, a recovery step
+    (PushSpec(220.0, 0.0, 0.1, 1.0), True, True),       # forward, beyond any recovery
+])
+def test_g1_pushes(sim, push, falls, steps):
+    run = run_trajectory(push, 4.0, simulator=sim)
+    assert run.fallen is falls and (run.t_reflex is not None) is steps
+    if falls:
+        assert push.t_push < run.t_fallen < push.t_push + 2.0
+    else:
+        # Recovered and standing: no launch, the CoM back at its height.
+        z = np.array([m.com[2] for m in run.measurements])
+        assert z.max() < z[0] + 0.02 and abs(z[-1] - z[0]) < 0.03
+
+
+def test_g1_sensors_give_the_estimator_its_state():
+    """Efforts (0.5 N m noise), the pelvis IMU and no F/T, over a recovered sideways push: the
+    estimated CoM and CoP against the simulator's."""
+    run = run_trajectory(PushSpec(100.0, 90.0, 0.1, 1.0), 3.0, record_sensors=True, profile=G1)
+    readings = apply_sensors(run.sensor_truths, SensorParams(), seed=3, profile=G1)
+    assert readings[0].left_wrench is None and readings[0].imu_frame == 'imu_in_pelvis'
+    robot = G1.sensor_layout().description(G1.urdf_xml())
+    estimates = StateEstimator(robot, imu_frame=G1.imu_frame, effort_feet=('l', 'r')).run(readings)
+    pairs = [(a, b) for a, b in zip(estimates, run.measurements) if a is not None]
+    assert len(pairs) >= len(readings) - 5
+    com = np.array([np.linalg.norm(a.com - b.com) for a, b in pairs])
+    cop = np.array([np.linalg.norm((a.cop - b.cop)[:2]) for a, b in pairs
+                    if np.isfinite(a.cop).all() and np.isfinite(b.cop).all()])
+    print(f'G1 CoM p99 {np.percentile(com, 99) * 1000:.1f} mm, CoP median {np.median(cop) * 1000:.1f} mm, '
+          f'p90 {np.percentile(cop, 90) * 1000:.1f} mm')
+    assert np.percentile(com, 99) <= 0.02 and np.median(cop) <= 0.01
