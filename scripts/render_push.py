@@ -3,6 +3,8 @@ TinyRenderer, headless), so a reader sees what the robot does.
 
     .venv/bin/python scripts/render_push.py --force 250 --angle 90 --out docs/figures/push_survived.png
     .venv/bin/python scripts/render_push.py --force 450 --angle 90 --out docs/figures/push_fallen.png
+    .venv/bin/python scripts/render_push.py --robot g1 --force 100 --angle 90 --onset 1.0 \
+        --out docs/figures/g1_push_100n_sideways.png
 """
 from __future__ import annotations
 
@@ -17,7 +19,9 @@ import numpy as np  # noqa: E402
 import pybullet as pb  # noqa: E402
 
 from fall_predictor.monitor.records import PushSpec  # noqa: E402
-from fall_predictor.robot.controllers import BalanceController, ControllerSwitch  # noqa: E402
+from fall_predictor.profiles import DEFAULT_ROBOT, load_profile  # noqa: E402
+from fall_predictor.robot.controllers import (BalanceController, ControllerSwitch,  # noqa: E402
+                                              controller_configs)
 from fall_predictor.sim.simulator import Simulator  # noqa: E402
 
 
@@ -40,14 +44,17 @@ def main() -> None:
     parser.add_argument('--onset', type=float, default=2.5, help='push onset [s]')
     parser.add_argument('--after', type=float, default=1.6, help='seconds shown after the onset')
     parser.add_argument('--frames', type=int, default=8)
+    parser.add_argument('--robot', default=DEFAULT_ROBOT, help='robot profile (name or path)')
     parser.add_argument('--out', type=Path, required=True)
     args = parser.parse_args()
+    profile = load_profile(args.robot)
 
     push = PushSpec(args.force, args.angle, args.height, args.onset)
     times = list(np.linspace(args.onset - 0.1, args.onset + args.after, args.frames))
     images, labels = [], []
-    with Simulator() as sim:
-        switch = ControllerSwitch(BalanceController())
+    with Simulator(profile=profile) as sim:
+        gait, reflex, stabilizer = controller_configs(profile)
+        switch = ControllerSwitch(BalanceController(gait, reflex, stabilizer=stabilizer, profile=profile))
         q0, torso0 = switch.balance.initial_posture()
         m = sim.reset(q0, torso0)
         sim.schedule_push(push)
@@ -65,7 +72,7 @@ def main() -> None:
                            'left foot' if len(m.left_contacts) else
                            'right foot' if len(m.right_contacts) else 'no foot')
                 labels.append(f't = {m.t - args.onset:+.2f} s\nCoM {m.com[2]:.2f} m, {contact}'
-                              + (', fallen' if m.fallen else ''))
+                              + (', fallen' if m.com[2] < profile.fallen_com_height_m else ''))
                 times.pop(0)
     fig, axes = plt.subplots(1, len(images), figsize=(2.0 * len(images), 3.0))
     for ax, image, label in zip(axes, images, labels):

@@ -50,6 +50,9 @@ class GaitConfig:
     #: Legs shorten by this times the CoM's rise above walking height beyond the tolerance.
     height_compliance: float = 1.0
     height_tolerance_m: float = 0.005
+    #: The swing leg follows the measured torso tilt up to this angle [rad]: beyond it the robot
+    #: is falling, and a leg solved for that tilt is thrown up into the air.
+    max_swing_tilt_rad: float = math.inf
 
 
 @dataclass(frozen=True)
@@ -295,8 +298,9 @@ class BalanceController:
         if not active:
             return
         rot = m.torso_rotation
-        pitch = math.asin(max(-1.0, min(1.0, -rot[2, 0])))
-        roll = math.atan2(rot[2, 1], rot[2, 2])
+        limit = self.gait.max_swing_tilt_rad
+        pitch = max(-limit, min(limit, math.asin(max(-1.0, min(1.0, -rot[2, 0])))))
+        roll = max(-limit, min(limit, math.atan2(rot[2, 1], rot[2, 2])))
         for side in active:
             w = weights[side]
             body = kin.rot_y(pitch * w) @ kin.rot_x(roll * w)
