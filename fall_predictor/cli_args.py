@@ -138,6 +138,7 @@ def add_bringup_arguments(parser: argparse.ArgumentParser) -> None:
                         help='ROS_DOMAIN_ID of the nodes (default: derived from the pid)')
     parser.add_argument('--real-time-factor', type=nonnegative, default=0.0,
                         help='simulated s per wall s; 0 = as fast as possible (default)')
+    add_robot_argument(parser)
     parser.add_argument('--model', type=Path, default=None,
                         help='model file (default: the shipped models/default_model.json)')
     parser.add_argument('--params-file', type=Path, default=None,

@@ -97,7 +97,7 @@ def test_param_spec_checks_type_finiteness_and_range() -> None:
     assert spec.check(0.5) is None
     assert 'must be a float' in spec.check(1)
     assert 'finite' in spec.check(math.nan)
-    assert 'outside [0.0, 2.0]' in spec.check(2.5)
+    assert 'outside its range [0.0, 2.0]' in spec.check(2.5)
     descriptor = spec.descriptor()
     assert descriptor.floating_point_range[0].to_value == 2.0
     assert ParamSpec('seed', 0, 'seed', 0, 10).descriptor().integer_range[0].to_value == 10

@@ -90,6 +90,8 @@ class RobotProfile:
     controller: dict[str, dict[str, Union[float, bool]]] = field(default_factory=dict)
     #: Joint angles [rad] of the posture the controller holds outside the legs (others: zero).
     posture: dict[str, float] = field(default_factory=dict)
+    #: The shipped model trained on this robot: a file name in the package's models/.
+    model: str = 'default_model.json'
 
     # -- what the monitor needs --------------------------------------------------------------
     def sensor_layout(self) -> SensorLayout:
@@ -275,4 +277,4 @@ def _parse(path: Path, raw: Any) -> RobotProfile:
         feet=feet, fallen_com_height_m=fallen, guard_com_height_m=guard, joint_groups=groups,
         servo_gains=gains,
         push_force_n=r.vector('push_force_n', 2, (0.0, 0.0)), controller=controller,
-        posture=posture)
+        posture=posture, model=r.text('model', 'default_model.json'))

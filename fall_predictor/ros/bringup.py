@@ -48,6 +48,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Optional, TextIO
 
 from fall_predictor.contract.topics import PIPELINE_NODES, RECORDER_NODE
+from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
 from fall_predictor.ros.errors import BringupError
 from fall_predictor.ros.share import package_share_dir
 
@@ -57,9 +58,6 @@ if TYPE_CHECKING:
 #: Shutdown order: the source of all samples first, the recorder last.
 SHUTDOWN_ORDER = ('simulator_node', 'state_estimator_node', 'controller_node', 'feature_node',
                   'predictor_node', RECORDER_NODE)
-#: The legs' joints (the driving joints of split joint states), as a -p value.
-_LEG_JOINTS = '[' + ', '.join(f'"{s}_{j}"' for s in ('l', 'r') for j in (
-    'hip_yaw', 'hip_roll', 'hip_pitch', 'knee_pitch', 'ankle_pitch', 'ankle_roll')) + ']'
 #: With ``sensors``: the node that turns the simulator's sensor topics into the measurement.
 ESTIMATOR_NODE = 'state_estimator_node'
 
@@ -210,7 +208,7 @@ def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
                 log_dir: Optional[Path] = None, startup_timeout_s: float = 60.0,
                 push_distribution: Optional[PushDistribution] = None,
                 fall_trigger: bool = True, sensors: bool = False,
-                sensor_timing: str = 'simulator') -> list[dict]:
+                sensor_timing: str = 'simulator', robot: str = DEFAULT_ROBOT) -> list[dict]:
     """Start the nodes, push the robot ``pushes`` times, stop everything; see the module docs.
 
     ``real_time_factor`` 0 runs as fast as the lock-stepped pipeline allows (the outcome does
@@ -221,8 +219,10 @@ def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
     still runs and is reported, but C_bal stays in charge throughout (method §4: the recording
     then carries valid hindsight labels for training). With ``sensors`` the simulator
     publishes the robot's sensor topics and its exact state on ``/fall_predictor/ground_truth``,
-    and the state_estimator_node makes the measurement the other nodes read. Raises :class:`BringupError` if a node fails
-    to start or dies, or the simulation gets stuck.
+    and the state_estimator_node makes the measurement the other nodes read. ``robot`` (a robot
+    profile) is the simulated robot; another robot than the default runs with sensors, its push
+    range and its profile's shipped model. Raises :class:`BringupError` if a node fails to start
+    or dies, or the simulation gets stuck.
     """
     if pushes < 0:
         raise ValueError(f'pushes must be >= 0, got {pushes}')
@@ -231,6 +231,15 @@ def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
     from fall_predictor.ros.observer import Observer
     from fall_predictor.sim.pushes import PushDistribution, trajectory_seed
 
+    profile = load_profile(robot)
+    if robot != DEFAULT_ROBOT:
+        sensors = True                  # the monitor on the robot's own sensor topics
+        push_distribution = push_distribution or PushDistribution.for_robot(profile)
+        if model_path is None:
+            model_path = package_share_dir() / 'models' / profile.model
+            if not model_path.is_file():
+                raise BringupError(f'no shipped model for robot {profile.name!r} ({model_path}): '
+                                   'train one on its data (fall-predictor train) and pass --model')
     push_distribution = push_distribution or PushDistribution()
     domain_id = default_domain_id() if domain_id is None else domain_id
     env = ros_environment(domain_id)
@@ -245,6 +254,9 @@ def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
         'feature_node': {'model_path': str(Path(model_path).resolve())} if model_path else {},
         'controller_node': {} if fall_trigger else {'fall_trigger_enabled': 'false'},
     }
+    if robot != DEFAULT_ROBOT:
+        for name in ('simulator_node', 'predictor_node', 'controller_node'):
+            overrides[name]['robot'] = robot
     names = list(PIPELINE_NODES)
     if sensors:
         overrides['simulator_node']['publish_sensors'] = 'true'
@@ -253,8 +265,11 @@ def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
             overrides['simulator_node'].update(
                 sensor_joint_rate_hz='500.0', sensor_imu_offset_s='0.0003',
                 sensor_wrench_offset_s='0.0004', sensor_split_joints='true')
-            overrides[ESTIMATOR_NODE] = {'driving_joints': _LEG_JOINTS}
+            legs = profile.leg_joints('l') + profile.leg_joints('r')
+            overrides[ESTIMATOR_NODE] = {'driving_joints': '[' + ', '.join(f'"{j}"' for j in legs) + ']'}
         overrides.setdefault(ESTIMATOR_NODE, {})
+        if robot != DEFAULT_ROBOT:
+            overrides[ESTIMATOR_NODE]['robot'] = robot
         names.insert(names.index('simulator_node'), ESTIMATOR_NODE)
     if record_dir is not None:
         names.insert(0, RECORDER_NODE)
@@ -309,7 +324,8 @@ def cmd_bringup(args: argparse.Namespace) -> int:
                               model_path=args.model, params_file=args.params_file,
                               record_dir=args.record, horizon_s=args.horizon,
                               log_dir=args.log_dir, fall_trigger=args.fall_trigger,
-                              sensors=args.sensors, sensor_timing=args.sensor_timing)
+                              sensors=args.sensors, sensor_timing=args.sensor_timing,
+                              robot=args.robot)
     except BringupError as error:
         print(f'error: {error}', file=sys.stderr)
         return 1

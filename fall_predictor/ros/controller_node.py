@@ -25,6 +25,8 @@ logged (throttled), counted and dropped. The controller's clock is the measureme
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 
 from typing import Optional
 
@@ -33,9 +35,9 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, String
 
-from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.ros import conversions as ros_qos
-from fall_predictor.robot.controllers import BalanceController, ControllerSwitch, GaitConfig, ReflexConfig
+from fall_predictor.robot.controllers import BalanceController, ControllerSwitch, controller_configs
+from fall_predictor.ros.robots import ROBOT_PARAM, profile_for
 from fall_predictor.ros.endpoints import create_publisher, create_subscription
 from fall_predictor.ros.health import HANDLED_ERRORS, Diagnostics, InputErrors, Report, guarded
 from fall_predictor.ros.parameters import ParamSpec, declare_parameters
@@ -53,6 +55,7 @@ from fall_predictor.sim.simulator import DT_S
 NODE_NAME = 'controller_node'
 
 PARAMS = (
+    ROBOT_PARAM,
     ParamSpec('walk_duration_s', 300.0, 'length of the planned walk [s] of simulation time, '
               'from the start of a run; the robot stands afterwards', 1.0, 86400.0,
               read_only=True),
@@ -76,7 +79,10 @@ class ControllerNode(Node):
         super().__init__(NODE_NAME, **kwargs)
         p = declare_parameters(self, PARAMS)
         self._walk_duration_s = float(p['walk_duration_s'])
-        self._reflex = ReflexConfig(enabled=bool(p['reflex_enabled']))
+        self._profile = profile_for(str(p['robot']))
+        gait, reflex, stabilizer = controller_configs(self._profile)
+        self._gait, self._stabilizer = gait, stabilizer
+        self._reflex = replace(reflex, enabled=bool(p['reflex_enabled']))
         self._fall_trigger_enabled = bool(p['fall_trigger_enabled'])
         self.add_post_set_parameters_callback(self._apply_parameters)
 
@@ -110,7 +116,8 @@ class ControllerNode(Node):
     def _new_switch(self) -> ControllerSwitch:
         """A fresh C_bal for a new run, and 'balance' on the mode topic."""
         self._publish_mode('balance')
-        balance = BalanceController(GaitConfig(), self._reflex, DT_S, self._walk_duration_s)
+        balance = BalanceController(self._gait, self._reflex, DT_S, self._walk_duration_s,
+                                    stabilizer=self._stabilizer, profile=self._profile)
         return ControllerSwitch(balance)
 
     def _publish_mode(self, mode: str) -> None:
@@ -145,7 +152,7 @@ class ControllerNode(Node):
                 self._bad_inputs.reject(f'measurement at {decoded.stamp_ns} ns (controller)', error)
                 return
         self._command = q
-        self.output.publish(ros_qos.joint_state_to_msg(decoded.stamp_ns, rm.JOINT_NAMES, q))
+        self.output.publish(ros_qos.joint_state_to_msg(decoded.stamp_ns, self._profile.joint_names, q))
         self.counts['commands'] += 1
 
     @guarded('trigger')

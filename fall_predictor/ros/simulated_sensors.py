@@ -22,21 +22,23 @@ class SimulatedSensors:
     """Publishes the robot description once and the sensor messages of every simulation step."""
 
     def __init__(self, node: Node, noise_scale: float, seed: int,
-                 timing: DriverTiming = DriverTiming()) -> None:
+                 timing: DriverTiming = DriverTiming(), profile=None) -> None:
         self.params = SensorParams(noise_scale=noise_scale)
+        #: The simulated robot (its joints, IMU frame and foot sensors); None: the default robot.
+        self.profile = profile
         self.seed = seed
         self.timing = timing
         self._imu = create_publisher(node, Imu, IMU)
         self._wrenches = {'l': create_publisher(node, WrenchStamped, LEFT_FOOT_WRENCH),
                           'r': create_publisher(node, WrenchStamped, RIGHT_FOOT_WRENCH)}
         self._description = create_publisher(node, String, ROBOT_DESCRIPTION)
-        self._description.publish(String(data=robot_description()))
+        self._description.publish(String(data=robot_description(profile)))
         self.new_world(0)
 
     def new_world(self, world: int) -> None:
         """Fresh biases, delay lines and driver clocks for a new world (seeded by the seed and
         the world count)."""
-        self._suite = SensorSuite(self.params, self.seed * 100003 + world)
+        self._suite = SensorSuite(self.params, self.seed * 100003 + world, profile=self.profile)
         self._drivers = DriverStreams(self.timing)
 
     def publish(self, sim, joint_state_pub: Publisher) -> int:

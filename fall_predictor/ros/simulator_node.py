@@ -65,9 +65,10 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool, Trigger
 
-from fall_predictor.profiles import asimo_like_urdf as rm
+from fall_predictor.profiles import DEFAULT_ROBOT, RobotProfile
 from fall_predictor.ros import conversions as ros_qos
-from fall_predictor.robot.controllers import BalanceController
+from fall_predictor.robot.controllers import BalanceController, controller_configs
+from fall_predictor.ros.robots import ROBOT_PARAM, profile_for
 from fall_predictor.ros.endpoints import create_publisher, create_subscription
 from fall_predictor.ros.health import Diagnostics, InputErrors, Report, steady_clock
 from fall_predictor.ros.parameters import (NodeStartupError, ParamSpec, ParamValue, declare_parameters)
@@ -95,6 +96,7 @@ _PAUSED = 'paused (~/pause)'
 _STEPS_PER_WAKEUP = 5
 
 PARAMS = (
+    ROBOT_PARAM,
     ParamSpec('lockstep', True, 'wait for the controller command of each sample before '
               'stepping (deterministic runs); false: step on a wall-clock timer', read_only=True),
     ParamSpec('real_time_factor', 1.0, 'simulated seconds per wall second (upper bound); '
@@ -132,10 +134,10 @@ PARAMS = (
 )
 
 
-def _driver_timing(p: Mapping[str, ParamValue]) -> DriverTiming:
+def _driver_timing(p: Mapping[str, ParamValue], profile: RobotProfile) -> DriverTiming:
     """How the simulated robot's drivers publish its sensors (the ``sensor_*`` parameters)."""
-    legs = tuple(f'{s}_{j}' for s in rm.SIDES for j in rm.LEG_JOINTS)
-    groups = (legs, tuple(n for n in rm.JOINT_NAMES if n not in legs)) \
+    legs = profile.leg_joints('l') + profile.leg_joints('r')
+    groups = (legs, tuple(n for n in profile.joint_names if n not in legs)) \
         if p['sensor_split_joints'] else ()
     return DriverTiming(joint_rate_hz=float(p['sensor_joint_rate_hz']),
                         imu_rate_hz=float(p['sensor_imu_rate_hz']),
@@ -166,17 +168,23 @@ class SimulatorNode(Node):
         self._stop_when_fallen = bool(p['stop_when_fallen'])
         self._random_push_period_s = float(p['random_push_period_s'])
         self._push_rng = np.random.default_rng(int(p['random_push_seed']))
-        self._push_distribution = PushDistribution()
+        self._profile = profile = profile_for(str(p['robot']))
+        self._joint_names = profile.joint_names
+        self._push_distribution = PushDistribution.for_robot(profile) \
+            if profile.name != DEFAULT_ROBOT else PushDistribution()
         self.add_post_set_parameters_callback(self._apply_parameters)
 
-        self._q0, self._torso0 = BalanceController().initial_posture()
+        gait, reflex, stabilizer = controller_configs(profile)
+        self._q0, self._torso0 = BalanceController(gait, reflex, stabilizer=stabilizer,
+                                                   profile=profile).initial_posture()
         try:
-            self._sim = Simulator()
+            self._sim = Simulator(profile=profile)
         except RuntimeError as error:
             raise NodeStartupError(str(error)) from error
 
         self._sensors = SimulatedSensors(self, float(p['sensor_noise_scale']), int(p['sensor_seed']),
-                                         _driver_timing(p)) if p['publish_sensors'] else None
+                                         _driver_timing(p, profile), profile) \
+            if p['publish_sensors'] else None
         #: The measurement (the exact state on ground_truth with sensors), published and handed
         #: to in-process consumers (the controller in ``simulated_robot``).
         self.output = Output(create_publisher(self, MeasurementMsg,
@@ -312,9 +320,9 @@ class SimulatorNode(Node):
             sample = messages.joint_state_reading(msg)
             if not np.isfinite(sample.position).all():
                 raise WireFormatError('joint command positions are not finite')
-            if sample.names != rm.JOINT_NAMES:
+            if sample.names != self._joint_names:
                 raise WireFormatError(f'joint names {list(sample.names)} are not the robot\'s '
-                                      f'{len(rm.JOINT_NAMES)} joints in URDF order')
+                                      f'{len(self._joint_names)} joints in URDF order')
         except WireFormatError as error:
             self._bad_commands.reject('joint command', error)
             return
@@ -444,7 +452,7 @@ class SimulatorNode(Node):
         elif self._sim.tick % self._joint_state_every == 0:
             q, dq, effort = self._sim.joint_states()
             self._joint_state_pub.publish(
-                ros_qos.joint_state_to_msg(stamp_ns, rm.JOINT_NAMES, q, dq, effort))
+                ros_qos.joint_state_to_msg(stamp_ns, self._joint_names, q, dq, effort))
             self.counts['joint_states'] += 1
         if self._t_fallen is None and m.fallen:
             self._t_fallen = m.t
