@@ -29,8 +29,9 @@ setup(
         'pin>=3.0',
     ],
     extras_require={
+        # example-robot-data: the G1's meshes for the simulator (the monitor needs none).
         'offline': ['pybullet>=3.2.5', 'scipy>=1.10', 'scikit-learn>=1.3', 'joblib>=1.3',
-                    'matplotlib>=3.7', 'tqdm>=4.60'],
+                    'matplotlib>=3.7', 'tqdm>=4.60', 'example-robot-data>=4.1'],
         'cluster': ['distributed>=2023.1'],
         'test': ['pytest>=7'],
     },

@@ -108,35 +108,41 @@ def test_no_relative_imports():
     assert not relative
 
 
-@pytest.mark.parametrize('module', sorted(m for m in MODULES if sub_package(m)))
-def test_imports_follow_the_layout(module):
+def layout_violations(module: str, graph: dict[str, list[tuple[str, bool]]]) -> list[str]:
+    """The imports of ``module`` its sub-package may not make (ALLOWED), each named."""
     own = sub_package(module)
     eager, lazy_only = ALLOWED[own]
     bad = []
-    for target, lazy in GRAPH[module]:
+    for target, lazy in graph[module]:
         if not target.startswith(ROOT + '.'):
             continue
         other = sub_package(target)
         if other in ('', own) or other in eager or (lazy and other in lazy_only):
             continue
-        bad.append(f'{target} ({"inside a function or TYPE_CHECKING" if lazy else "module level"})')
-    assert not bad, f'{module} may not import: {bad}'
+        where = 'inside a function or TYPE_CHECKING' if lazy else 'module level'
+        bad.append(f'{module} imports {target} ({where})')
+    return bad
 
 
-@pytest.mark.parametrize('module', sorted(MODULES))
-def test_only_the_ros_package_imports_ros(module):
-    if sub_package(module) == 'ros':
-        return
-    ros = [t for t, _ in GRAPH[module] if is_ros_module(t.split('.')[0])]
-    assert not ros, f'{module} imports ROS: {ros}'
+def test_imports_follow_the_layout():
+    bad = [v for m in sorted(MODULES) if sub_package(m) for v in layout_violations(m, GRAPH)]
+    assert not bad, 'imports the layout forbids:\n' + '\n'.join(bad)
 
 
-@pytest.mark.parametrize('module', sorted(m for m in MODULES if sub_package(m) == 'monitor'))
-def test_the_monitor_uses_numpy_only(module):
+def test_only_the_ros_package_imports_ros():
+    bad = [f'{m} imports {t}' for m in sorted(MODULES) if sub_package(m) != 'ros'
+           for t, _ in GRAPH[m] if is_ros_module(t.split('.')[0])]
+    assert not bad, 'ROS imports outside ros/:\n' + '\n'.join(bad)
+
+
+def test_the_monitor_uses_numpy_and_pinocchio_only():
     stdlib = sys.stdlib_module_names
-    third_party = {t.split('.')[0] for t, _ in GRAPH[module]
-                   if t.split('.')[0] not in stdlib and t.split('.')[0] != ROOT and t != '__future__'}
-    assert third_party <= MONITOR_THIRD_PARTY, f'{module} imports {third_party - MONITOR_THIRD_PARTY}'
+    bad = []
+    for module in sorted(m for m in MODULES if sub_package(m) == 'monitor'):
+        third_party = {t.split('.')[0] for t, _ in GRAPH[module]
+                       if t.split('.')[0] not in stdlib and t.split('.')[0] != ROOT and t != '__future__'}
+        bad += [f'{module} imports {t}' for t in sorted(third_party - MONITOR_THIRD_PARTY)]
+    assert not bad, 'third-party imports in the onboard monitor:\n' + '\n'.join(bad)
 
 
 def import_edges(graph: dict[str, list[tuple[str, bool]]], modules: set[str]) -> dict[str, set[str]]:
@@ -201,15 +207,18 @@ def test_the_checker_sees_cycles_through_function_and_type_checking_imports(tmp_
 
 
 def test_the_checker_sees_a_forbidden_import(tmp_path):
-    """The checks above can fail: a monitor module importing the simulator is caught."""
+    """The checks above can fail: a monitor module importing the simulator is caught and named."""
     bad = tmp_path / 'bad.py'
     bad.write_text('import numpy\n\ndef f():\n    from fall_predictor.sim.simulator import Simulator\n')
     found = imports(bad)
     assert ('fall_predictor.sim.simulator', True) in found
     assert ('numpy', False) in found
+    assert layout_violations('fall_predictor.monitor.bad', {'fall_predictor.monitor.bad': found}) == [
+        'fall_predictor.monitor.bad imports fall_predictor.sim.simulator '
+        '(inside a function or TYPE_CHECKING)']
 
 
-@pytest.mark.parametrize('module', sorted(MODULES))
-def test_no_module_over_500_lines(module):
-    lines = MODULES[module].read_text().count('\n')
-    assert lines <= 500, f'{module}: {lines} lines'
+def test_no_module_over_500_lines():
+    long = [f'{m}: {n} lines' for m, n in ((m, MODULES[m].read_text().count('\n')) for m in sorted(MODULES))
+            if n > 500]
+    assert not long, 'modules over 500 lines (split them by responsibility):\n' + '\n'.join(long)
