@@ -146,8 +146,12 @@ class Simulator:
             # Torque control: switch PyBullet's default velocity motors off.
             pb.setJointMotorControlArray(self.robot, self.joint_indices, pb.VELOCITY_CONTROL,
                                          forces=[0.0] * self.n_joints, physicsClientId=c)
-        #: Every body (base, then each link, fixed ones too) for the CoM and the momenta.
-        self.bodies = [-1] + list(range(len(infos)))
+        #: The bodies with mass (base, then the links; massless frame links add nothing to the
+        #: CoM or the momenta) and the feet, measured every step.
+        self.bodies = [-1] + [i for i in range(len(infos))
+                              if pb.getDynamicsInfo(self.robot, i, physicsClientId=c)[0] > 0.0
+                              or i in self.foot_links.values()]
+        self._row = {link: row for row, link in enumerate(self.bodies[1:])}
         self.masses = np.array([pb.getDynamicsInfo(self.robot, i, physicsClientId=c)[0]
                                 for i in self.bodies])
         self.inertias = np.array([pb.getDynamicsInfo(self.robot, i, physicsClientId=c)[2]
@@ -315,8 +319,9 @@ class Simulator:
         feet = {}
         for side, lk in self.foot_links.items():
             # The sole centre: the foot link's frame (not its inertial frame) and the sole offset.
-            frame_rot = np.array(pb.getMatrixFromQuaternion(links[lk][5])).reshape(3, 3)
-            fp = np.asarray(links[lk][4]) + frame_rot @ self._sole_offsets[side]
+            state = links[self._row[lk]]
+            frame_rot = np.array(pb.getMatrixFromQuaternion(state[5])).reshape(3, 3)
+            fp = np.asarray(state[4]) + frame_rot @ self._sole_offsets[side]
             feet[side] = np.array([fp[0], fp[1], math.atan2(frame_rot[1, 0], frame_rot[0, 0])])
         meas = Measurement(t=self.t, com=com, lin_mom=lin_mom, ang_mom=ang, heading=heading, cop=cop,
                            left_contacts=left, right_contacts=right, left_foot=feet['l'],

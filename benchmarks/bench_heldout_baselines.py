@@ -1,0 +1,98 @@
+"""The hand-coded baselines on a held-out dataset, their thresholds and tau_his chosen on the
+development dataset as the learned lists' settings are (method §11): for each FPR budget, the
+(threshold, tau_his) with the longest lead at development FPR <= budget (else the lowest FPR),
+then reported once on the test dataset with Wilson / bootstrap intervals. Beside them, a model
+file evaluated on the same test set.
+
+    .venv/bin/python benchmarks/bench_heldout_baselines.py --dev data/g1_dev240 \\
+        --test data/g1_test150 --model models/g1_model.json --out docs/g1_heldout.json
+"""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from fall_predictor.learning.evaluation import (BaselineGrids, capture_point_distances_cached,
+                                                evaluation_result_json)
+from fall_predictor.learning.metrics import evaluate_atomic, evaluate_lists
+from fall_predictor.learning.tilt_detector import imu_signals_cached, threshold_grid, tilt_alarms
+from fall_predictor.learning.training import load_dataset
+from fall_predictor.monitor.model_file import load_model
+from fall_predictor.monitor.records import FEATURE_NAMES
+
+TAU_HIS_S = (0.0, 0.016, 0.044, 0.06)
+BUDGETS = (0.01, 0.06)
+COM_Z, PX, PY = (FEATURE_NAMES.index(n) for n in ('com_z', 'lin_mom_x', 'lin_mom_y'))
+
+
+def baselines(trajs, capture, imu, grids: BaselineGrids) -> dict:
+    """name -> (thresholds, atomic(i, threshold))."""
+    return {
+        'com_height': ([float(h) for h in grids.com_height_m], lambda i, h: trajs[i].X[:, COM_Z] < h),
+        'momentum': ([(float(a), float(b)) for a in grids.momentum_sagittal for b in grids.momentum_frontal],
+                     lambda i, ab: (np.abs(trajs[i].X[:, PX]) > ab[0]) | (np.abs(trajs[i].X[:, PY]) > ab[1])),
+        'capture_point': ([float(m) for m in grids.capture_point_margin_m],
+                          lambda i, m: np.asarray(capture[i]) > -m),
+        'imu_tilt': (threshold_grid(), lambda i, th: tilt_alarms(imu[i], *th)),
+    }
+
+
+def grid(trajs, thresholds, atomic_for) -> list:
+    """(threshold, tau_his, result) for every point of the grid."""
+    out = []
+    for th in thresholds:
+        atomic = [atomic_for(i, th) for i in range(len(trajs))]
+        for tau_his, result in evaluate_atomic(trajs, atomic, TAU_HIS_S, 0.001).items():
+            out.append((th, tau_his, result))
+    return out
+
+
+def choose(points, budget: float):
+    ok = [p for p in points if p[2].fpr <= budget]
+    return max(ok, key=lambda p: p[2].tau_lead_s) if ok else min(points, key=lambda p: p[2].fpr)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--dev', type=Path, required=True)
+    parser.add_argument('--test', type=Path, required=True)
+    parser.add_argument('--model', type=Path, action='append', default=[])
+    parser.add_argument('--jobs', type=int, default=2)
+    parser.add_argument('--out', type=Path, required=True)
+    args = parser.parse_args()
+    sets = {}
+    for name, folder in (('dev', args.dev), ('test', args.test)):
+        trajs = load_dataset(folder, jobs=args.jobs, state='estimated').trajectories
+        capture = capture_point_distances_cached(folder, trajs, jobs=args.jobs, state='estimated')
+        imu = imu_signals_cached(folder, trajs, jobs=args.jobs)
+        sets[name] = baselines(trajs, capture, imu, BaselineGrids.coarse()), trajs
+    results = {'dev': str(args.dev), 'test': str(args.test), 'tau_his_grid_s': TAU_HIS_S,
+               'baselines': [], 'models': []}
+    for name in sets['dev'][0]:
+        dev_points = grid(sets['dev'][1], *sets['dev'][0][name])
+        test_thresholds, test_atomic = sets['test'][0][name]
+        for budget in BUDGETS:
+            th, tau_his, dev_result = choose(dev_points, budget)
+            atomic = [test_atomic(i, th) for i in range(len(sets['test'][1]))]
+            test_result = evaluate_atomic(sets['test'][1], atomic, (tau_his,), 0.001)[tau_his]
+            row = {'baseline': name, 'fpr_budget': budget, 'threshold': th, 'tau_his_s': tau_his,
+                   'dev': {'fpr': dev_result.fpr, 'tau_lead_s': dev_result.tau_lead_s},
+                   'test': evaluation_result_json(test_result)}
+            results['baselines'].append(row)
+            print(name, budget, th, tau_his, round(test_result.fpr, 3), round(test_result.tau_lead_s, 3), flush=True)
+    for model in args.model:
+        lists, metadata = load_model(model)
+        tau_his = metadata.recommended_tau_his_s or 0.06
+        result = evaluate_lists(sets['test'][1], lists, (tau_his,))[tau_his]
+        results['models'].append({'model': str(model), 'tau_his_s': tau_his,
+                                  'test': evaluation_result_json(result)})
+        print(model, round(result.fpr, 3), round(result.tau_lead_s, 3), flush=True)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(results, indent=1, default=str) + '\n')
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,80 @@
+"""Credibility of a simulated robot from one of its datasets (true state), in its own size: the
+CoM rise after the push (launches), the samples with no foot on the ground while upright, and the
+ground-force peaks of the recovery steps' touchdowns, in body weights. Heights are the robot's:
+"upright" is a CoM above 0.76 of its standing CoM height (the ASIMO-like robot's 0.45 m of
+0.589 m, the threshold `fall-predictor stats` uses for it).
+
+    .venv/bin/python benchmarks/bench_robot_profile_credibility.py --data data/g1_dev240 \\
+        --out docs/g1_credibility.json
+"""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from fall_predictor.data.dataset import read_manifest, robot_total_mass_kg
+from fall_predictor.data.stats import TOUCHDOWN_WINDOW_S, com_rise_m
+from fall_predictor.learning.training import load_dataset
+from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2
+
+UPRIGHT_FRACTION = 0.45 / 0.589
+
+
+def _percentiles(values) -> dict:
+    v = np.asarray(list(values), dtype=float)
+    return {'n': int(v.size), 'p50': float(np.percentile(v, 50)), 'p95': float(np.percentile(v, 95)),
+            'p99': float(np.percentile(v, 99)), 'max': float(v.max())} if v.size else {'n': 0}
+
+
+def recovery_touchdown_peaks_n(traj, until_s: float) -> list[float]:
+    """Peak total vertical ground force [N] within 0.1 s of each touchdown after the push (the
+    recovery steps), up to ``until_s``."""
+    force = traj.foot_force_n
+    total = force.sum(axis=1)
+    peaks = []
+    for side in range(2):
+        loaded = force[:, side] > 0.0
+        for k in np.flatnonzero(loaded[1:] & ~loaded[:-1]) + 1:
+            end = int(np.searchsorted(traj.t, traj.t[k] + TOUCHDOWN_WINDOW_S))
+            if traj.t[k] > traj.t_push and end < len(total) and traj.t[end] < until_s:
+                peaks.append(float(total[k:end].max()))
+    return peaks
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--data', type=Path, required=True)
+    parser.add_argument('--jobs', type=int, default=2)
+    parser.add_argument('--out', type=Path, required=True)
+    args = parser.parse_args()
+    trajectories = load_dataset(args.data, jobs=args.jobs, state='true').trajectories
+    weight_n = robot_total_mass_kg(args.data) * STANDARD_GRAVITY_M_S2
+    standing = float(np.median(np.concatenate([t.X[t.t <= t.t[0] + 0.5, 2] for t in trajectories])))
+    upright = UPRIGHT_FRACTION * standing
+    airborne = samples = 0
+    peaks = []
+    for traj in trajectories:
+        samples += len(traj.t)
+        no_foot = traj.foot_force_n.sum(axis=1) <= 0.0
+        airborne += int((no_foot & (traj.com_height > upright)).sum())
+        # Touchdowns of the survived pushes (a falling robot's last steps are part of its fall).
+        if not traj.fallen:
+            peaks += recovery_touchdown_peaks_n(traj, traj.t[-1])
+    result = {
+        'data': str(args.data), 'robot': read_manifest(args.data).get('robot', {}).get('name'),
+        'trajectories': len(trajectories), 'fall_fraction': float(np.mean([t.fallen for t in trajectories])),
+        'standing_com_height_m': standing, 'upright_com_m': upright,
+        'com_rise_m': _percentiles(com_rise_m(t) for t in trajectories),
+        'airborne_upright_fraction': airborne / samples,
+        'recovery_touchdown_peak_bw': _percentiles(p / weight_n for p in peaks),
+    }
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(result, indent=1) + '\n')
+    print(json.dumps(result, indent=1))
+
+
+if __name__ == '__main__':
+    main()
