@@ -1,7 +1,29 @@
-"""Shared fixtures: a simulator per test; a small generated dataset per test session."""
+"""Shared fixtures: a simulator per test; a small generated dataset per test session. The test
+tiers: ``pytest -m "not slow"`` is the fast tier (pure logic and physics oracles, no DDS, no
+cluster, no long simulation; under 2 minutes); the full suite (``scripts/test.sh``) runs all."""
 from pathlib import Path
 
 import pytest
+
+#: Modules of the slow tier: those that start ROS 2 nodes over DDS, a Dask cluster, or simulate
+#: for tens of seconds (their own names say which).
+SLOW_MODULES = frozenset({
+    # DDS: nodes, bring-up, recorders, the monitor's contract, replay over DDS
+    'test_bringup', 'test_nodes_pipeline', 'test_nodes_units', 'test_monitor_contract',
+    'test_state_estimator_node', 'test_robot_replay', 'test_recorder_crash', 'test_recorder_repair',
+    'test_markers', 'test_ros_common', 'test_ros_qos', 'test_launch_files',
+    # a Dask cluster
+    'test_cluster',
+    # long simulations: controllers and stabilizer over pushes, the G1, rates, imports, CLI runs
+    'test_stabilizer', 'test_controllers', 'test_g1', 'test_robot_rates', 'test_robot_import',
+    'test_cli', 'test_dataset', 'test_state_source', 'test_estimation_cli', 'test_simulator',
+})
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if Path(str(item.fspath)).stem in SLOW_MODULES:
+            item.add_marker(pytest.mark.slow)
 
 from fall_predictor.sim.simulator import Simulator
 
