@@ -20,7 +20,7 @@ for exe in fall-predictor fall_monitor simulator_node controller_node feature_no
 done
 share="$work/install/fall_predictor/share/fall_predictor"
 for file in launch/fall_predictor.launch.py launch/monitor.launch.py config/fall_predictor.yaml \
-            config/monitor.yaml models/default_model.json examples/fall_consumer.py; do
+            config/monitor.yaml models/default_model.json models/g1_model.json examples/fall_consumer.py; do
   test -f "$share/$file" || { echo "colcon build: $file missing from share/fall_predictor"; exit 1; }
 done
 # The installed package: the Python code and its generated messages import together, from the
@@ -29,9 +29,13 @@ site="$work/install/fall_predictor/lib/python3.11/site-packages"
 (cd "$work" && PYTHONPATH="$site" LD_LIBRARY_PATH="$work/install/fall_predictor/lib" \
   "$venv/bin/python" -c 'import fall_predictor, fall_predictor.msg as m, fall_predictor.ros.fall_monitor
 assert fall_predictor.__file__.startswith("'"$site"'"), fall_predictor.__file__
-m.FallState(); m.Measurement()') \
+m.FallState(); m.Measurement()
+from fall_predictor.profiles import available_profiles, load_profile
+assert set(available_profiles()) >= {"asimo_like", "g1"}, available_profiles()
+for name in available_profiles():
+    assert load_profile(name).urdf_path.is_file()') \
   || { echo "colcon build: the installed package does not import"; exit 1; }
 test -f "$work/install/fall_predictor/share/fall_predictor/msg/FallState.msg" \
   || { echo "colcon build: msg/FallState.msg missing from share/fall_predictor"; exit 1; }
 echo "colcon build: OK in ${seconds} s (executables in lib/fall_predictor, messages and Python package" \
-     "import from the install tree, launch/config/models/examples/msg in share)"
+     "import from the install tree with the robot profiles, launch/config/models/examples/msg in share)"
