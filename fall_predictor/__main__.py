@@ -1,3 +1,3 @@
-from fall_predictor.cli import main
+from fall_predictor.cli.main import main
 
 raise SystemExit(main())

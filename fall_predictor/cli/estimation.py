@@ -4,8 +4,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from fall_predictor import cli_args as argtypes
-from fall_predictor.cli_args import emit, fail
+from fall_predictor.cli import args as argtypes
+from fall_predictor.cli.args import emit, fail
 
 #: The issue-10 aims, for the human-readable verdicts.
 AIMS = {'com_p99_m': 0.010, 'lin_mom_median': 0.3, 'lin_mom_p99': 1.5, 'contact_mode_agreement': 0.97}

@@ -6,8 +6,8 @@ import json
 import time
 from pathlib import Path
 
-from fall_predictor import cli_args as argtypes
-from fall_predictor.cli_args import emit, fail
+from fall_predictor.cli import args as argtypes
+from fall_predictor.cli.args import emit, fail
 
 
 def cmd_robustness(args) -> int:

@@ -5,7 +5,7 @@ import argparse
 from dataclasses import asdict
 from pathlib import Path
 
-from fall_predictor.cli_args import emit, fail
+from fall_predictor.cli.args import emit, fail
 
 
 def cmd_repair_bag(args) -> int:

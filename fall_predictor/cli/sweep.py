@@ -4,8 +4,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from fall_predictor import cli_args as argtypes
-from fall_predictor.cli_args import emit, fail
+from fall_predictor.cli import args as argtypes
+from fall_predictor.cli.args import emit, fail
 
 
 def cmd_sweep(args) -> int:

@@ -1,0 +1,3 @@
+from fall_predictor.cli.main import main
+
+raise SystemExit(main())

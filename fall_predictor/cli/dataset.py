@@ -1,0 +1,169 @@
+"""``fall-predictor generate``, ``stats`` and ``import-bags``: datasets."""
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+from typing import Optional
+
+from fall_predictor.cli import args as argtypes
+from fall_predictor.cli.args import add_robot_argument, emit as _emit, fail as _fail
+
+
+def _sensor_timing(args) -> Optional[dict]:
+    """``--sensor-timing robot``: the drivers of a robot (sim/drivers.py) at ``--joint-rate-hz``,
+    joint states split into legs and upper body, IMU and foot sensors 0.3 / 0.4 ms after them."""
+    if args.sensor_timing == 'simulator':
+        return None
+    from fall_predictor.profiles import asimo_like_urdf as rm
+    from fall_predictor.sim.drivers import DriverTiming
+    legs = tuple(f'{s}_{j}' for s in rm.SIDES for j in rm.LEG_JOINTS)
+    groups = (legs, tuple(n for n in rm.JOINT_NAMES if n not in legs))
+    return DriverTiming.robot(args.joint_rate_hz, groups, clock_offset_ns=0).to_dict()
+
+
+def cmd_generate(args) -> int:
+    from fall_predictor.data.dataset import DatasetError, read_manifest
+    from fall_predictor.data.generation import GenerationConfig, generate_dataset
+
+    from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
+    from fall_predictor.sim.pushes import PushDistribution
+
+    profile = load_profile(args.robot)
+    # Another robot: its push range; a robot whose controller only stands draws no gait.
+    standing = bool(profile.controller.get('gait', {}).get('standing', False))
+    extra = {} if args.robot == DEFAULT_ROBOT else {
+        'robot': args.robot, 'push_distribution': PushDistribution.for_robot(profile)}
+    config = GenerationConfig(seed=args.seed, horizon_after_push_s=args.horizon,
+                              gait_variety=not (args.fixed_gait or standing),
+                              sensor_noise_scale=args.sensor_noise,
+                              sensor_timing=_sensor_timing(args), **extra)
+    start = time.perf_counter()
+    try:
+        rows = generate_dataset(args.out, args.trajectories, args.seed, jobs=args.jobs, config=config,
+                                progress=not args.json, scheduler=args.scheduler)
+    except (DatasetError, RuntimeError) as error:
+        return _fail('generate', error)
+    wall = time.perf_counter() - start
+    rows = [r for r in rows if int(r.trajectory_id.split('_')[1]) < args.trajectories]
+    fallen = sum(r.fallen for r in rows)
+    size = sum(f.stat().st_size for f in Path(args.out).rglob('*') if f.is_file() and 'cache' not in f.parts)
+    cost = read_manifest(args.out).get('generation', {})
+    payload = {'out': str(args.out), 'trajectories': len(rows), 'fallen': fallen,
+               'fall_fraction': fallen / len(rows) if rows else None, 'wall_s': wall,
+               'disk_bytes': size, 'seed': args.seed, 'jobs': args.jobs, 'scheduler': args.scheduler,
+               'gait_variety': config.gait_variety, 'cpu_s': cost.get('cpu_s'),
+               'cpu_per_simulated_s': cost.get('cpu_per_simulated_s'),
+               'machines': cost.get('machines', {})}
+    machines = ', '.join(f'{host} ({m["cores"]} cores, {m["trajectories"]} traj)'
+                         for host, m in payload['machines'].items())
+    _emit(args, payload, [f'{len(rows)} trajectories in {args.out} ({fallen} fallen, '
+                          f'{size / 1e6:.0f} MB) in {wall:.0f} s',
+                          f'CPU {payload["cpu_s"]:.0f} s in all ({payload["cpu_per_simulated_s"]:.3f} s per '
+                          f'simulated s) on {machines}' if payload['cpu_s'] is not None else 'CPU: not recorded'])
+    return 0
+
+
+def cmd_stats(args) -> int:
+    from fall_predictor.data.dataset import load_features, read_index, robot_total_mass_kg
+    from fall_predictor.data.stats import dataset_stats, plot_fig6
+
+    rows = read_index(args.data)
+    report = load_features(args.data, jobs=args.jobs, progress=not args.json)
+    stats = dataset_stats(rows, report.trajectories, robot_total_mass_kg(args.data))
+    stats['unreadable_bags'] = report.errors
+    plots_dir = Path(args.plots) if args.plots else Path(args.data) / 'plots'
+    stats['plots'] = [str(p) for p in plot_fig6(report.trajectories, plots_dir)]
+    lines = [f"{stats['trajectories']} trajectories, {stats['fallen']} fallen "
+             f"(fall fraction {stats['fall_fraction']:.3f}), {stats['samples']} samples"]
+    for key in ('duration_s', 'oracle_lead_s', 'fall_after_force_end_s'):
+        d = stats[key]
+        if d:
+            lines.append(f"{key}: median {d['median']:.3f}, p95 {d['p95']:.3f}, max {d['max']:.3f}")
+    for key in ('com_rise_m', 'touchdown_force_peak_bw'):
+        d = stats[key]
+        if d:
+            lines.append(f"{key}: p50 {d['p50']:.3f}, p95 {d['p95']:.3f}, p99 {d['p99']:.3f}, max {d['max']:.3f}")
+    if stats['airborne_upright_fraction'] is not None:
+        lines.append(f"airborne_upright_fraction: {stats['airborne_upright_fraction']:.4f}")
+    lines.append('contact-mode occupancy: ' + ', '.join(
+        f'{k} {v:.3f}' for k, v in stats['contact_mode_occupancy'].items() if v > 0))
+    for tid, error in report.errors.items():
+        lines.append(f'UNREADABLE {tid}: {error}')
+    lines.append('plots: ' + ', '.join(stats['plots']))
+    _emit(args, stats, lines)
+    return 1 if report.errors else 0
+
+
+def cmd_import_bags(args) -> int:
+    from fall_predictor.data.dataset import DatasetError
+    from fall_predictor.data.generation import ImportReport, import_recordings
+    from fall_predictor.data.robot_import import import_robot_recordings, is_robot_recording
+    from fall_predictor.profiles import ProfileError
+
+    try:
+        if all(is_robot_recording(bag) for bag in args.bags):       # a robot's own topics
+            urdf = args.urdf.read_text() if args.urdf is not None else None
+            report = ImportReport(*import_robot_recordings(args.bags, args.out, urdf, args.robot))
+        else:
+            report = import_recordings(args.bags, args.out)
+    except (DatasetError, OSError, ProfileError) as error:
+        return _fail('import-bags', error)
+    payload = {'out': str(args.out), 'imported': len(report.rows),
+               'fallen': sum(r.fallen for r in report.rows), 'rejected': report.rejected}
+    lines = [f'{len(report.rows)} recordings imported into {args.out} ({payload["fallen"]} fallen)']
+    lines += [f'REJECTED {bag}: {why}' for bag, why in report.rejected.items()]
+    _emit(args, payload, lines)
+    return 0 if report.rows else 1
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser('generate', help='generate push trajectories as rosbag2 (MCAP) bags',
+                       description='Generate N push trajectories (method §3, C_bal throughout) into DIR: one '
+                                   'rosbag2 bag per trajectory plus an index. Deterministic per seed; '
+                                   'rerunning finishes an interrupted run without redoing finished trajectories.')
+    p.add_argument('--trajectories', type=argtypes.positive_int, required=True)
+    p.add_argument('--seed', type=int, default=0)
+    p.add_argument('--out', type=Path, required=True, help='dataset directory')
+    p.add_argument('--jobs', type=argtypes.positive_int, default=1, help='parallel processes')
+    p.add_argument('--horizon', type=argtypes.positive, default=4.0,
+                   help='simulated seconds after the push ends before a trajectory counts as balanced')
+    p.add_argument('--sensor-noise', type=float, default=None, metavar='SCALE', help='also record the sensor topics (noise x SCALE; 1 = default sensors)')
+    p.add_argument('--sensor-timing', choices=('simulator', 'robot'), default='simulator',
+                   help='how the sensor topics are published: the simulator\'s timing (all at 1 kHz, one '
+                        'stamp per step) or a robot\'s drivers (joint states at --joint-rate-hz split '
+                        'into legs and upper body, IMU and foot sensors 0.3 / 0.4 ms after them)')
+    p.add_argument('--joint-rate-hz', type=argtypes.positive, default=500.0,
+                   help='joint state rate with --sensor-timing robot [Hz]')
+    add_robot_argument(p)
+    p.add_argument('--fixed-gait', action='store_true',
+                   help='every trajectory walks the default gait (faster: the walk is simulated once per '
+                        'process) instead of drawing its gait (method §3 amendment)')
+    argtypes.add_scheduler_argument(p, 'the simulations (bags come back here and are written to --out)')
+    p.add_argument('--json', action='store_true')
+    p.set_defaults(func=cmd_generate)
+
+    p = sub.add_parser('stats', help='statistics and Fig. 6 plots of a dataset',
+                       description='Trajectories, fall fraction, duration and oracle-lead distributions, '
+                                   'contact-mode occupancy, and PNG plots like the paper\'s Fig. 6. '
+                                   'Exits 1 if some bags are unreadable (they are listed).')
+    p.add_argument('data', type=Path, help='dataset directory')
+    p.add_argument('--plots', default=None, help='where to write PNGs (default DATA/plots)')
+    p.add_argument('--jobs', type=argtypes.positive_int, default=1)
+    p.add_argument('--json', action='store_true')
+    p.set_defaults(func=cmd_stats)
+
+    p = sub.add_parser('import-bags', help='make a dataset from recordings (recorder_node or a robot\'s own)',
+                       description='Copy recorded bags into a new dataset directory with an index, so that '
+                                   'train/evaluate/sweep can use them: recorder_node bags (one push each, '
+                                   'C_bal throughout: `bringup --record DIR --no-fall-trigger`), or a robot\'s '
+                                   '`ros2 bag record` of /joint_states, /imu/data, /left_foot/wrench, '
+                                   '/right_foot/wrench (and /robot_description): falls are then found from the '
+                                   'estimated CoM height and the IMU tilt (docs/method.md).')
+    p.add_argument('bags', nargs='+', type=Path, help='bag directories')
+    p.add_argument('--urdf', type=Path, default=None, help='the robot\'s URDF, for recordings without '
+                   '/robot_description')
+    p.add_argument('--out', type=Path, required=True, help='new dataset directory')
+    add_robot_argument(p)
+    p.add_argument('--json', action='store_true')
+    p.set_defaults(func=cmd_import_bags)

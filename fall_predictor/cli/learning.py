@@ -1,0 +1,169 @@
+"""``fall-predictor train``, ``rules`` and ``evaluate``: models."""
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from fall_predictor.cli import args as argtypes
+from fall_predictor.cli.args import emit as _emit, fail as _fail
+
+
+def cmd_train(args) -> int:
+    from fall_predictor.data.dataset import DatasetError
+    from fall_predictor.learning.training import make_learner, train_model
+    from fall_predictor.monitor.model_file import ModelFileError, save_model
+
+    try:
+        make_learner(args.learner, dict(args.param))
+    except ValueError as error:
+        return _fail('train', error)
+    start = time.perf_counter()
+    try:
+        state = argtypes.resolved_state(args)
+        lists, metadata = train_model(args.data, args.tau_plus, args.learner, dict(args.param),
+                                      args.stride, jobs=args.jobs,
+                                      recommended_tau_his_s=args.tau_his_recommended,
+                                      skip_unreadable=args.skip_unreadable, progress=not args.json,
+                                      state=state, mirror=args.mirror)
+        save_model(args.out, lists, metadata)
+    except (DatasetError, ModelFileError) as error:
+        return _fail('train', error)
+    wall = time.perf_counter() - start
+    payload = {'model': str(args.out), 'tau_plus_s': metadata.tau_plus_s,
+               'recommended_tau_his_s': metadata.recommended_tau_his_s,
+               'learner': {'name': metadata.learner_name, 'params': metadata.learner_params},
+               'sample_stride': args.stride, 'state': metadata.state, 'mirror': metadata.mirror,
+               'dataset_fingerprint': metadata.dataset_fingerprint,
+               'mean_rule_size': lists.mean_rule_size, 'rule_sizes': list(lists.rule_sizes),
+               'depths': list(lists.depths), 'wall_s': wall}
+    _emit(args, payload, [f'wrote {args.out}: {metadata.learner_name} on the {metadata.state} state, tau_plus '
+                          f'{metadata.tau_plus_s:+.3f} s, stride {args.stride}, mean rule size '
+                          f'{lists.mean_rule_size:.1f}, depths {list(lists.depths)} ({wall:.1f} s)'])
+    return 0
+
+
+def cmd_rules(args) -> int:
+    from fall_predictor.learning.training import rules_summary
+    from fall_predictor.monitor.model_file import ModelFileError, load_model
+
+    try:
+        lists, metadata = load_model(args.model)
+    except ModelFileError as error:
+        return _fail('rules', error)
+    summary = rules_summary(lists)
+    payload = {'model': str(args.model), **summary,
+               'training': {'tau_plus_s': metadata.tau_plus_s, 'learner': metadata.learner_name,
+                            'params': metadata.learner_params,
+                            'recommended_tau_his_s': metadata.recommended_tau_his_s}}
+    lines = [f'# {args.model}: {metadata.learner_name}, tau_plus {metadata.tau_plus_s:+.3f} s']
+    for mode in summary['modes']:
+        lines += ['', f'# {mode["mode"]}: rule size {mode["rule_size"]}, depth {mode["depth"]}', mode['text']]
+    lines += ['', f'mean rule size {summary["mean_rule_size"]:.2f} (over the 16 modes); mean depth '
+                  f'{summary["mean_depth"]:.1f} (non-empty lists), max depth {summary["max_depth"]}']
+    _emit(args, payload, lines)
+    return 0
+
+
+def cmd_evaluate(args) -> int:
+    from fall_predictor.data.dataset import DatasetError
+    from fall_predictor.learning.evaluation import evaluate_model, evaluation_json
+    from fall_predictor.learning.when_where import when_where_lines
+    from fall_predictor.monitor.model_file import ModelFileError, load_model
+
+    try:
+        lists, metadata = load_model(args.model)
+        tau_his = args.tau_his if args.tau_his is not None else metadata.recommended_tau_his_s
+        if tau_his is None:
+            return _fail('evaluate', f'{args.model} recommends no tau_his: give --tau-his')
+        state = argtypes.resolved_state(args)
+        evaluation = evaluate_model(args.data, lists, tau_his, baselines=args.baselines,
+                                    jobs=args.jobs, skip_unreadable=args.skip_unreadable,
+                                    progress=not args.json, time_to_fall=metadata.time_to_fall,
+                                    robot_mass_kg=metadata.robot_mass_kg, state=state)
+    except (DatasetError, ModelFileError) as error:
+        return _fail('evaluate', error)
+    payload = {'model': str(args.model), 'data': str(args.data), 'state': state,
+               'model_state': metadata.state, **evaluation_json(evaluation),
+               'trained_on_this_dataset': metadata.dataset_fingerprint == evaluation.dataset_fingerprint}
+    r = evaluation.result
+    lines = [f'{r.n_trajectories} trajectories ({r.n_fallen} fallen), {state} state (model trained on '
+             f'the {metadata.state} state), tau_his {tau_his:.3f} s',
+             f'FPR {r.fpr:.3f} ({r.n_false_positives}/{r.n_balanced} balanced trajectories), '
+             f'Wilson 95 % [{r.fpr_ci95[0]:.3f}, {r.fpr_ci95[1]:.3f}]',
+             f'tau_lead {r.tau_lead_s:.3f} s (bootstrap 95 % [{r.tau_lead_ci95[0]:.3f}, '
+             f'{r.tau_lead_ci95[1]:.3f}]), oracle lead {r.oracle_lead_s:.3f} s, lead fraction '
+             f'{r.lead_fraction:.2f}, misses {r.n_missed}/{r.n_fallen}',
+             f'decision lists alone (CoM guard off): tau_lead {r.tau_lead_lists_only_s:.3f} s, '
+             f'misses {r.n_missed_lists_only}/{r.n_fallen}; CoM guard alone: tau_lead '
+             f'{r.tau_lead_guard_only_s:.3f} s',
+             f'pre-push false alarms: {r.n_pre_push_alarms_balanced} balanced, '
+             f'{r.n_pre_push_alarms_fallen} fallen trajectories',
+             f'mean rule size {r.mean_rule_size:.2f}']
+    lines += when_where_lines(payload)
+    if payload['trained_on_this_dataset']:
+        lines.append('warning: the model was trained on this dataset; these numbers are not a '
+                     'held-out estimate (use `fall-predictor sweep` for cross-validation)')
+    for name, front in payload.get('baselines', {}).items():
+        lines.append(f'baseline {name}, Pareto front (FPR, tau_lead): ' + ', '.join(
+            f'({p["fpr"]:.2f}, {p["tau_lead_s"]:.2f})' for p in front
+            if p['fpr'] is not None and p['tau_lead_s'] is not None))
+    for tid, error in evaluation.unreadable.items():
+        lines.append(f'SKIPPED {tid}: {error}')
+    _emit(args, payload, lines)
+    return 0
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser('train', help='learn per-mode decision lists and write a model file',
+                       description='Train one decision list per foot contact mode (method §8) on every '
+                                   'trajectory of a dataset and write the JSON model file. Falling states '
+                                   'before t_height_drop + tau_plus are withheld; balanced states weigh 4, '
+                                   'falling states 1 (per 1 kHz sample). Exit code 2 if the dataset or a '
+                                   'setting cannot be used.')
+    p.add_argument('--data', type=Path, required=True, help='dataset directory')
+    p.add_argument('--tau-plus', type=argtypes.finite(float), required=True,
+                   help='tau_plus [s]: falling states are trained on from t_height_drop + tau_plus '
+                        '(may be < 0; write --tau-plus=-0.25)')
+    p.add_argument('--out', type=Path, required=True, help='model file to write (JSON)')
+    argtypes.add_learner_arguments(p)
+    argtypes.add_state_argument(p)
+    p.add_argument('--mirror', action='store_true',
+                   help='also learn from each trajectory\'s left-right mirror image (modes, y components '
+                        'and signs mirrored)')
+    p.add_argument('--tau-his-recommended', type=argtypes.nonnegative, default=None,
+                   help='history window [s] to store as the model\'s run-time default')
+    p.add_argument('--jobs', type=argtypes.positive_int, default=1, help='processes loading features')
+    p.add_argument('--skip-unreadable', action='store_true',
+                   help='leave out unreadable bags instead of failing')
+    p.add_argument('--json', action='store_true', help='print one JSON object')
+    p.set_defaults(func=cmd_train)
+
+    p = sub.add_parser('rules', help='print a model\'s decision lists (the paper\'s Fig. 8 form)',
+                       description='Print the decision list of every foot contact mode of a model file '
+                                   'in the paper\'s Fig. 8 form, with each list\'s rule size (number of '
+                                   'comparisons) and depth (number of rules), and the mean rule size over '
+                                   'the 16 modes. Exit code 2 if the file is not a valid model.')
+    p.add_argument('model', type=Path, help='model file (JSON)')
+    p.add_argument('--json', action='store_true', help='print one JSON object')
+    p.set_defaults(func=cmd_rules)
+
+    p = sub.add_parser('evaluate', help='FPR, lead time and misses of a model on a dataset',
+                       description='Run a model over every trajectory of a dataset (the online predictor: '
+                                   'decision lists, history window tau_his, CoM guard) and report method §5\'s '
+                                   'metrics: FPR, tau_lead, misses, pre-push false alarms, oracle lead, lead '
+                                   'fraction and mean rule size; with --baselines also the Pareto fronts of '
+                                   'the hand-coded baselines. Not cross-validated: use a dataset the model '
+                                   'was not trained on. Exit code 2 if the model or dataset cannot be used.')
+    p.add_argument('--data', type=Path, required=True, help='dataset directory')
+    p.add_argument('--model', type=Path, required=True, help='model file (JSON)')
+    p.add_argument('--tau-his', type=argtypes.nonnegative, default=None,
+                   help='history window [s] (default: the model\'s recommended value)')
+    p.add_argument('--baselines', action='store_true',
+                   help='also evaluate the CoM-height, momentum and capture-point baselines')
+    argtypes.add_state_argument(p)
+    p.add_argument('--jobs', type=argtypes.positive_int, default=1)
+    p.add_argument('--skip-unreadable', action='store_true',
+                   help='leave out unreadable bags instead of failing')
+    p.add_argument('--json', action='store_true', help='print one JSON object')
+    p.set_defaults(func=cmd_evaluate)

@@ -1,0 +1,35 @@
+"""fall-predictor: offline tools of the fall_predictor package (simulate, generate, train, ...)."""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+#: The command groups, one module each under fall_predictor/cli/, each exposing
+#: ``register(subparsers)``: each area's options live with its code.
+COMMAND_MODULES: tuple[str, ...] = ('simulation', 'dataset', 'learning', 'sweep', 'robot', 'bag',
+                                    'estimation')
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog='fall-predictor', description=__doc__)
+    sub = parser.add_subparsers(dest='command', metavar='<command>')
+    for name in COMMAND_MODULES:
+        importlib.import_module(f'fall_predictor.cli.{name}').register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)   # recorded by sweep
+    if not getattr(args, 'func', None):
+        parser.print_help()
+        return 2
+    if getattr(args, 'push_force', 0) < 0:
+        parser.error('--push-force must be >= 0')
+    return int(args.func(args) or 0)
+
+
+if __name__ == '__main__':
+    sys.exit(main())
