@@ -16,12 +16,10 @@ from pathlib import Path
 import numpy as np
 
 from fall_predictor.data.dataset import read_manifest, robot_total_mass_kg
-from fall_predictor.data.stats import TOUCHDOWN_WINDOW_S, com_rise_m
+from fall_predictor.data.stats import (TOUCHDOWN_WINDOW_S, UPRIGHT_COM_FRACTION, com_rise_m,
+                                       standing_com_height_m)
 from fall_predictor.learning.training import load_dataset
 from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2
-
-UPRIGHT_FRACTION = 0.45 / 0.589
-
 
 def _percentiles(values) -> dict:
     v = np.asarray(list(values), dtype=float)
@@ -52,8 +50,8 @@ def main() -> None:
     args = parser.parse_args()
     trajectories = load_dataset(args.data, jobs=args.jobs, state='true').trajectories
     weight_n = robot_total_mass_kg(args.data) * STANDARD_GRAVITY_M_S2
-    standing = float(np.median(np.concatenate([t.X[t.t <= t.t[0] + 0.5, 2] for t in trajectories])))
-    upright = UPRIGHT_FRACTION * standing
+    standing = standing_com_height_m(trajectories)
+    upright = UPRIGHT_COM_FRACTION * standing
     airborne = samples = 0
     peaks = []
     for traj in trajectories:

@@ -10,8 +10,11 @@ from fall_predictor.data.dataset import IndexRow
 from fall_predictor.monitor.records import (CONTACT_MODE_NAMES, N_CONTACT_MODES, STANDARD_GRAVITY_M_S2,
                                             TrajectoryFeatures)
 
-#: Above this CoM height a robot with no foot on the ground is airborne while upright [m].
-AIRBORNE_UPRIGHT_COM_M = 0.45
+#: Above this fraction of its standing CoM height a robot with no foot on the ground is airborne
+#: while upright (the ASIMO-like robot's 0.45 m of 0.589 m; the same fraction for any robot).
+UPRIGHT_COM_FRACTION = 0.45 / 0.589
+#: The standing CoM height is the median over each trajectory's first this many seconds.
+STANDING_WINDOW_S = 0.5
 #: The ground-force peak of a touchdown is looked for this long after the foot lands [s].
 TOUCHDOWN_WINDOW_S = 0.1
 
@@ -63,17 +66,26 @@ def touchdown_force_peaks_n(traj: TrajectoryFeatures) -> list[float]:
     return peaks
 
 
+def standing_com_height_m(trajectories: list[TrajectoryFeatures]) -> float:
+    """The robot's standing CoM height [m]: the median over the trajectories' first
+    :data:`STANDING_WINDOW_S`."""
+    return float(np.median(np.concatenate([t.com_height[t.t <= t.t[0] + STANDING_WINDOW_S]
+                                           for t in trajectories])))
+
+
 def robot_credibility(trajectories: list[TrajectoryFeatures], total_mass_kg: float) -> dict:
     """How physical the simulated robot behaves: CoM rise after the push (launches), samples
-    airborne while upright, and the ground-force peaks of unpushed touchdowns in body weights."""
+    airborne while upright (CoM above :data:`UPRIGHT_COM_FRACTION` of the standing height: the
+    same rule for any robot), and the ground-force peaks of unpushed touchdowns in body weights."""
     weight_n = total_mass_kg * STANDARD_GRAVITY_M_S2
+    upright_m = UPRIGHT_COM_FRACTION * standing_com_height_m(trajectories) if trajectories else 0.0
     airborne = samples = 0
     peaks: list[float] = []
     for traj in trajectories:
         samples += len(traj.t)
         if traj.foot_force_n is not None:
             no_foot = traj.foot_force_n.sum(axis=1) <= 0.0
-            airborne += int((no_foot & (traj.com_height > AIRBORNE_UPRIGHT_COM_M)).sum())
+            airborne += int((no_foot & (traj.com_height > upright_m)).sum())
         peaks += touchdown_force_peaks_n(traj)
     known = all(traj.foot_force_n is not None for traj in trajectories)
     return {
