@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from fall_predictor.data.dataset import read_manifest, robot_total_mass_kg
-from fall_predictor.data.stats import (TOUCHDOWN_WINDOW_S, UPRIGHT_COM_FRACTION, com_rise_m,
-                                       standing_com_height_m)
+from fall_predictor.data.stats import (UPRIGHT_COM_FRACTION, com_rise_m, standing_com_height_m,
+                                       touchdown_force_peaks_n)
 from fall_predictor.learning.training import load_dataset
 from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2
 
@@ -25,21 +25,6 @@ def _percentiles(values) -> dict:
     v = np.asarray(list(values), dtype=float)
     return {'n': int(v.size), 'p50': float(np.percentile(v, 50)), 'p95': float(np.percentile(v, 95)),
             'p99': float(np.percentile(v, 99)), 'max': float(v.max())} if v.size else {'n': 0}
-
-
-def recovery_touchdown_peaks_n(traj, until_s: float) -> list[float]:
-    """Peak total vertical ground force [N] within 0.1 s of each touchdown after the push (the
-    recovery steps), up to ``until_s``."""
-    force = traj.foot_force_n
-    total = force.sum(axis=1)
-    peaks = []
-    for side in range(2):
-        loaded = force[:, side] > 0.0
-        for k in np.flatnonzero(loaded[1:] & ~loaded[:-1]) + 1:
-            end = int(np.searchsorted(traj.t, traj.t[k] + TOUCHDOWN_WINDOW_S))
-            if traj.t[k] > traj.t_push and end < len(total) and traj.t[end] < until_s:
-                peaks.append(float(total[k:end].max()))
-    return peaks
 
 
 def main() -> None:
@@ -60,7 +45,7 @@ def main() -> None:
         airborne += int((no_foot & (traj.com_height > upright)).sum())
         # Touchdowns of the survived pushes (a falling robot's last steps are part of its fall).
         if not traj.fallen:
-            peaks += recovery_touchdown_peaks_n(traj, traj.t[-1])
+            peaks += touchdown_force_peaks_n(traj, after_push=True)
     result = {
         'data': str(args.data), 'robot': read_manifest(args.data).get('robot', {}).get('name'),
         'trajectories': len(trajectories), 'fall_fraction': float(np.mean([t.fallen for t in trajectories])),

@@ -46,11 +46,13 @@ def com_rise_m(traj: TrajectoryFeatures) -> float:
     return float(z[k:].max() - z[k])
 
 
-def touchdown_force_peaks_n(traj: TrajectoryFeatures) -> list[float]:
-    """Peak total vertical ground force [N] after each swing-foot touchdown before the push.
+def touchdown_force_peaks_n(traj: TrajectoryFeatures, after_push: bool = False) -> list[float]:
+    """Peak total vertical ground force [N] after each swing-foot touchdown before the push
+    (``after_push``: after it instead: the recovery steps).
 
     A touchdown is a foot whose vertical force goes from zero to positive; the peak is taken
-    over :data:`TOUCHDOWN_WINDOW_S` after it, and only windows that end before the push.
+    over :data:`TOUCHDOWN_WINDOW_S` after it, and only windows that end before the push (or
+    that start after it and end within the trajectory).
     """
     if traj.foot_force_n is None:
         return []
@@ -61,7 +63,8 @@ def touchdown_force_peaks_n(traj: TrajectoryFeatures) -> list[float]:
         loaded = force[:, side] > 0.0
         for k in np.flatnonzero(loaded[1:] & ~loaded[:-1]) + 1:
             end = int(np.searchsorted(traj.t, traj.t[k] + TOUCHDOWN_WINDOW_S))
-            if end < len(total) and traj.t[end] < traj.t_push:
+            if end < len(total) and (traj.t[k] > traj.t_push if after_push
+                                     else traj.t[end] < traj.t_push):
                 peaks.append(float(total[k:end].max()))
     return peaks
 

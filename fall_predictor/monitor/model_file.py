@@ -21,7 +21,7 @@ Layout (schema ``fall_predictor.decision_lists``, version 3)::
       "recommended_tau_his_s": 0.06,                          # or null
       "dataset_fingerprint": "...",
       "created": {"utc": "2025-01-01T00:00:00Z", "package_version": "0.1.0"},
-      "robot_mass_kg": 42.1,                                  # or null (version 3)
+      "robot_mass_kg": <kg>,                                  # the training robot's; or null (version 3)
       "time_to_fall": {"trees": [...16, tree or null], "fallback": tree}   # or null (version 3)
     }
 

@@ -167,8 +167,7 @@ def sensor_truth(sim) -> SensorTruth:
         pos, orn = pb.getBasePositionAndOrientation(sim.robot, physicsClientId=c)
         lin, ang = pb.getBaseVelocity(sim.robot, physicsClientId=c)
         rot = np.array(pb.getMatrixFromQuaternion(orn)).reshape(3, 3)
-        inertial = pb.getDynamicsInfo(sim.robot, -1, physicsClientId=c)[3]
-        imu_from_com = rot @ (np.asarray(IMU_POSITION_IN_TORSO_M) - np.asarray(inertial))
+        imu_from_com = rot @ (np.asarray(IMU_POSITION_IN_TORSO_M) - sim.base_inertial_xyz)
         omega = np.asarray(ang)
         v_imu = np.asarray(lin) + np.cross(omega, imu_from_com)
     else:
@@ -178,7 +177,7 @@ def sensor_truth(sim) -> SensorTruth:
         ls = pb.getLinkState(sim.robot, imu_link, computeForwardKinematics=1, physicsClientId=c)
         orn = ls[5]
         rot = np.array(pb.getMatrixFromQuaternion(orn)).reshape(3, 3)
-        parent = pb.getJointInfo(sim.robot, imu_link, physicsClientId=c)[16]
+        parent = sim.link_parent[imu_link]
         if parent < 0:
             body_com, _ = pb.getBasePositionAndOrientation(sim.robot, physicsClientId=c)
             lin, ang = pb.getBaseVelocity(sim.robot, physicsClientId=c)

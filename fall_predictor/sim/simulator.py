@@ -113,6 +113,10 @@ class Simulator:
         self.n_joints = len(self.joint_indices)
         self.link_names = [info[12].decode() for info in infos]
         self.link_index = {name: i for i, name in enumerate(self.link_names)}
+        #: Each link's parent link (-1: the base), and the base's inertial frame origin in its
+        #: link frame: read once here, used every step (sim/sensors.sensor_truth).
+        self.link_parent = [info[16] for info in infos]
+        self.base_inertial_xyz = np.asarray(pb.getDynamicsInfo(self.robot, -1, physicsClientId=c)[3])
         if self.joint_names != self.profile.joint_names:
             raise RuntimeError(f'PyBullet numbers the joints {self.joint_names}, not in the URDF\'s '
                                f'order {self.profile.joint_names}')
