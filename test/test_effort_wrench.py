@@ -50,9 +50,29 @@ def test_g1_wrenches_from_efforts_are_the_known_ones():
     for side, wrench in truth.items():
         tau -= pin.getFrameJacobian(model, data, robot.sole_ids[side], pin.ReferenceFrame.LOCAL).T @ wrench
     efforts = tau[robot.idx_v]
-    got = EffortWrench(robot).wrenches(q, np.zeros(model.nv), rot, efforts)
+    got = EffortWrench(robot).wrenches(q, np.zeros(model.nv), efforts)
     for side in ('l', 'r'):
         assert got[side] == pytest.approx(truth[side], abs=1e-6)
+
+
+def test_straight_knees_give_the_minimum_norm_wrench():
+    """Straight legs (all joints at zero): each leg's 6 x 6 system is singular, and the answer is
+    numpy's least-squares, minimum-norm solution of the same system, not an explosion."""
+    _, robot = _g1()
+    model, data = robot.model, robot.model.createData()
+    q = robot.configuration(np.zeros(len(robot.joint_names)))
+    efforts = np.linspace(-5.0, 5.0, len(robot.joint_names))
+    effort = EffortWrench(robot)
+    got = effort.wrenches(q, np.zeros(model.nv), efforts)
+    b = pin.rnea(model, data, q, np.zeros(model.nv), np.zeros(model.nv))
+    pin.computeJointJacobians(model, data, q)
+    for side in ('l', 'r'):
+        legs = effort.leg_v[side]
+        jac = pin.getFrameJacobian(model, data, robot.sole_ids[side], pin.ReferenceFrame.LOCAL)[:, legs]
+        expected = np.linalg.lstsq(jac.T, b[legs] - efforts[effort.leg_tau[side]], rcond=1e-6)[0]
+        singular_values = np.linalg.svd(jac, compute_uv=False)
+        assert singular_values[-1] < 1e-6 * singular_values[0]      # singular as lstsq sees it
+        assert got[side] == pytest.approx(expected, abs=1e-6)
 
 
 def test_g1_statics_without_efforts_share_the_weight_by_the_lever_rule():
@@ -64,13 +84,13 @@ def test_g1_statics_without_efforts_share_the_weight_by_the_lever_rule():
     sole_pos = {s: data.oMf[robot.sole_ids[s]].translation.copy() for s in ('l', 'r')}
     sole_rot = {s: np.eye(3) for s in ('l', 'r')}
     com = pin.centerOfMass(robot.model, data, q)
-    got = effort.kinematic(q, np.eye(3), sole_pos, sole_rot, 0.01)
+    got = effort.kinematic(com, sole_pos, sole_rot, 0.01)
     weight = robot.total_mass_kg * 9.81
     lam = (com[1] - sole_pos['l'][1]) / (sole_pos['r'][1] - sole_pos['l'][1])
     assert got['l'][2] == pytest.approx((1 - lam) * weight) and got['r'][2] == pytest.approx(lam * weight)
     # Lift the right sole 2 cm: the left carries everything.
     sole_pos['r'] = sole_pos['r'] + [0.0, 0.0, 0.02]
-    got = effort.kinematic(q, np.eye(3), sole_pos, sole_rot, 0.01)
+    got = effort.kinematic(com, sole_pos, sole_rot, 0.01)
     assert got['r'] is None and got['l'][2] == pytest.approx(weight)
 
 

@@ -62,36 +62,58 @@ class EffortWrench:
         self.leg_tau = {side: np.array([v_to_joint[int(v)] for v in self.leg_v[side]])
                         for side in SIDES}
         self._zero_a = np.zeros(robot.model.nv)
+        self._square = all(len(self.leg_v[side]) == 6 for side in SIDES)
+        # The legs' columns: a slice when they are consecutive (cheaper than an index array).
+        self._leg_cols = {side: slice(int(cols[0]), int(cols[-1]) + 1)
+                          if np.array_equal(cols, np.arange(cols[0], cols[-1] + 1)) else cols
+                          for side, cols in self.leg_v.items()}
+        self._a = np.zeros((len(SIDES), 6, 6))
+        self._rhs = np.zeros((len(SIDES), 6, 1))
+        # A directly solved wrench beyond this (a hundred body weights, squared) comes from a
+        # near-singular leg: solved again in the least-squares sense.
+        self._max_wrench_sq = (100.0 * robot.total_mass_kg * 9.81) ** 2
 
-    def wrenches(self, q: np.ndarray, v: np.ndarray, rot: np.ndarray,
+    def wrenches(self, q: np.ndarray, v: np.ndarray,
                  tau_joints: np.ndarray) -> dict[str, Optional[np.ndarray]]:
         """Per side the wrench (fx, fy, fz, tx, ty, tz) in the sole frame; ``q``, ``v``: the full
-        configuration and velocity (any base position; the base part of ``v`` is the base's angular
-        velocity in the base frame), ``rot``: the base orientation in the world, ``tau_joints``:
-        efforts [N m] in the description's joint order."""
+        configuration (any base position, the base oriented as estimated: gravity acts along the
+        world's z) and velocity (the base part: its angular velocity in the base frame),
+        ``tau_joints``: efforts [N m] in the description's joint order."""
         model, data = self.robot.model, self.data
-        q = q.copy()
-        q[3:7] = pin.Quaternion(rot).coeffs()
-        b = pin.rnea(model, data, q, v, self._zero_a)           # also computes the kinematics
+        b = pin.nonLinearEffects(model, data, q, v)              # also computes the kinematics
         pin.computeJointJacobians(model, data, q)
         out: dict[str, Optional[np.ndarray]] = {}
+        if self._square:
+            # Both legs' 6 x 6 systems in one call; a leg near a singularity (a straight knee)
+            # gets the least-squares, minimum-norm answer below instead.
+            a, rhs = self._a, self._rhs
+            for k, side in enumerate(SIDES):
+                jac = pin.getFrameJacobian(model, data, self.robot.sole_ids[side], _LOCAL)
+                a[k] = jac[:, self._leg_cols[side]].T
+                rhs[k, :, 0] = b[self._leg_cols[side]] - tau_joints[self.leg_tau[side]]
+            try:
+                solved = np.linalg.solve(a, rhs)[..., 0]
+            except np.linalg.LinAlgError:
+                solved = np.full((len(SIDES), 6), np.nan)
+            for k, side in enumerate(SIDES):
+                w = solved[k]
+                norm_sq = float(w @ w)                         # NaN or inf if w is not finite
+                if norm_sq < self._max_wrench_sq:
+                    out[side] = w
         for side in SIDES:
-            jac = pin.getFrameJacobian(model, data, self.robot.sole_ids[side], _LOCAL)
-            j_leg = jac[:, self.leg_v[side]]
-            rhs = b[self.leg_v[side]] - tau_joints[self.leg_tau[side]]
-            wrench, *_ = np.linalg.lstsq(j_leg.T, rhs, rcond=1e-6)
-            out[side] = wrench if np.all(np.isfinite(wrench)) else None
+            if side not in out:
+                jac = pin.getFrameJacobian(model, data, self.robot.sole_ids[side], _LOCAL)
+                wrench, *_ = np.linalg.lstsq(jac[:, self.leg_v[side]].T,
+                                             b[self.leg_v[side]] - tau_joints[self.leg_tau[side]],
+                                             rcond=1e-6)
+                out[side] = wrench if np.isfinite(wrench).all() else None
         return out
 
-    def kinematic(self, q: np.ndarray, rot: np.ndarray, sole_pos: dict, sole_rot: dict,
+    def kinematic(self, com: np.ndarray, sole_pos: dict, sole_rot: dict,
                   contact_height_m: float) -> dict[str, Optional[np.ndarray]]:
-        """Per side a static wrench (module docs) or None for a sole in the air; ``sole_pos`` and
-        ``sole_rot``: the soles relative to the base origin, world axes (the estimator's)."""
-        model, data = self.robot.model, self.data
-        q = q.copy()
-        q[0:3] = 0.0
-        q[3:7] = pin.Quaternion(rot).coeffs()
-        com = pin.centerOfMass(model, data, q)                   # relative to the base origin
+        """Per side a static wrench (module docs) or None for a sole in the air; ``com``,
+        ``sole_pos`` and ``sole_rot``: the CoM and the soles relative to the base origin, world
+        axes (the estimator's)."""
         lowest = min(sole_pos[side][2] for side in SIDES)
         down = [side for side in SIDES if sole_pos[side][2] <= lowest + contact_height_m]
         weight_n = self.robot.total_mass_kg * 9.81

@@ -56,12 +56,15 @@ import numpy as np
 import pinocchio as pin
 
 from fall_predictor.monitor.effort_wrench import EffortWrench
+from fall_predictor.monitor.geometry import cross3
 from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2, Measurement
 from fall_predictor.monitor.robot_description import SIDES, DescriptionError, RobotDescription
 from fall_predictor.monitor.sensor_records import SensorSample
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 _GRAVITY = np.array([0.0, 0.0, STANDARD_GRAVITY_M_S2])
+_NO_CONTACT = np.zeros((0, 3))
+_ZEROS6 = np.zeros(6)
 
 
 @dataclass(frozen=True)
@@ -84,18 +87,6 @@ class EstimatorConfig:
     initial_yaw_rad: float = 0.0
     #: World xy of the loaded soles' midpoint at the first sample [m].
     initial_xy_m: tuple[float, float] = (0.0, 0.0)
-
-
-def quat_xyzw_to_matrix(q: np.ndarray) -> np.ndarray:
-    x, y, z, w = np.asarray(q, dtype=float) / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a x b for 3-vectors (numpy's cross costs ~25 us a call; this ~2 us)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
 def _rot_z(a: float) -> np.ndarray:
@@ -127,21 +118,34 @@ def split_force_to_corners(corners: np.ndarray, cop: np.ndarray, fz: float) -> n
     return np.full(k, fz / k)
 
 
+@dataclass(frozen=True)
+class _GroundPart:
+    """The corners of a sole on the ground (all four, an edge or one corner), sole frame."""
+
+    key: bytes                      #: which corners (the boolean mask's bytes)
+    centre: np.ndarray              #: their centre (3,)
+    corners: np.ndarray             #: (k, 3)
+    flat: bool                      #: all four: the sole lies flat
+
+
 @dataclass
 class _Kinematics:
-    """One sample's kinematics relative to the floating base (base at the origin, world-aligned
-    axes, not translating, turning at the estimated rate)."""
+    """One sample's kinematics relative to the floating base's origin: the base at the origin with
+    the estimated orientation, not translating, turning at the estimated rate; world axes."""
 
-    q: np.ndarray                   #: full configuration (base part filled in later)
-    v: np.ndarray                   #: full velocity (base part filled in later)
+    q: np.ndarray                   #: full configuration (base at the origin, estimated attitude)
+    v: np.ndarray                   #: full velocity (base: not translating, turning at omega_b)
     rot: np.ndarray                 #: estimated base orientation in the world
     omega_b: np.ndarray             #: base angular velocity, base frame [rad/s]
-    sole_pos: dict                  #: per side: sole origin relative to the base origin (world axes)
+    sole_pos: dict                  #: per side: sole origin relative to the base origin
     sole_rot: dict                  #: per side: sole orientation in the world
     sole_vel: dict                  #: per side: (linear velocity of the sole origin, angular velocity)
-    imu_pos: np.ndarray             #: IMU point relative to the base origin (world axes)
-    imu_vel: np.ndarray             #: IMU point velocity relative to the base origin (world axes)
+    imu_pos: np.ndarray             #: IMU point relative to the base origin
+    imu_vel: np.ndarray             #: IMU point velocity relative to the base origin
     imu_rot: np.ndarray             #: IMU frame orientation in the world
+    com: np.ndarray                 #: CoM relative to the base origin
+    lin_mom: np.ndarray             #: linear momentum of the base-fixed motion [kg m/s]
+    ang_mom: np.ndarray             #: angular momentum about the CoM [kg m^2/s]
 
 
 class StateEstimator:
@@ -161,6 +165,13 @@ class StateEstimator:
         self.imu_frame = imu_frame
         self.total_mass_kg = robot.total_mass_kg
         self.sole_corners = {side: robot.soles[side].corners() for side in SIDES}
+        self._half_sole = {side: (robot.soles[side].length_m / 2, robot.soles[side].width_m / 2)
+                           for side in SIDES}
+        #: Per IMU frame id: (its rotation in the base frame, whether that is the identity) if
+        #: it is fixed to the floating base, else ().
+        self._imu_on_base: dict[int, tuple] = {}
+        #: Per (side, corners touching as bytes): that part of the sole.
+        self._ground_parts: dict[tuple[str, bytes], _GroundPart] = {}
         self._orders: dict[tuple[str, ...], Optional[np.ndarray]] = {}
         self.reset()
 
@@ -170,7 +181,7 @@ class StateEstimator:
         self.rot: Optional[np.ndarray] = None
         self.p = np.zeros(3)        # the IMU point, world [m]
         self.v = np.zeros(3)        # its velocity, world [m/s]
-        self._yaw_offset = 0.0
+        self._yaw_correction = np.eye(3)
         #: Per sole: (which corners touch, world position of their centre), or None.
         self.anchors: dict[str, Optional[tuple]] = {'l': None, 'r': None}
         self.last_issue: Optional[str] = None
@@ -202,20 +213,22 @@ class StateEstimator:
         if w is None:
             return None
         w = np.asarray(w, dtype=float)
-        return w if w.shape == (6,) and np.all(np.isfinite(w)) else None
+        # A product with zeros is NaN exactly when an element is not finite (one call, not three).
+        return w if w.shape == (6,) and w @ _ZEROS6 == 0.0 else None
 
     def _sole_wrench(self, side: str, w: np.ndarray, frame: str) -> np.ndarray:
         """A wrench measured in ``frame`` (a sensor frame of the description; empty: the sole
         frame), carried to the sole frame (the ground reaction about the sole origin)."""
-        sole_id = self.robot.sole_ids[side]
         if not frame:
             return w
+        sole_id = self.robot.sole_ids[side]
         fid = self.robot.frame_id(frame, f'{"left" if side == "l" else "right"} foot force sensor')
         if fid == sole_id:
             return w
-        placement = self.data.oMf[sole_id].actInv(self.data.oMf[fid])     # sensor in the sole frame
+        sensor = pin.updateFramePlacement(self.model, self.data, fid)
+        placement = self.data.oMf[sole_id].actInv(sensor)      # the sensor in the sole frame
         f = placement.rotation @ w[:3]
-        tau = placement.rotation @ w[3:] + _cross(placement.translation, f)
+        tau = placement.rotation @ w[3:] + cross3(placement.translation, f)
         return np.concatenate([f, tau])
 
     def _wrenches_without_sensors(self, s: SensorSample, order: Optional[np.ndarray],
@@ -224,57 +237,71 @@ class StateEstimator:
         has them all, else from the kinematics and statics (monitor.effort_wrench)."""
         tau = np.asarray(s.tau, dtype=float)
         if tau.shape == (len(s.joint_names),) and np.isfinite(tau).all():
-            v = kin.v.copy()
-            v[3:6] = kin.omega_b
-            found = self._effort.wrenches(kin.q, v, kin.rot, tau if order is None else tau[order])
+            found = self._effort.wrenches(kin.q, kin.v, tau if order is None else tau[order])
             lowest = min(kin.sole_pos[side][2] for side in SIDES)
             for side in SIDES:
                 if kin.sole_pos[side][2] > lowest + self.config.effort_contact_height_m:
                     found[side] = None
             self.wrench_source = 'efforts'
         else:
-            found = self._effort.kinematic(kin.q, kin.rot, kin.sole_pos, kin.sole_rot,
+            found = self._effort.kinematic(kin.com, kin.sole_pos, kin.sole_rot,
                                            self.config.kinematic_contact_height_m)
             self.wrench_source = 'statics'
         return {side: found[side] for side in self.effort_feet}
 
     def _kinematics(self, s: SensorSample, q_j: np.ndarray, dq_j: np.ndarray, dt: float,
                     first: bool) -> _Kinematics:
+        """The IMU's place on the robot (a constant when it is fixed to the floating base, else from
+        a pass of the joints' kinematics with a still, upright base) gives the base's attitude and
+        rate; then one pass of the whole robot with that attitude and rate gives every frame, the
+        CoM and the momentum in world axes, relative to the base origin."""
         robot, model, data, cfg = self.robot, self.model, self.data, self.config
         q = robot.configuration(q_j)
         v = np.zeros(model.nv)
         v[robot.idx_v] = dq_j
-        # Kinematics of the joints alone: every frame relative to a still, upright base.
-        pin.forwardKinematics(model, data, q, v)
-        pin.updateFramePlacements(model, data)
         imu_id = robot.frame_id(s.imu_frame or self.imu_frame, 'IMU')
-        imu_b = data.oMf[imu_id]
-        imu_vel = pin.getFrameVelocity(model, data, imu_id, _LWA)
-        # The IMU's attitude and rate, carried to the base.
-        r_wi = quat_xyzw_to_matrix(s.imu_quat_xyzw)
+        on_base = self._imu_on_base.get(imu_id)
+        if on_base is None:
+            frame = model.frames[imu_id]
+            rotation = frame.placement.rotation.copy()
+            on_base = self._imu_on_base[imu_id] = (rotation, np.array_equal(rotation, np.eye(3))) \
+                if frame.parentJoint == 1 else ()
+        if on_base:
+            # An IMU fixed to the floating base (the common case): its place is a constant.
+            r_bi, aligned = on_base
+            omega_b = r_bi @ np.asarray(s.gyro_rad_s, dtype=float)
+        else:
+            pin.forwardKinematics(model, data, q, v)
+            r_bi = pin.updateFramePlacement(model, data, imu_id).rotation   # the IMU in the base
+            omega_b = r_bi @ np.asarray(s.gyro_rad_s, dtype=float) - \
+                pin.getFrameVelocity(model, data, imu_id, _LWA).angular
+        # The IMU's attitude carried to the base.
+        r_wi = pin.Quaternion(np.asarray(s.imu_quat_xyzw, dtype=float)).normalized().matrix()
+        r_wb = r_wi if on_base and aligned else r_wi @ r_bi.T
         if first:
-            self._yaw_offset = cfg.initial_yaw_rad - _yaw(r_wi @ imu_b.rotation.T)
-        r_meas = _rot_z(self._yaw_offset) @ r_wi @ imu_b.rotation.T
-        omega_b = imu_b.rotation @ np.asarray(s.gyro_rad_s, dtype=float) - imu_vel.angular
+            self._yaw_correction = _rot_z(cfg.initial_yaw_rad - _yaw(r_wb))
+        r_meas = self._yaw_correction @ r_wb
         if first or self.rot is None:
             rot = r_meas
         else:
             rot = self.rot @ pin.exp3(omega_b * dt)
             gain = 1.0 - math.exp(-dt / cfg.attitude_time_constant_s)
             rot = pin.exp3(gain * pin.log3(r_meas @ rot.T)) @ rot
+        # The whole robot: base at the origin with this attitude, turning at omega_b.
+        q[3:7] = pin.Quaternion(rot).coeffs()
+        v[3:6] = omega_b
+        h = pin.computeCentroidalMomentum(model, data, q, v)      # also the kinematics and CoM
         sole_pos, sole_rot, sole_vel = {}, {}, {}
         for side in SIDES:
-            frame = data.oMf[robot.sole_ids[side]]
-            vel = pin.getFrameVelocity(model, data, robot.sole_ids[side], _LWA)
-            sole_pos[side] = rot @ frame.translation
-            sole_rot[side] = rot @ frame.rotation
-            # Relative to the base origin, with the base turning at omega_b.
-            sole_vel[side] = (rot @ (vel.linear + _cross(omega_b, frame.translation)),
-                              rot @ (vel.angular + omega_b))
-        imu_pos = rot @ imu_b.translation
-        imu_v = rot @ (imu_vel.linear + _cross(omega_b, imu_b.translation))
-        return _Kinematics(q, v, rot, omega_b, sole_pos, sole_rot, sole_vel, imu_pos, imu_v,
-                           rot @ imu_b.rotation)
+            sole_id = robot.sole_ids[side]
+            placement = pin.updateFramePlacement(model, data, sole_id)
+            vel = pin.getFrameVelocity(model, data, sole_id, _LWA)
+            sole_pos[side], sole_rot[side] = placement.translation, placement.rotation
+            sole_vel[side] = (vel.linear, vel.angular)
+        imu = pin.updateFramePlacement(model, data, imu_id)
+        return _Kinematics(q, v, rot, omega_b, sole_pos, sole_rot, sole_vel, imu.translation,
+                           pin.getFrameVelocity(model, data, imu_id, _LWA).linear, imu.rotation,
+                           data.com[0].copy(), h.linear, h.angular)
 
     # -- the filter ------------------------------------------------------------------
     def update(self, s: SensorSample) -> Optional[Measurement]:
@@ -287,7 +314,7 @@ class StateEstimator:
             if (q_j.shape != (len(s.joint_names),) or dq_j.shape != q_j.shape
                     or imu[0].shape != (4,) or imu[1].shape != (3,) or imu[2].shape != (3,)
                     or not math.isfinite(s.t)
-                    or not np.isfinite(np.concatenate([q_j, dq_j, *imu])).all()
+                    or not (np.concatenate([q_j, dq_j, *imu]) * 0.0).sum() == 0.0   # NaN or inf
                     or float(imu[0] @ imu[0]) < 1e-12):
                 self._reject('non-finite or malformed joint or IMU data')
                 return None
@@ -324,23 +351,22 @@ class StateEstimator:
         # The part of each loaded sole on the ground: the corners within the tolerance of the
         # lowest one (all four on a flat sole, an edge or a corner on a tilted one), its centre
         # (sole frame), its position relative to the base origin and its velocity.
-        touch, point_local, point_rel, point_vel = {}, {}, {}, {}
+        touch, point_rel, point_vel = {}, {}, {}
         for side in loaded:
-            corners = (kin.sole_rot[side] @ self.sole_corners[side].T).T
-            touch[side] = corners[:, 2] <= corners[:, 2].min() + cfg.tilt_tolerance_m
-            point_local[side] = self.sole_corners[side][touch[side]].mean(axis=0)
-            offset = kin.sole_rot[side] @ point_local[side]
+            r_s = kin.sole_rot[side]
+            touch[side] = part = self._ground_part(side, r_s)
+            offset = r_s @ part.centre
             point_rel[side] = kin.sole_pos[side] + offset
             v_origin, w_sole = kin.sole_vel[side]
-            point_vel[side] = v_origin + _cross(w_sole, offset)
+            point_vel[side] = v_origin + cross3(w_sole, offset)
         first_fix = not self._have_fix and bool(loaded)
         if first_fix:
             # The world frame is placed at the first sample with a loaded sole: its origin on the
             # soles' centres (the sole frames' origins), not on the part judged on the ground,
             # which hangs on the first, unfiltered tilt (0.5 deg of IMU error makes an edge of a
             # flat sole: half a sole's shift).
-            mid = np.mean([kin.sole_pos[side] for side in loaded], axis=0)
-            ground = np.mean([point_rel[side][2] for side in loaded])
+            mid = sum(kin.sole_pos[side] for side in loaded) / len(loaded)
+            ground = sum(point_rel[side][2] for side in loaded) / len(loaded)
             base = np.array([cfg.initial_xy_m[0] - mid[0], cfg.initial_xy_m[1] - mid[1], -ground])
             self.p = base + kin.imu_pos
             self.v = np.zeros(3)
@@ -356,6 +382,19 @@ class StateEstimator:
             return None
         return self._measurement(s.t, kin, loaded, touch)
 
+    def _ground_part(self, side: str, r_s: np.ndarray) -> _GroundPart:
+        """The part of sole ``side`` (orientation ``r_s``) on the ground: its corners within
+        ``tilt_tolerance_m`` of the lowest."""
+        corners = self.sole_corners[side]
+        heights = corners @ r_s[2]
+        touching = heights <= heights.min() + self.config.tilt_tolerance_m
+        key = (side, touching.tobytes())
+        part = self._ground_parts.get(key)
+        if part is None:
+            part = self._ground_parts[key] = _GroundPart(
+                key[1], corners[touching].mean(axis=0), corners[touching], bool(touching.all()))
+        return part
+
     def _correct(self, kin: _Kinematics, loaded: dict, touch: dict, point_rel: dict,
                  point_vel: dict, first_fix: bool, dt: float) -> None:
         """The kinematic correction of the IMU point from the soles on the ground (``dt``: the
@@ -366,72 +405,89 @@ class StateEstimator:
         for side, w in loaded.items():
             # A sole's ground contact stays where it touched down (z = 0); when the part on
             # the ground changes (flat -> edge on tilting), it is re-anchored there.
-            key = tuple(touch[side])
-            if self.anchors[side] is None or self.anchors[side][0] != key:
+            key = touch[side].key
+            anchor = self.anchors[side]
+            if anchor is None or anchor[0] != key:
                 anchor = base_now + point_rel[side]
                 anchor[2] = 0.0
-                self.anchors[side] = (key, anchor)
-            p_meas = self.anchors[side][1] - point_rel[side] + kin.imu_pos
-            v_meas = kin.imu_vel - point_vel[side]
-            per_side[side] = (w[2], p_meas, v_meas)
+                anchor = self.anchors[side] = (key, anchor)
+            per_side[side] = (float(w[2]), anchor[1] - point_rel[side] + kin.imu_pos,
+                              kin.imu_vel - point_vel[side])
         if not first_fix:
             # Slip: a sole whose kinematic velocity disagrees with the IMU prediction by more
             # than slip_velocity_m_s is sliding; it is left out and re-anchored. If every sole
             # slips for max_slip_s, the closest one is trusted.
-            residual = {side: float(np.linalg.norm(v - self.v)) for side, (_, _, v) in per_side.items()}
-            keep = {side for side, r in residual.items() if r <= cfg.slip_velocity_m_s}
+            residual = {}
+            for side, (_, _, v) in per_side.items():
+                d = v - self.v
+                residual[side] = math.sqrt(float(d @ d))
+            keep = [side for side, r in residual.items() if r <= cfg.slip_velocity_m_s]
             self._slipping_s = 0.0 if keep else self._slipping_s + dt
             if not keep and self._slipping_s > cfg.max_slip_s:
-                keep = {min(residual, key=residual.get)}
-            for side in set(per_side) - keep:
-                self.anchors[side] = None
-            per_side = {side: per_side[side] for side in keep}
-        if per_side:
-            weights = sum(f for f, _, _ in per_side.values())
-            p_meas = sum(f * p for f, p, _ in per_side.values()) / weights
-            v_meas = sum(f * v for f, _, v in per_side.values()) / weights
-            if first_fix:
-                self.p, self.v = p_meas, v_meas
-                self._have_fix = True
-            else:
-                self.p = self.p + (1.0 - math.exp(-dt / cfg.position_time_constant_s)) * (p_meas - self.p)
-                self.v = self.v + (1.0 - math.exp(-dt / cfg.velocity_time_constant_s)) * (v_meas - self.v)
+                keep = [min(residual, key=residual.get)]
+            if len(keep) < len(per_side):
+                for side in per_side:
+                    if side not in keep:
+                        self.anchors[side] = None
+                per_side = {side: per_side[side] for side in keep}
+        if not per_side:
+            return
+        if len(per_side) == 1:
+            (_, p_meas, v_meas), = per_side.values()
+        else:
+            (f_a, p_a, v_a), (f_b, p_b, v_b) = per_side.values()
+            share = f_b / (f_a + f_b)
+            p_meas = p_a + share * (p_b - p_a)
+            v_meas = v_a + share * (v_b - v_a)
+        if first_fix:
+            self.p, self.v = p_meas, v_meas
+            self._have_fix = True
+        else:
+            self.p = self.p + (1.0 - math.exp(-dt / cfg.position_time_constant_s)) * (p_meas - self.p)
+            self.v = self.v + (1.0 - math.exp(-dt / cfg.velocity_time_constant_s)) * (v_meas - self.v)
+
+    def _contact_forces(self, side: str, part: _GroundPart, cop_local: tuple[float, float],
+                        fz: float) -> np.ndarray:
+        """The sole's normal force split over its corners on the ground (split_force_to_corners;
+        the flat sole, the common case, in closed form: bilinear weights of the CoP)."""
+        if not part.flat:
+            return split_force_to_corners(part.corners[:, :2], np.array(cop_local), fz)
+        half_l, half_w = self._half_sole[side]
+        u = min(1.0, max(0.0, (cop_local[0] + half_l) / (2 * half_l)))
+        w = min(1.0, max(0.0, (cop_local[1] + half_w) / (2 * half_w)))
+        # Corners: front left, front right, back right, back left (SoleGeometry.corners).
+        return np.array([u * w * fz, u * (1.0 - w) * fz, (1.0 - u) * (1.0 - w) * fz,
+                         (1.0 - u) * w * fz])
 
     def _measurement(self, t: float, kin: _Kinematics, loaded: dict, touch: dict) -> Measurement:
         rot = kin.rot
         base = self.p - kin.imu_pos
-        q, v = kin.q, kin.v
-        q[0:3] = base
-        q[3:7] = pin.Quaternion(rot).coeffs()
-        v[0:3] = rot.T @ (self.v - kin.imu_vel)
-        v[3:6] = kin.omega_b
-        # Forward kinematics, CoM (data.com[0]) and the centroidal momentum h_G in one pass.
-        h = pin.computeCentroidalMomentum(self.model, self.data, q, v)
-        com = self.data.com[0].copy()
-        contacts, feet, cops, forces = {}, {}, [], []
+        contacts, feet = {}, {}
+        cop_x = cop_y = force_sum = 0.0
         for side in SIDES:
             r_s, o_s = kin.sole_rot[side], kin.sole_pos[side] + base
-            feet[side] = np.array([o_s[0], o_s[1], _yaw(r_s)])
+            ox, oy, _ = o_s.tolist()
+            feet[side] = np.array([ox, oy, _yaw(r_s)])
             if side not in loaded:
-                contacts[side] = np.zeros((0, 3))
+                contacts[side] = _NO_CONTACT
                 continue
-            w = loaded[side]
-            corners = self.sole_corners[side]
-            cop_local = np.array([-w[4] / w[2], w[3] / w[2]])
-            world = (r_s @ corners.T).T + o_s
-            touching = touch[side]
-            f = split_force_to_corners(corners[touching, :2], cop_local, float(w[2]))
-            contacts[side] = np.column_stack([world[touching, 0], world[touching, 1], f])
-            cop_w = r_s @ np.array([cop_local[0], cop_local[1], 0.0]) + o_s
-            cops.append(cop_w[:2])
-            forces.append(float(w[2]))
-        if forces:
-            total = sum(forces)
-            cop = np.array([sum(f * c[0] for f, c in zip(forces, cops)) / total,
-                            sum(f * c[1] for f, c in zip(forces, cops)) / total, 0.0])
+            _, _, fz, tx, ty, _ = loaded[side].tolist()
+            cx, cy = -ty / fz, tx / fz
+            part = touch[side]
+            world = part.corners @ r_s.T + o_s
+            world[:, 2] = self._contact_forces(side, part, (cx, cy), fz)
+            contacts[side] = world
+            (r00, r01, _), (r10, r11, _) = r_s[:2].tolist()
+            cop_x += fz * (r00 * cx + r01 * cy + ox)
+            cop_y += fz * (r10 * cx + r11 * cy + oy)
+            force_sum += fz
+        if force_sum > 0.0:
+            cop = np.array([cop_x / force_sum, cop_y / force_sum, 0.0])
         else:
             cop = np.full(3, np.nan)
-        return Measurement(t=t, com=com, lin_mom=np.array(h.linear), ang_mom=np.array(h.angular),
+        # Momentum of the base-fixed motion plus the whole body translating with the base.
+        lin_mom = kin.lin_mom + self.total_mass_kg * (self.v - kin.imu_vel)
+        return Measurement(t=t, com=kin.com + base, lin_mom=lin_mom, ang_mom=kin.ang_mom.copy(),
                            heading=_yaw(rot), cop=cop,
                            left_contacts=contacts['l'], right_contacts=contacts['r'],
                            left_foot=feet['l'], right_foot=feet['r'], non_foot_contact=False,

@@ -82,6 +82,8 @@ class RobotDescription:
         self.joint_bounds = JointBounds(self.joint_names, np.array(lower), np.array(upper),
                                         np.array(velocity))
         self._frame_cache: dict[str, int] = {}
+        self._neutral = pin.neutral(self.model)
+        self._any_continuous = bool(self.continuous.any())
 
     def _ensure_sole_frame(self, side: str) -> None:
         sole = self.soles[side]
@@ -118,11 +120,13 @@ class RobotDescription:
     def configuration(self, q_joints: np.ndarray) -> np.ndarray:
         """The full configuration (base at the origin, identity orientation) for joint positions in
         :attr:`joint_names` order (continuous joints as cos, sin)."""
-        q = pin.neutral(self.model)
+        q = self._neutral.copy()
+        if not self._any_continuous:
+            q[self.idx_q] = q_joints
+            return q
         regular = ~self.continuous
         q[self.idx_q[regular]] = q_joints[regular]
-        if self.continuous.any():
-            angles = q_joints[self.continuous]
-            q[self.idx_q[self.continuous]] = np.cos(angles)
-            q[self.idx_q[self.continuous] + 1] = np.sin(angles)
+        angles = q_joints[self.continuous]
+        q[self.idx_q[self.continuous]] = np.cos(angles)
+        q[self.idx_q[self.continuous] + 1] = np.sin(angles)
         return q
