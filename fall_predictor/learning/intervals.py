@@ -4,7 +4,9 @@
   FPR: ``k`` false positives among ``n`` balanced trajectories).
 * :func:`bootstrap_mean_interval`: a percentile bootstrap interval of a mean over independent
   units (used for every tau_lead: the per-trajectory leads of the fallen trajectories are
-  resampled with replacement, so the interval is over trajectories, not samples).
+  resampled with replacement, so the interval is over trajectories, not samples);
+  :func:`bootstrap_quantile_interval` the same for a quantile (the median and p90 of the
+  time-to-fall and direction errors, one error per trajectory).
 
 Both return ``(low, high)``; with no data both bounds are NaN.
 """
@@ -55,4 +57,20 @@ def bootstrap_mean_interval(values: Sequence[float], level: float = 0.95,
     means = x[rng.integers(0, x.size, size=(n_resamples, x.size))].mean(axis=1)
     alpha = (1.0 - level) / 2.0
     low, high = np.quantile(means, [alpha, 1.0 - alpha])
+    return float(low), float(high)
+
+
+def bootstrap_quantile_interval(values: Sequence[float], q: float, level: float = 0.95,
+                                n_resamples: int = 2000, seed: int = 0) -> tuple[float, float]:
+    """Percentile bootstrap interval of the ``q``-quantile (0.5: the median) of ``values`` (one
+    value per trajectory), as :func:`bootstrap_mean_interval`."""
+    if not 0.0 < level < 1.0 or not 0.0 <= q <= 1.0:
+        raise ValueError(f'need 0 < level < 1 and 0 <= q <= 1, got level={level!r}, q={q!r}')
+    x = np.asarray(values, dtype=float)
+    if x.size == 0:
+        return math.nan, math.nan
+    rng = np.random.default_rng(seed)
+    quantiles = np.quantile(x[rng.integers(0, x.size, size=(n_resamples, x.size))], q, axis=1)
+    alpha = (1.0 - level) / 2.0
+    low, high = np.quantile(quantiles, [alpha, 1.0 - alpha])
     return float(low), float(high)
