@@ -7,10 +7,12 @@ import numpy as np
 import pytest
 
 from fall_predictor.data.bagio import read_trajectory
-from fall_predictor.data.dataset import DatasetError, load_features, read_index
+from fall_predictor.data.dataset import (FORMAT, DatasetError, dataset_guard_com_height_m,
+                                         load_features, read_index)
 from fall_predictor.data.generation import GenerationConfig, generate_dataset
 from fall_predictor.monitor.records import FALLEN_COM_HEIGHT_M
 from fall_predictor.data.stats import dataset_stats, plot_fig6
+from fall_predictor.profiles import load_profile
 
 
 def test_each_trajectory_has_a_complete_bag_and_index_row(small_dataset):
@@ -104,3 +106,22 @@ def test_stats_and_fig6_plots(small_dataset, tmp_path):
     assert stats['oracle_lead_s']['min'] > 0.1
     for path in plot_fig6(report.trajectories, tmp_path / 'plots'):
         assert path.stat().st_size > 10_000 and path.read_bytes()[:4] == b'\x89PNG'
+
+
+@pytest.mark.parametrize('robot, expected_m', [
+    ({'name': 'g1', 'profile': 'g1'}, 0.55), ({'name': 'g1'}, 0.55),
+    ({'name': 'asimo_like', 'profile': 'asimo_like'}, 0.48), (None, 0.48)])
+def test_the_guard_of_a_dataset_is_its_robots_profile_guard(tmp_path, robot, expected_m):
+    """The profiles' own values (method §6): a G1 dataset is not given the ASIMO-like robot's
+    0.48 m; a dataset that names no robot is the default robot's."""
+    (tmp_path / 'dataset.json').write_text(json.dumps({'format': FORMAT, 'robot': robot}))
+    assert dataset_guard_com_height_m(tmp_path) == expected_m
+    assert dataset_guard_com_height_m(tmp_path) == load_profile(robot['name'] if robot else
+                                                                'asimo_like').guard_com_height_m
+
+
+def test_a_dataset_whose_profile_cannot_be_loaded_is_named(tmp_path):
+    (tmp_path / 'dataset.json').write_text(json.dumps(
+        {'format': FORMAT, 'robot': {'profile': str(tmp_path / 'gone' / 'profile.yaml')}}))
+    with pytest.raises(DatasetError, match=str(tmp_path)):
+        dataset_guard_com_height_m(tmp_path)

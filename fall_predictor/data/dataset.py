@@ -194,6 +194,19 @@ def dataset_robot(data_dir: Path) -> str:
     return robot['name'] if robot.get('name') in available_profiles() else DEFAULT_ROBOT
 
 
+def dataset_guard_com_height_m(data_dir: str | os.PathLike) -> float:
+    """The CoM guard [m] of the robot a dataset was recorded with (method §6): its profile's
+    ``monitor.guard_com_height_m`` (:func:`dataset_robot`), the guard every offline tool trains,
+    evaluates, sweeps and cross-validates that dataset with unless told otherwise. A profile that
+    cannot be loaded is a :class:`DatasetError` naming the dataset."""
+    from fall_predictor.profiles import ProfileError, load_profile
+    robot = dataset_robot(Path(data_dir))
+    try:
+        return load_profile(robot).guard_com_height_m
+    except ProfileError as exc:
+        raise DatasetError(f'{data_dir}: the robot profile {robot!r} of the dataset: {exc}') from exc
+
+
 def cached_bag_arrays(data_dir: Path, bag: str, name: str, kind: str, compute) -> dict[str, np.ndarray]:
     """Arrays derived from one bag of a dataset, cached as ``DATA/cache/<name>.npz``
     (:func:`~fall_predictor.data.cache.cached_arrays`); a bag that cannot be read is a
