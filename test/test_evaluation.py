@@ -14,10 +14,12 @@ from fall_predictor.learning.evaluation import (capture_point_distances_cached, 
 from fall_predictor.learning.training import load_dataset
 from fall_predictor.monitor.capture_point import capture_point_distances
 from fall_predictor.monitor.decision_list import DecisionList, PerModeDecisionLists
+from fall_predictor.monitor.features import FeatureSettings
 from fall_predictor.monitor.model_file import ModelMetadata, save_model
 from fall_predictor.monitor.records import FALLING, N_CONTACT_MODES
 
 from learning_fixtures import fixture_dataset  # noqa: F401  (a pytest fixture)
+from robot_datasets import G1_GUARD_LEAD_S, write_robot_dataset
 
 
 def test_json_float_writes_nan_and_infinity_as_null():
@@ -106,3 +108,58 @@ def test_cli_evaluate(fixture_dataset, tmp_path, capsys):
     assert evaluation['tau_lead_lists_only'] == pytest.approx(expected['tau_lead_s'])
     lead_low, lead_high = evaluation['tau_lead_ci95']
     assert lead_low <= evaluation['tau_lead_s'] <= lead_high
+
+
+# -- the CoM guard: the model's, else the dataset's robot's --------------------------------------
+def test_evaluate_model_without_a_model_guard_uses_the_dataset_robots_guard(tmp_path):
+    """Empty decision lists on the tiny G1 dataset (CoM between 0.48 and 0.55 m): the guard
+    alone decides. The G1's 0.55 m predicts both falls 0.049 s ahead and alarms on both squats;
+    the ASIMO-like robot's 0.48 m, passed explicitly, misses both falls and never alarms."""
+    data = write_robot_dataset(tmp_path / 'g1', 'g1')
+    evaluation = evaluate_model(data, PerModeDecisionLists.empty(), 0.0, baselines=True)
+    r = evaluation.result
+    assert evaluation.guard_com_height_m == 0.55 and evaluation_json(evaluation)['guard_com_height_m'] == 0.55
+    assert (r.n_false_positives, r.n_balanced, r.n_missed, r.n_fallen) == (2, 2, 0, 2)
+    assert r.tau_lead_s == pytest.approx(G1_GUARD_LEAD_S, abs=1e-9)
+    # the baselines run with the same guard: "CoM below 0.40 m" is the guard alone
+    below_040 = evaluation.baselines.com_height[0]
+    assert below_040.threshold == pytest.approx(0.40)
+    assert below_040.fpr == 1.0 and below_040.tau_lead_s == pytest.approx(G1_GUARD_LEAD_S, abs=1e-9)
+    explicit = evaluate_model(data, PerModeDecisionLists.empty(), 0.0, guard_com_height_m=0.48)
+    assert explicit.guard_com_height_m == 0.48
+    assert (explicit.result.n_false_positives, explicit.result.n_missed) == (0, 2)
+    assert explicit.result.tau_lead_s == 0.0
+
+
+def test_the_asimo_like_robots_evaluation_keeps_its_guard(tmp_path):
+    data = write_robot_dataset(tmp_path / 'asimo_like', 'asimo_like')
+    evaluation = evaluate_model(data, PerModeDecisionLists.empty(), 0.0)
+    assert evaluation.guard_com_height_m == 0.48
+    assert (evaluation.result.n_false_positives, evaluation.result.n_missed) == (0, 2)
+
+
+def test_cli_evaluate_uses_the_models_recorded_guard(tmp_path, capsys):
+    """A model recording the G1's guard predicts the G1 dataset's falls by its guard; one
+    recording 0.48 m (trained before models recorded their robot's guard) keeps its own, as the
+    monitor would run it, and the evaluation says that it is not the robot's."""
+    data = write_robot_dataset(tmp_path / 'g1', 'g1')
+    results = {}
+    for guard_m in (0.55, 0.48):
+        model = tmp_path / f'model_{guard_m}.json'
+        save_model(model, PerModeDecisionLists.empty(), ModelMetadata(
+            tau_plus_s=0.0, balanced_weight=4.0, falling_weight=1.0, learner_name='hand-built',
+            learner_params={}, dataset_fingerprint='other', recommended_tau_his_s=0.0,
+            feature_settings=FeatureSettings(guard_com_height_m=guard_m)))
+        code = cli.main(['evaluate', '--data', str(data), '--model', str(model), '--json'])
+        captured = capsys.readouterr()
+        assert code == 0, captured.err
+        results[guard_m] = json.loads(captured.out)
+        assert results[guard_m]['guard_com_height_m'] == guard_m
+        assert results[guard_m]['dataset_guard_com_height_m'] == 0.55
+        assert cli.main(['evaluate', '--data', str(data), '--model', str(model)]) == 0
+        text = capsys.readouterr().out
+        assert (f"the model's CoM guard ({guard_m:g} m) is not the dataset's robot's" in text) \
+            == (guard_m != 0.55)
+    assert (results[0.55]['n_false_positives'], results[0.55]['n_missed']) == (2, 0)
+    assert results[0.55]['tau_lead_s'] == pytest.approx(G1_GUARD_LEAD_S, abs=1e-9)
+    assert (results[0.48]['n_false_positives'], results[0.48]['n_missed']) == (0, 2)

@@ -9,7 +9,9 @@ from sklearn.tree import DecisionTreeRegressor
 
 from fall_predictor.learning.time_to_fall_training import (export_tree, falling_states,
                                                            fit_time_to_fall)
-from fall_predictor.learning.when_where import actual_direction, summary, time_to_fall_errors
+from fall_predictor.learning.when_where import (actual_direction, summary, time_to_fall_errors,
+                                                trigger_indices)
+from fall_predictor.monitor.decision_list import PerModeDecisionLists
 from fall_predictor.monitor.model_file import ModelFileError, load_model, save_model
 from fall_predictor.monitor.records import N_CONTACT_MODES, N_FEATURES
 from fall_predictor.monitor.time_to_fall import (RegressionTree, TimeToFallError,
@@ -131,3 +133,14 @@ def test_momentum_direction_is_the_horizontal_momentum():
     assert np.isnan(momentum_direction(x, 42.0)).all()
     with pytest.raises(ValueError):
         momentum_direction(x, 0.0)
+
+
+def test_triggers_come_from_the_given_guard():
+    """Empty lists: only the CoM guard triggers. The synthetic CoM stands at 0.59 +- 0.005 m, so a
+    0.60 m guard triggers on the fallen trajectory at the push (sample 500); the default guard
+    only at t_fallen, too late to be a trigger. Balanced trajectories never have one."""
+    trajectories = make_dataset(1, 1, seed=4)
+    empty = PerModeDecisionLists.empty()
+    assert trigger_indices(trajectories, empty, 0.0, guard_com_height_m=0.60) == \
+        [int(round(T_PUSH_S * 1000)), None]
+    assert trigger_indices(trajectories, empty, 0.0) == [None, None]

@@ -1,5 +1,6 @@
 """Training (fall_predictor.learning.training) and the CLI subcommands ``train`` and ``rules``.
 Learner-level tests use synthetic trajectories; pipeline tests a small generated dataset."""
+import dataclasses
 import json
 import math
 
@@ -17,6 +18,7 @@ from fall_predictor.monitor.model_file import load_model
 from fall_predictor.monitor.records import BALANCED, FALLING, N_CONTACT_MODES
 
 from learning_fixtures import fixture_dataset  # noqa: F401  (a pytest fixture)
+from robot_datasets import write_robot_dataset
 from synthetic_trajectories import (FALLING_MODE, LIN_MOM_Y, T_FALLEN_S, T_HEIGHT_DROP_S,
                                     make_dataset)
 
@@ -135,3 +137,22 @@ def test_cli_rejects_unusable_models_and_datasets(fixture_dataset, tmp_path, cap
         cli.main(['train', '--data', str(fixture_dataset), '--tau-plus', 'nan', '--out', 'm.json'])
     assert exit_info.value.code == 2
     assert not (tmp_path / 'm.json').exists()
+
+
+# -- the robot's CoM guard -------------------------------------------------------------------
+@pytest.mark.parametrize('robot, guard_m', [('g1', 0.55), ('asimo_like', 0.48)])
+def test_a_model_records_the_guard_of_its_datasets_robot(tmp_path, capsys, robot, guard_m):
+    """A tiny hand-made dataset of each robot (test/robot_datasets.py): the model file says the
+    robot profile's guard (0.55 m for the G1, not the ASIMO-like robot's 0.48 m), and the other
+    feature settings are still those the features were computed with."""
+    data = write_robot_dataset(tmp_path / robot, robot)
+    _, metadata = train_model(data, 0.0)
+    assert metadata.feature_settings.guard_com_height_m == guard_m
+    assert metadata.feature_settings == dataclasses.replace(FeatureSettings(), guard_com_height_m=guard_m)
+    model = tmp_path / 'model.json'
+    code, out, err = run_cli(capsys, 'train', '--data', str(data), '--tau-plus', '0',
+                             '--out', str(model), '--json')
+    assert code == 0, err
+    assert json.loads(out)['guard_com_height_m'] == guard_m
+    assert json.loads(model.read_text())['features']['guard_com_height_m'] == guard_m
+    assert load_model(model)[1].feature_settings.guard_com_height_m == guard_m

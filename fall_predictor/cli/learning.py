@@ -34,6 +34,7 @@ def cmd_train(args) -> int:
                'recommended_tau_his_s': metadata.recommended_tau_his_s,
                'learner': {'name': metadata.learner_name, 'params': metadata.learner_params},
                'sample_stride': args.stride, 'state': metadata.state, 'mirror': metadata.mirror,
+               'guard_com_height_m': metadata.feature_settings.guard_com_height_m,
                'dataset_fingerprint': metadata.dataset_fingerprint,
                'mean_rule_size': lists.mean_rule_size, 'rule_sizes': list(lists.rule_sizes),
                'depths': list(lists.depths), 'wall_s': wall}
@@ -66,7 +67,7 @@ def cmd_rules(args) -> int:
 
 
 def cmd_evaluate(args) -> int:
-    from fall_predictor.data.dataset import DatasetError
+    from fall_predictor.data.dataset import DatasetError, dataset_guard_com_height_m
     from fall_predictor.learning.evaluation import evaluate_model, evaluation_json
     from fall_predictor.learning.when_where import when_where_lines
     from fall_predictor.monitor.model_file import ModelFileError, load_model
@@ -80,15 +81,19 @@ def cmd_evaluate(args) -> int:
         evaluation = evaluate_model(args.data, lists, tau_his, baselines=args.baselines,
                                     jobs=args.jobs, skip_unreadable=args.skip_unreadable,
                                     progress=not args.json, time_to_fall=metadata.time_to_fall,
-                                    robot_mass_kg=metadata.robot_mass_kg, state=state)
+                                    robot_mass_kg=metadata.robot_mass_kg, state=state,
+                                    guard_com_height_m=metadata.feature_settings.guard_com_height_m)
+        dataset_guard = dataset_guard_com_height_m(args.data)
     except (DatasetError, ModelFileError) as error:
         return _fail('evaluate', error)
     payload = {'model': str(args.model), 'data': str(args.data), 'state': state,
                'model_state': metadata.state, **evaluation_json(evaluation),
-               'trained_on_this_dataset': metadata.dataset_fingerprint == evaluation.dataset_fingerprint}
+               'trained_on_this_dataset': metadata.dataset_fingerprint == evaluation.dataset_fingerprint,
+               'dataset_guard_com_height_m': dataset_guard}
     r = evaluation.result
     lines = [f'{r.n_trajectories} trajectories ({r.n_fallen} fallen), {state} state (model trained on '
-             f'the {metadata.state} state), tau_his {tau_his:.3f} s',
+             f'the {metadata.state} state), tau_his {tau_his:.3f} s, the model\'s CoM guard '
+             f'{evaluation.guard_com_height_m:g} m',
              f'FPR {r.fpr:.3f} ({r.n_false_positives}/{r.n_balanced} balanced trajectories), '
              f'Wilson 95 % [{r.fpr_ci95[0]:.3f}, {r.fpr_ci95[1]:.3f}]',
              f'tau_lead {r.tau_lead_s:.3f} s (bootstrap 95 % [{r.tau_lead_ci95[0]:.3f}, '
@@ -104,6 +109,10 @@ def cmd_evaluate(args) -> int:
     if payload['trained_on_this_dataset']:
         lines.append('warning: the model was trained on this dataset; these numbers are not a '
                      'held-out estimate (use `fall-predictor sweep` for cross-validation)')
+    if abs(dataset_guard - evaluation.guard_com_height_m) > 1e-9:
+        lines.append(f'warning: the model\'s CoM guard ({evaluation.guard_com_height_m:g} m) is not the '
+                     f'dataset\'s robot\'s ({dataset_guard:g} m): a model trained on another robot, or '
+                     'before models recorded their robot\'s guard (retrain it)')
     for name, front in payload.get('baselines', {}).items():
         lines.append(f'baseline {name}, Pareto front (FPR, tau_lead): ' + ', '.join(
             f'({p["fpr"]:.2f}, {p["tau_lead_s"]:.2f})' for p in front
@@ -150,7 +159,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     p = sub.add_parser('evaluate', help='FPR, lead time and misses of a model on a dataset',
                        description='Run a model over every trajectory of a dataset (the online predictor: '
-                                   'decision lists, history window tau_his, CoM guard) and report method §5\'s '
+                                   'decision lists, history window tau_his, the model\'s CoM guard) and report '
+                                   'method §5\'s '
                                    'metrics: FPR, tau_lead, misses, pre-push false alarms, oracle lead, lead '
                                    'fraction and mean rule size; with --baselines also the Pareto fronts of '
                                    'the hand-coded baselines. Not cross-validated: use a dataset the model '

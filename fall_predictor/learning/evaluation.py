@@ -20,13 +20,13 @@ from typing import Any, Optional, Sequence
 
 import numpy as np
 
-from fall_predictor.data.dataset import DatasetError, read_index
+from fall_predictor.data.dataset import DatasetError, dataset_guard_com_height_m, read_index
 from fall_predictor.learning.baselines import (CurvePoint, capture_point_curve, com_height_curve,
                                                momentum_curve, pareto_front)
 from fall_predictor.learning.metrics import EvaluationResult, evaluate_lists
 from fall_predictor.learning.training import PathLike, load_dataset
 from fall_predictor.monitor.decision_list import PerModeDecisionLists
-from fall_predictor.monitor.records import TrajectoryFeatures
+from fall_predictor.monitor.records import GUARD_COM_HEIGHT_M, TrajectoryFeatures
 
 
 # -- the capture point's distances, cached -------------------------------------------------------
@@ -110,16 +110,18 @@ class BaselineCurves:
 
 def baseline_curves(trajectories: Sequence[TrajectoryFeatures],
                     capture_point: Optional[Sequence[np.ndarray]] = None,
-                    grids: BaselineGrids = BaselineGrids()) -> BaselineCurves:
-    """Evaluate the three hand-coded baselines over their threshold ``grids`` (CoM guard on,
-    no history window, as in the paper)."""
+                    grids: BaselineGrids = BaselineGrids(),
+                    guard_com_height_m: float = GUARD_COM_HEIGHT_M) -> BaselineCurves:
+    """Evaluate the three hand-coded baselines over their threshold ``grids`` (CoM guard on at
+    ``guard_com_height_m`` [m], the robot's; no history window, as in the paper)."""
+    guard = {'guard_com_height_m': guard_com_height_m}
     return BaselineCurves(
-        com_height=tuple(com_height_curve(trajectories, grids.com_height_m)),
+        com_height=tuple(com_height_curve(trajectories, grids.com_height_m, **guard)),
         momentum=tuple(momentum_curve(trajectories, grids.momentum_sagittal,
-                                      grids.momentum_frontal)),
+                                      grids.momentum_frontal, **guard)),
         capture_point=(() if capture_point is None else
                        tuple(capture_point_curve(trajectories, capture_point,
-                                                 grids.capture_point_margin_m))))
+                                                 grids.capture_point_margin_m, **guard))))
 
 
 # -- JSON -----------------------------------------------------------------------------------------
@@ -170,34 +172,47 @@ class ModelEvaluation:
     direction_error_deg: Optional[dict[str, Any]] = None
     #: the same for the capture-point direction (the physical default, less accurate here)
     direction_error_deg_capture_point: Optional[dict[str, Any]] = None
+    #: the CoM guard [m] the model and the baselines were evaluated with (:func:`evaluate_model`)
+    guard_com_height_m: float = GUARD_COM_HEIGHT_M
 
 
 def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: float,
                    baselines: bool = False, jobs: int = 1, skip_unreadable: bool = False,
                    progress: bool = False, time_to_fall: Optional[Any] = None,
-                   robot_mass_kg: Optional[float] = None, state: str = 'true') -> ModelEvaluation:
+                   robot_mass_kg: Optional[float] = None, state: str = 'true',
+                   guard_com_height_m: Optional[float] = None) -> ModelEvaluation:
     """method §5 metrics of the predictor ``lists`` with history window ``tau_his_s`` [s] over
     every trajectory of ``data_dir``; with ``baselines``, the hand-coded baselines too.
     With a ``time_to_fall`` regressor and/or ``robot_mass_kg`` [kg], the time-to-fall and
     fall-direction errors at the triggers (:mod:`fall_predictor.learning.when_where`).
     ``state``: the features come from the true or the estimated state (data/dataset.py).
 
+    The CoM guard is the model's, as on the robot, where the monitor runs a model with the
+    feature settings it records: pass its ``feature_settings.guard_com_height_m`` [m] (the CLI
+    does, as it passes the model's ``time_to_fall`` and ``robot_mass_kg``); None (lists without a
+    model file) is the guard of the dataset's robot
+    (:func:`~fall_predictor.data.dataset.dataset_guard_com_height_m`), the one a model trained on
+    that dataset records. The baselines and the triggers use the same guard.
+
     No cross-validation: use a dataset the model was not trained on (or
     :func:`~fall_predictor.learning.sweep.compute_sweep`).
     """
     if not (math.isfinite(tau_his_s) and tau_his_s >= 0.0):
         raise ValueError(f'tau_his_s must be a finite number >= 0, got {tau_his_s!r}')
+    guard = (dataset_guard_com_height_m(data_dir) if guard_com_height_m is None
+             else float(guard_com_height_m))
     report = load_dataset(data_dir, jobs, skip_unreadable, progress, state)
     trajectories = report.trajectories
-    result = evaluate_lists(trajectories, lists, (tau_his_s,))[float(tau_his_s)]
+    result = evaluate_lists(trajectories, lists, (tau_his_s,),
+                            guard_com_height_m=guard)[float(tau_his_s)]
     curves = None
     if baselines:
         distances = capture_point_distances_cached(data_dir, trajectories, jobs, progress, state)
-        curves = baseline_curves(trajectories, distances)
+        curves = baseline_curves(trajectories, distances, guard_com_height_m=guard)
     ttf_error = direction_error = cp_error = None
     if time_to_fall is not None or robot_mass_kg is not None:
         from fall_predictor.learning import when_where
-        triggers = when_where.trigger_indices(trajectories, lists, tau_his_s)
+        triggers = when_where.trigger_indices(trajectories, lists, tau_his_s, guard)
         if time_to_fall is not None:
             ttf_error = when_where.summary(
                 when_where.time_to_fall_errors(trajectories, triggers, time_to_fall))
@@ -206,13 +221,14 @@ def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: f
                 data_dir, trajectories, triggers, robot_mass_kg, name))
                 for name in ('momentum', 'capture_point'))
     return ModelEvaluation(result, float(tau_his_s), report.fingerprint, dict(report.errors),
-                           curves, ttf_error, direction_error, cp_error)
+                           curves, ttf_error, direction_error, cp_error, guard)
 
 
 def evaluation_json(evaluation: ModelEvaluation) -> dict[str, Any]:
     """``evaluation`` as a JSON-ready dict (NaN -> null); baselines as their Pareto fronts."""
     payload: dict[str, Any] = {
-        'tau_his_s': evaluation.tau_his_s, **evaluation_result_json(evaluation.result),
+        'tau_his_s': evaluation.tau_his_s, 'guard_com_height_m': evaluation.guard_com_height_m,
+        **evaluation_result_json(evaluation.result),
         'n_pre_push_alarms': evaluation.result.n_pre_push_alarms,
         'dataset_fingerprint': evaluation.dataset_fingerprint,
         'unreadable': evaluation.unreadable,

@@ -162,6 +162,10 @@ def train_model(data_dir: PathLike, tau_plus_s: float, learner_name: str = 'tree
     ``state`` is the state the features come from (stored in the metadata as the one actually
     used, see :func:`~fall_predictor.data.dataset.resolve_state`); with ``mirror`` the lists
     also learn from every trajectory's left-right mirror image (:func:`fit_strided`).
+
+    The model's feature settings are those the features were computed with, and the CoM guard of
+    the dataset's robot (:func:`~fall_predictor.data.dataset.dataset_guard_com_height_m`): the
+    guard the model is evaluated and run with.
     """
     if not math.isfinite(tau_plus_s):
         raise ValueError(f'tau_plus_s must be finite, got {tau_plus_s!r}')
@@ -174,7 +178,7 @@ def train_model(data_dir: PathLike, tau_plus_s: float, learner_name: str = 'tree
     require_outcomes(report.trajectories, data_dir, need_balanced=False)
     lists = fit_strided(report.trajectories, tau_plus_s, learner, sample_stride, mirror=mirror)
     # the time-to-fall trees and the robot mass (fall direction) ship in the model.
-    from fall_predictor.data.dataset import robot_total_mass_kg
+    from fall_predictor.data.dataset import dataset_guard_com_height_m, robot_total_mass_kg
     from fall_predictor.learning.time_to_fall_training import fit_time_to_fall
     time_to_fall = fit_time_to_fall(report.trajectories, sample_stride)
     metadata = ModelMetadata(
@@ -182,7 +186,9 @@ def train_model(data_dir: PathLike, tau_plus_s: float, learner_name: str = 'tree
         falling_weight=FALLING_WEIGHT, learner_name=type(learner).__name__,
         learner_params=learner.get_params(), dataset_fingerprint=report.fingerprint,
         recommended_tau_his_s=recommended_tau_his_s, sample_stride=sample_stride,
-        feature_settings=report.settings, robot_mass_kg=robot_total_mass_kg(data_dir),
+        feature_settings=dataclasses.replace(
+            report.settings, guard_com_height_m=dataset_guard_com_height_m(data_dir)),
+        robot_mass_kg=robot_total_mass_kg(data_dir),
         time_to_fall=time_to_fall, state=report.state, mirror=mirror)
     return lists, metadata
 

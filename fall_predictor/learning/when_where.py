@@ -28,7 +28,7 @@ from fall_predictor.monitor.decision_list import PerModeDecisionLists
 from fall_predictor.monitor.fall_direction import (angular_error_rad, capture_point_direction,
                                                    momentum_direction)
 from fall_predictor.monitor.predictor import predict_trajectory
-from fall_predictor.monitor.records import TrajectoryFeatures
+from fall_predictor.monitor.records import GUARD_COM_HEIGHT_M, TrajectoryFeatures
 from fall_predictor.monitor.time_to_fall import TimeToFallRegressor
 
 PathLike = Union[str, 'os.PathLike[str]']
@@ -36,15 +36,18 @@ COM_CACHE_FORMAT = 'fall_predictor/com-heading-cache/v2'
 
 
 def trigger_indices(trajectories: Sequence[TrajectoryFeatures], lists: PerModeDecisionLists,
-                    tau_his_s: float) -> list[Optional[int]]:
+                    tau_his_s: float, guard_com_height_m: float = GUARD_COM_HEIGHT_M
+                    ) -> list[Optional[int]]:
     """Per trajectory, the sample index of the in-time trigger on a fallen trajectory (first
-    falling output in ``[t_push, t_fallen)``, CoM guard on), else None."""
+    falling output in ``[t_push, t_fallen)``, CoM guard on at ``guard_com_height_m`` [m]: the
+    model's), else None."""
     out: list[Optional[int]] = []
     for traj in trajectories:
         if not traj.fallen:
             out.append(None)
             continue
-        falling = predict_trajectory(lists, traj.X, traj.mode, traj.t, tau_his_s).falling
+        falling = predict_trajectory(lists, traj.X, traj.mode, traj.t, tau_his_s,
+                                     guard_com_height_m=guard_com_height_m).falling
         hits = np.flatnonzero(falling & (traj.t >= traj.t_push) & (traj.t < traj.t_fallen))
         out.append(int(hits[0]) if hits.size else None)
     return out
