@@ -113,3 +113,18 @@ def test_aggregate_folds_means_rates_and_sums_counts():
     with pytest.raises(ValueError, match='one tau_plus'):
         aggregate_folds(fits + cross_validate_grid(trajectories, make_learner('tree'), (0.3,),
                                                    (0.0,), folds=2, sample_stride=20), 0.0)
+
+
+def test_the_test_folds_run_with_the_given_guard():
+    """The synthetic CoM stands at 0.59 +- 0.005 m: a guard at 0.60 m fires from the first sample
+    (every balanced trajectory a false alarm, every fall predicted at the push by the guard
+    alone); the default guard only once the robot lies at 0.30 m, at t_fallen (no lead)."""
+    trajectories = make_dataset(n_fallen=4, n_balanced=4, seed=5, duration_s=2.0)
+    high = cross_validated_evaluation(trajectories, make_learner('tree'), 0.0, (0.0,), folds=2,
+                                      seed=0, guard_com_height_m=0.60)[0]
+    assert high.fpr == 1.0 and high.n_missed == 0
+    assert [r.tau_lead_guard_only_s for r in high.per_fold] == \
+        pytest.approx([T_FALLEN_S - T_PUSH_S] * 2, abs=1e-9)
+    default = cross_validated_evaluation(trajectories, make_learner('tree'), 0.0, (0.0,), folds=2,
+                                         seed=0)[0]
+    assert [r.tau_lead_guard_only_s for r in default.per_fold] == [0.0, 0.0]

@@ -53,3 +53,20 @@ def test_all_three_baselines_are_reported():
     for entries in report.values():
         assert [e['max_fpr'] for e in entries] == [0.0, 0.5]
         assert all(len(e['chosen_per_fold']) == 2 for e in entries)
+
+
+def test_the_baselines_run_with_the_robots_guard():
+    """A momentum baseline that never alarms (zero momenta here) is its CoM guard alone: at the
+    G1's 0.55 m it alarms on the 0.53 m dips and predicts the falls when the CoM crosses 0.55 m;
+    at the default (the ASIMO-like robot's 0.48 m) it never alarms and is late by 0.07 m of
+    sinking."""
+    trajectories = [trajectory(f'b{i}', False, 0.06) for i in range(4)] + \
+                   [trajectory(f'f{i}', True, 0.0) for i in range(4)]
+    sink_m_s = 0.29 / 1.5
+    for guard, fpr, crossing in ((0.55, 1.0, 1.0 + 0.04 / sink_m_s), (None, 0.0, 1.0 + 0.11 / sink_m_s)):
+        kwargs = {} if guard is None else {'guard_com_height_m': guard}
+        report = cross_validated_baselines(trajectories, None, BaselineGrids.coarse(), (0.0,),
+                                           folds=2, seed=0, budgets=(0.0,), **kwargs)
+        outer = report['momentum'][0]['outer']
+        assert outer['fpr'] == fpr and outer['n_balanced'] == 4
+        assert outer['tau_lead_s'] == pytest.approx(2.5 - crossing, abs=2e-3)

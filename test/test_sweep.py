@@ -10,6 +10,7 @@ from fall_predictor import cli
 from fall_predictor.learning.sweep import SweepConfig
 
 from learning_fixtures import fixture_dataset  # noqa: F401  (a pytest fixture)
+from robot_datasets import G1_GUARD_LEAD_S, write_robot_dataset
 
 
 def run_cli(capsys, *argv: str) -> tuple[int, str, str]:
@@ -135,3 +136,39 @@ def test_sweep_evaluates_the_chosen_predictors_on_a_held_out_dataset(fixture_dat
     fp_l2 = by_name['FP-L2 settings (fixed)']
     assert (fp_l2['tau_plus_s'], fp_l2['tau_his_s']) == (-0.25, 0.06)
     assert fp_l2['fpr'] == fp_l2['n_false_positives'] / (5 - len(fallen))
+
+
+def test_the_sweep_and_its_test_set_use_the_dataset_robots_guard(tmp_path):
+    """On the tiny G1 dataset (test/robot_datasets.py) the guard alone decides: with the G1's
+    0.55 m every test fold's guard-alone lead is 0.049 s and every CoM-height threshold alarms on
+    the squats; the ASIMO-like robot's 0.48 m, given explicitly, is kept and predicts nothing."""
+    from fall_predictor.learning.heldout import evaluate_on_test_set
+    from fall_predictor.learning.report import sweep_json
+    from fall_predictor.learning.sweep import compute_sweep
+
+    data = write_robot_dataset(tmp_path / 'g1', 'g1')
+    settings = dict(folds=2, tau_plus_values_s=(-0.25, 0.0), tau_his_values_s=(0.0,),
+                    learning_curve_sizes=())
+    result = compute_sweep(data, SweepConfig.quick(**settings))
+    assert result.config.guard_com_height_m == 0.55
+    assert sweep_json(result)['settings']['guard_com_height_m'] == 0.55
+    for point in result.points:
+        assert [r.tau_lead_guard_only_s for r in point.per_fold] == \
+            pytest.approx([G1_GUARD_LEAD_S] * 2, abs=1e-9)
+    assert all(p.fpr == 1.0 for p in result.baselines.com_height)
+    assert all(entry['outer']['fpr'] == 1.0 for entry in result.baselines_nested['com_height'])
+
+    test_set = evaluate_on_test_set(result, sweep_json(result)['nested_selection'],
+                                    write_robot_dataset(tmp_path / 'g1_test', 'g1', 1, 1))
+    assert test_set['guard_com_height_m'] == 0.55 and test_set['predictors']
+    for predictor in test_set['predictors']:
+        assert predictor['tau_lead_guard_only_s'] == pytest.approx(G1_GUARD_LEAD_S, abs=1e-9)
+        assert predictor['n_false_positives'] == 1 and predictor['n_missed'] == 0
+
+    asimo_guard = compute_sweep(data, SweepConfig.quick(guard_com_height_m=0.48, **settings))
+    assert asimo_guard.config.guard_com_height_m == 0.48
+    for point in asimo_guard.points:
+        assert [r.tau_lead_guard_only_s for r in point.per_fold] == [0.0, 0.0]
+    assert asimo_guard.baselines.com_height[0].fpr == 0.0       # CoM below 0.40 m: never here
+    with pytest.raises(ValueError, match='guard_com_height_m'):
+        SweepConfig(guard_com_height_m=-0.1)

@@ -24,7 +24,7 @@ from fall_predictor.learning.metrics import (EvaluationResult, evaluate_atomic, 
                                              std_or_nan)
 from fall_predictor.learning.training import (DEFAULT_SAMPLE_STRIDE, check_sample_stride,
                                               fit_strided, mean_nonempty_depth)
-from fall_predictor.monitor.records import FALLING, TrajectoryFeatures
+from fall_predictor.monitor.records import FALLING, GUARD_COM_HEIGHT_M, TrajectoryFeatures
 
 
 def stratified_trajectory_folds(trajectories: Sequence[TrajectoryFeatures], folds: int,
@@ -116,7 +116,8 @@ def cross_validate_grid(trajectories: Sequence[TrajectoryFeatures], learner: Rul
                         folds: int = 10, seed: int = 0,
                         sample_stride: int = DEFAULT_SAMPLE_STRIDE,
                         train_sizes: Sequence[Optional[int]] = (None,), jobs: int = 1,
-                        progress: bool = False) -> list[FoldFit]:
+                        progress: bool = False,
+                        guard_com_height_m: float = GUARD_COM_HEIGHT_M) -> list[FoldFit]:
     """k-fold cross-validation by trajectory over a grid: one training per (training size,
     tau_plus, fold), all ``tau_his_values`` [s] evaluated from its atomic predictions.
 
@@ -125,7 +126,10 @@ def cross_validate_grid(trajectories: Sequence[TrajectoryFeatures], learner: Rul
     ``seed``, the fold and ``n``); ``None`` (or ``n`` at least the available count) trains on
     all of them. ``jobs`` trainings run in parallel processes (the trajectories reach them
     memory-mapped from a temporary folder, deleted afterwards), or on the Dask cluster of an
-    enclosing :func:`~fall_predictor.data.parallel.compute_backend`.
+    enclosing :func:`~fall_predictor.data.parallel.compute_backend`. The test folds are evaluated
+    with the CoM guard ``guard_com_height_m`` [m]: the robot's (a dataset's callers pass
+    :func:`~fall_predictor.data.dataset.dataset_guard_com_height_m`; the default is the
+    ASIMO-like robot's).
     """
     from joblib import delayed
     from tqdm import tqdm
@@ -162,6 +166,7 @@ def cross_validate_grid(trajectories: Sequence[TrajectoryFeatures], learner: Rul
             atomic, rule_sizes, depths, fit_s = output
             test = [trajectories[i] for i in test_index]
             results = evaluate_atomic(test, atomic, tau_his_values,
+                                      guard_com_height_m=guard_com_height_m,
                                       mean_rule_size=float(np.mean(rule_sizes)))
             fits.append(FoldFit(fold, tau_plus_s, n_train, int(chosen.size), tuple(rule_sizes),
                                 tuple(depths), fit_s, results))
@@ -229,9 +234,12 @@ def cross_validated_evaluation(trajectories: Sequence[TrajectoryFeatures],
                                learner: RuleListLearner, tau_plus_s: float,
                                tau_his_values: Sequence[float], folds: int = 10, seed: int = 0,
                                sample_stride: int = DEFAULT_SAMPLE_STRIDE, jobs: int = 1,
-                               progress: bool = False) -> list[SweepPoint]:
+                               progress: bool = False,
+                               guard_com_height_m: float = GUARD_COM_HEIGHT_M) -> list[SweepPoint]:
     """k-fold cross-validated method §5 metrics of one ``tau_plus_s`` [s], one point per
-    ``tau_his`` in ``tau_his_values`` [s]."""
+    ``tau_his`` in ``tau_his_values`` [s], with the CoM guard ``guard_com_height_m`` [m]
+    (:func:`cross_validate_grid`)."""
     fits = cross_validate_grid(trajectories, learner, (tau_plus_s,), tau_his_values, folds, seed,
-                               sample_stride, jobs=jobs, progress=progress)
+                               sample_stride, jobs=jobs, progress=progress,
+                               guard_com_height_m=guard_com_height_m)
     return [aggregate_folds(fits, tau) for tau in tau_his_values]

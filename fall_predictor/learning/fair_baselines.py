@@ -20,21 +20,24 @@ from fall_predictor.learning.baselines import COM_Z, LIN_MOM_X, LIN_MOM_Y
 from fall_predictor.learning.crossval import FoldFit, stratified_trajectory_folds
 from fall_predictor.learning.metrics import evaluate_atomic
 from fall_predictor.learning.nested import NESTED_FPR_BUDGETS, nested_operating_point, pooled_json
-from fall_predictor.monitor.records import TrajectoryFeatures
+from fall_predictor.monitor.records import GUARD_COM_HEIGHT_M, TrajectoryFeatures
 
 AtomicFor = Callable[[int, Any], np.ndarray]
 
 
 def baseline_fold_fits(trajectories: Sequence[TrajectoryFeatures], thresholds: Sequence[Any],
                        atomic_for: AtomicFor, tau_his_values: Sequence[float],
-                       folds: Sequence[np.ndarray]) -> list[FoldFit]:
-    """Per fold and threshold, the test fold's results for every ``tau_his`` [s]."""
+                       folds: Sequence[np.ndarray],
+                       guard_com_height_m: float = GUARD_COM_HEIGHT_M) -> list[FoldFit]:
+    """Per fold and threshold, the test fold's results for every ``tau_his`` [s], with the CoM
+    guard ``guard_com_height_m`` [m] (the robot's)."""
     fits = []
     for fold, index in enumerate(folds):
         test = [trajectories[i] for i in index]
         for k, threshold in enumerate(thresholds):
             atomic = [atomic_for(int(i), threshold) for i in index]
-            results = evaluate_atomic(test, atomic, tau_his_values)
+            results = evaluate_atomic(test, atomic, tau_his_values,
+                                      guard_com_height_m=guard_com_height_m)
             fits.append(FoldFit(fold, float(k), None, 0, (), (), 0.0, results))
     return fits
 
@@ -47,11 +50,13 @@ def _threshold_json(threshold: Any) -> Any:
 
 def nested_baseline_json(trajectories: Sequence[TrajectoryFeatures], thresholds: Sequence[Any],
                          atomic_for: AtomicFor, tau_his_values: Sequence[float], folds: int,
-                         seed: int, budgets: Sequence[float] = NESTED_FPR_BUDGETS
-                         ) -> list[dict[str, Any]]:
-    """One baseline's nested operating points (per FPR budget), thresholds named."""
+                         seed: int, budgets: Sequence[float] = NESTED_FPR_BUDGETS,
+                         guard_com_height_m: float = GUARD_COM_HEIGHT_M) -> list[dict[str, Any]]:
+    """One baseline's nested operating points (per FPR budget), thresholds named; CoM guard
+    ``guard_com_height_m`` [m]."""
     fold_index = stratified_trajectory_folds(trajectories, folds, seed)
-    fits = baseline_fold_fits(trajectories, thresholds, atomic_for, tau_his_values, fold_index)
+    fits = baseline_fold_fits(trajectories, thresholds, atomic_for, tau_his_values, fold_index,
+                              guard_com_height_m)
     out = []
     for budget in budgets:
         point = nested_operating_point(fits, budget)
@@ -69,12 +74,14 @@ def cross_validated_baselines(trajectories: Sequence[TrajectoryFeatures],
                               capture_point: Optional[Sequence[np.ndarray]], grids: Any,
                               tau_his_values: Sequence[float], folds: int, seed: int,
                               budgets: Sequence[float] = NESTED_FPR_BUDGETS,
-                              imu: Optional[Sequence[np.ndarray]] = None) -> dict[str, Any]:
+                              imu: Optional[Sequence[np.ndarray]] = None,
+                              guard_com_height_m: float = GUARD_COM_HEIGHT_M) -> dict[str, Any]:
     """CoM height, momentum, (with distances) capture point and (with ``imu`` signals,
     :func:`~fall_predictor.learning.tilt_detector.imu_signals_cached`) the IMU tilt detector,
     each over its threshold grid (``grids``: a
     :class:`~fall_predictor.learning.evaluation.BaselineGrids`) x ``tau_his``, nested per FPR
-    budget."""
+    budget; every one with the CoM guard ``guard_com_height_m`` [m] (the robot's: a dataset's
+    callers pass :func:`~fall_predictor.data.dataset.dataset_guard_com_height_m`)."""
     heights = [float(h) for h in grids.com_height_m]
     momentum = [(float(a), float(b)) for a in grids.momentum_sagittal
                 for b in grids.momentum_frontal]
@@ -89,5 +96,5 @@ def cross_validated_baselines(trajectories: Sequence[TrajectoryFeatures],
         from fall_predictor.learning.tilt_detector import threshold_grid, tilt_alarms
         baselines['imu_tilt'] = (threshold_grid(), lambda i, th: tilt_alarms(imu[i], *th))
     return {name: nested_baseline_json(trajectories, thresholds, atomic_for, tau_his_values,
-                                       folds, seed, budgets)
+                                       folds, seed, budgets, guard_com_height_m)
             for name, (thresholds, atomic_for) in baselines.items()}

@@ -24,7 +24,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from fall_predictor.data.dataset import DatasetError
+from fall_predictor.data.dataset import DatasetError, dataset_guard_com_height_m
 from fall_predictor.data.parallel import compute_backend
 from fall_predictor.learning.baselines import pareto_front
 from fall_predictor.learning.crossval import FoldFit, aggregate_folds, cross_validate_grid
@@ -55,10 +55,15 @@ def compute_sweep(data_dir: PathLike, config: SweepConfig = SweepConfig(), jobs:
     training set); ``jobs`` processes run them (and load the features), or, with ``scheduler``
     (a Dask scheduler's address), the cluster's workers run the trainings while ``jobs`` local
     processes load the features (:mod:`fall_predictor.data.parallel`); the results are the same.
+    Every predictor and baseline runs with ``config.guard_com_height_m``, by default the CoM
+    guard of the dataset's robot (recorded in the result's config).
     """
     started = time.perf_counter()
     report = load_dataset(data_dir, jobs, skip_unreadable, progress, config.state)
-    config = dataclasses.replace(config, state=report.state)     # the state actually used
+    guard = (dataset_guard_com_height_m(data_dir) if config.guard_com_height_m is None
+             else float(config.guard_com_height_m))
+    # the state and the guard actually used
+    config = dataclasses.replace(config, state=report.state, guard_com_height_m=guard)
     trajectories = report.trajectories
     require_outcomes(trajectories, data_dir, need_balanced=True)
     if len(trajectories) < config.folds:
@@ -71,12 +76,12 @@ def compute_sweep(data_dir: PathLike, config: SweepConfig = SweepConfig(), jobs:
                  if config.capture_point else None)
     capture_point_s = time.perf_counter() - start
     start = time.perf_counter()
-    baselines = baseline_curves(trajectories, distances, config.baseline_grids)
+    baselines = baseline_curves(trajectories, distances, config.baseline_grids, guard)
     from fall_predictor.learning.tilt_detector import imu_signals_cached
     imu = imu_signals_cached(data_dir, trajectories, jobs, progress)
     baselines_nested = cross_validated_baselines(trajectories, distances, config.baseline_grids,
                                                  config.tau_his_values_s, config.folds,
-                                                 config.seed, imu=imu)
+                                                 config.seed, imu=imu, guard_com_height_m=guard)
     baselines_s = time.perf_counter() - start
 
     start = time.perf_counter()
@@ -84,7 +89,8 @@ def compute_sweep(data_dir: PathLike, config: SweepConfig = SweepConfig(), jobs:
     with compute_backend(scheduler):
         fits = cross_validate_grid(trajectories, learner, config.tau_plus_values_s,
                                    config.tau_his_values_s, config.folds, config.seed,
-                                   config.sample_stride, jobs=jobs, progress=progress)
+                                   config.sample_stride, jobs=jobs, progress=progress,
+                                   guard_com_height_m=guard)
         curve_fits = _learning_curve_fits(trajectories, learner, fits, config, jobs, progress)
     cross_validation_s = time.perf_counter() - start
 
@@ -136,7 +142,7 @@ def _learning_curve_fits(trajectories: Sequence[TrajectoryFeatures], learner: Ru
         fits = cross_validate_grid(trajectories, learner, (config.learning_curve_tau_plus_s,),
                                    (config.learning_curve_tau_his_s,), config.folds, config.seed,
                                    config.sample_stride, train_sizes=sizes, jobs=jobs,
-                                   progress=progress)
+                                   progress=progress, guard_com_height_m=config.guard_com_height_m)
     if reuse:
         fits += [fit for fit in sweep_fits if fit.tau_plus_s == config.learning_curve_tau_plus_s]
     return fits

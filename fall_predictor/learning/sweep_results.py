@@ -51,6 +51,10 @@ class SweepConfig:
     #: Features from the 'true' or the 'estimated' state (data/dataset.py); the sweep records
     #: the state actually used (a dataset without sensor topics has only the true one).
     state: str = 'true'
+    #: The CoM guard [m] of every predictor and baseline; None: the dataset's robot's
+    #: (:func:`~fall_predictor.data.dataset.dataset_guard_com_height_m`). The sweep records the
+    #: guard actually used.
+    guard_com_height_m: Optional[float] = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, 'tau_plus_values_s', tuple(float(v) for v in self.tau_plus_values_s))
@@ -75,6 +79,9 @@ class SweepConfig:
         make_learner(self.learner_name, self.learner_params)
         if self.state not in STATES:
             raise ValueError(f'state must be one of {STATES}, got {self.state!r}')
+        if self.guard_com_height_m is not None and not (
+                isinstance(self.guard_com_height_m, (int, float)) and 0.0 <= self.guard_com_height_m <= 2.0):
+            raise ValueError(f'guard_com_height_m must be None or in [0, 2] m, got {self.guard_com_height_m!r}')
 
     @classmethod
     def quick(cls, **overrides: Any) -> SweepConfig:
@@ -101,7 +108,8 @@ class SweepConfig:
                 'learning_curve_tau_his_s': self.learning_curve_tau_his_s,
                 'baseline_grids': {k: [json_float(v) for v in values] for k, values
                                    in dataclasses.asdict(self.baseline_grids).items()},
-                'capture_point': self.capture_point, 'state': self.state}
+                'capture_point': self.capture_point, 'state': self.state,
+                'guard_com_height_m': self.guard_com_height_m}
 
 
 @dataclass(frozen=True)
