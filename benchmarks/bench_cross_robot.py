@@ -4,7 +4,8 @@ features as they are (metres, kilograms) and made dimensionless by each robot's 
 For each (train, test) pair of datasets (estimated state), the decision lists are trained at one
 operating point (tau_plus, tau_his) and evaluated on the test dataset, with
 
-- ``raw`` features, the CoM guard the method's 0.48 m;
+- ``raw`` features, the CoM guard of the test dataset's robot (its profile's: 0.48 m for the
+  ASIMO-like robot, 0.55 m for the G1), the robot the lists are asked to watch;
 - ``dimensionless`` features: lengths over the robot's standing CoM height L (the median CoM
   height over each dataset's first 0.5 s), linear momentum over M sqrt(g L), angular momentum
   over M L sqrt(g L), their rates over M g and M g L (M: the robot's mass), the guard at
@@ -25,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fall_predictor.data.dataset import robot_total_mass_kg
+from fall_predictor.data.dataset import dataset_guard_com_height_m, robot_total_mass_kg
 from fall_predictor.learning.metrics import evaluate_lists
 from fall_predictor.learning.training import fit_strided, load_dataset, make_learner
 from fall_predictor.monitor.records import GUARD_COM_HEIGHT_M
@@ -69,7 +70,8 @@ def main() -> None:
         length = standing_com_height_m(trajs)
         mass = robot_total_mass_kg(folder)
         data[name] = {'raw': trajs, 'dimensionless': dimensionless(trajs, length, mass),
-                      'length_m': length, 'mass_kg': mass, 'dir': folder}
+                      'length_m': length, 'mass_kg': mass, 'dir': folder,
+                      'guard_m': dataset_guard_com_height_m(folder)}
     results = []
     for pair in args.pair:
         train_names, test_name = pair.split(':')
@@ -78,7 +80,7 @@ def main() -> None:
         for kind in ('raw', 'dimensionless'):
             train = [t for name in train_names.split('+') for t in data[name][kind]]
             lists = fit_strided(train, args.tau_plus, make_learner('tree'))
-            guard = GUARD_COM_HEIGHT_M if kind == 'raw' else GUARD_FRACTION
+            guard = test['guard_m'] if kind == 'raw' else GUARD_FRACTION
             result = evaluate_lists(test[kind], lists, (args.tau_his,), guard_com_height_m=guard)[args.tau_his]
             row[kind] = summary(result)
         results.append(row)
@@ -87,7 +89,8 @@ def main() -> None:
     args.out.write_text(json.dumps({
         'tau_plus_s': args.tau_plus, 'tau_his_s': args.tau_his,
         'datasets': {n: {'dir': d['dir'], 'standing_com_height_m': d['length_m'], 'mass_kg': d['mass_kg'],
-                         'trajectories': len(d['raw'])} for n, d in data.items()},
+                         'guard_com_height_m': d['guard_m'], 'trajectories': len(d['raw'])}
+                     for n, d in data.items()},
         'results': results}, indent=1) + '\n')
 
 

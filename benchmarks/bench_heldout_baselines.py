@@ -2,7 +2,8 @@
 development dataset as the learned lists' settings are (method §11): for each FPR budget, the
 (threshold, tau_his) with the longest lead at development FPR <= budget (else the lowest FPR),
 then reported once on the test dataset with Wilson / bootstrap intervals. Beside them, a model
-file evaluated on the same test set.
+file evaluated on the same test set. The baselines run with the CoM guard of each dataset's robot,
+a model with the guard it records (as ``fall-predictor evaluate``).
 
     .venv/bin/python benchmarks/bench_heldout_baselines.py --dev data/g1_dev240 \\
         --test data/g1_test150 --model models/g1_model.json --out docs/g1_heldout.json
@@ -15,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fall_predictor.data.dataset import dataset_guard_com_height_m
 from fall_predictor.learning.evaluation import (BaselineGrids, capture_point_distances_cached,
                                                 evaluation_result_json)
 from fall_predictor.learning.metrics import evaluate_atomic, evaluate_lists
@@ -40,12 +42,12 @@ def baselines(trajs, capture, imu, grids: BaselineGrids) -> dict:
     }
 
 
-def grid(trajs, thresholds, atomic_for) -> list:
-    """(threshold, tau_his, result) for every point of the grid."""
+def grid(trajs, thresholds, atomic_for, guard_m: float) -> list:
+    """(threshold, tau_his, result) for every point of the grid, CoM guard at ``guard_m``."""
     out = []
     for th in thresholds:
         atomic = [atomic_for(i, th) for i in range(len(trajs))]
-        for tau_his, result in evaluate_atomic(trajs, atomic, TAU_HIS_S, 0.001).items():
+        for tau_his, result in evaluate_atomic(trajs, atomic, TAU_HIS_S, 0.001, guard_m).items():
             out.append((th, tau_his, result))
     return out
 
@@ -63,21 +65,23 @@ def main() -> None:
     parser.add_argument('--jobs', type=int, default=2)
     parser.add_argument('--out', type=Path, required=True)
     args = parser.parse_args()
-    sets = {}
+    sets, guards = {}, {}
     for name, folder in (('dev', args.dev), ('test', args.test)):
         trajs = load_dataset(folder, jobs=args.jobs, state='estimated').trajectories
         capture = capture_point_distances_cached(folder, trajs, jobs=args.jobs, state='estimated')
         imu = imu_signals_cached(folder, trajs, jobs=args.jobs)
         sets[name] = baselines(trajs, capture, imu, BaselineGrids.coarse()), trajs
+        guards[name] = dataset_guard_com_height_m(folder)
     results = {'dev': str(args.dev), 'test': str(args.test), 'tau_his_grid_s': TAU_HIS_S,
-               'baselines': [], 'models': []}
+               'guard_com_height_m': guards, 'baselines': [], 'models': []}
     for name in sets['dev'][0]:
-        dev_points = grid(sets['dev'][1], *sets['dev'][0][name])
+        dev_points = grid(sets['dev'][1], *sets['dev'][0][name], guards['dev'])
         test_thresholds, test_atomic = sets['test'][0][name]
         for budget in BUDGETS:
             th, tau_his, dev_result = choose(dev_points, budget)
             atomic = [test_atomic(i, th) for i in range(len(sets['test'][1]))]
-            test_result = evaluate_atomic(sets['test'][1], atomic, (tau_his,), 0.001)[tau_his]
+            test_result = evaluate_atomic(sets['test'][1], atomic, (tau_his,), 0.001,
+                                          guards['test'])[tau_his]
             row = {'baseline': name, 'fpr_budget': budget, 'threshold': th, 'tau_his_s': tau_his,
                    'dev': {'fpr': dev_result.fpr, 'tau_lead_s': dev_result.tau_lead_s},
                    'test': evaluation_result_json(test_result)}
@@ -86,8 +90,9 @@ def main() -> None:
     for model in args.model:
         lists, metadata = load_model(model)
         tau_his = metadata.recommended_tau_his_s or 0.06
-        result = evaluate_lists(sets['test'][1], lists, (tau_his,))[tau_his]
-        results['models'].append({'model': str(model), 'tau_his_s': tau_his,
+        guard = metadata.feature_settings.guard_com_height_m
+        result = evaluate_lists(sets['test'][1], lists, (tau_his,), guard_com_height_m=guard)[tau_his]
+        results['models'].append({'model': str(model), 'tau_his_s': tau_his, 'guard_com_height_m': guard,
                                   'test': evaluation_result_json(result)})
         print(model, round(result.fpr, 3), round(result.tau_lead_s, 3), flush=True)
     args.out.parent.mkdir(parents=True, exist_ok=True)

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fall_predictor.data.dataset import dataset_guard_com_height_m
 from fall_predictor.learning.crossval import stratified_trajectory_folds
 from fall_predictor.learning.evaluation import evaluation_result_json
 from fall_predictor.learning.learners import training_set
@@ -75,14 +76,14 @@ def _fit_and_evaluate(train, test, args) -> dict:
     for name, mirror in (('tree', False), ('tree_mirror', True)):
         start = time.perf_counter()
         lists = fit_strided(train, args.tau_plus, make_learner('tree'), args.stride, mirror=mirror)
-        out[name] = (evaluate_lists(test, lists, (args.tau_his,))[args.tau_his],
+        out[name] = (evaluate_lists(test, lists, (args.tau_his,), guard_com_height_m=args.guard)[args.tau_his],
                      {'fit_s': round(time.perf_counter() - start, 1),
                       'empty_modes': [m for m, dl in enumerate(lists.lists) if not dl.rules]})
     start = time.perf_counter()
     models = fit_hgb(train, args.tau_plus, args.stride)
     fit_s = time.perf_counter() - start
     atomic = [predict_hgb(models, t.X, t.mode) for t in test]
-    out['hgb'] = (evaluate_atomic(test, atomic, (args.tau_his,))[args.tau_his],
+    out['hgb'] = (evaluate_atomic(test, atomic, (args.tau_his,), guard_com_height_m=args.guard)[args.tau_his],
                   {'fit_s': round(fit_s, 1), 'models': models})
     return out
 
@@ -121,6 +122,7 @@ def main() -> None:
     if args.test is None and args.folds < 2:
         parser.error('give --test, --folds K (K >= 2), or both')
     train = load_dataset(args.train, jobs=2, state=args.state).trajectories
+    args.guard = dataset_guard_com_height_m(args.train)   # the training robot's CoM guard
     result = {'train': Path(args.train).name, 'state': args.state,
               'n_train': len(train), 'tau_plus_s': args.tau_plus, 'tau_his_s': args.tau_his,
               'stride': args.stride}

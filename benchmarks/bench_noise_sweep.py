@@ -79,17 +79,20 @@ def main() -> None:
     args = parser.parse_args()
     lists, metadata = load_model(args.model)
     tau_his = metadata.recommended_tau_his_s
+    guard = metadata.feature_settings.guard_com_height_m      # the model's, as `evaluate` uses it
     started = time.perf_counter()
     rows, true_state = [], None
     for scale in SCALES:
         data = args.work / f'noise_{scale:g}x'
         generate_dataset(data, args.trajectories, args.seed, jobs=args.jobs,
                          config=GenerationConfig(seed=args.seed, sensor_noise_scale=scale))
-        evaluation = evaluate_model(data, lists, tau_his, jobs=args.jobs, progress=True, state='estimated')
+        evaluation = evaluate_model(data, lists, tau_his, jobs=args.jobs, progress=True, state='estimated',
+                                    guard_com_height_m=guard)
         rows.append({'noise_scale': scale, **_figures(evaluation.result)})
         print(json.dumps(rows[-1]), flush=True)
         if true_state is None:
-            true_state = _figures(evaluate_model(data, lists, tau_his, jobs=args.jobs, state='true').result)
+            true_state = _figures(evaluate_model(data, lists, tau_his, jobs=args.jobs, state='true',
+                                                 guard_com_height_m=guard).result)
     document = {'command': 'python benchmarks/bench_noise_sweep.py ' + ' '.join(
                     f'--{k.replace("_", "-")} {v}' for k, v in vars(args).items()),
                 'model': str(args.model), 'model_state': metadata.state, 'tau_his_s': tau_his,

@@ -25,6 +25,7 @@ import json
 import time
 from pathlib import Path
 
+from fall_predictor.data.dataset import dataset_guard_com_height_m
 from fall_predictor.learning.crossval import DEFAULT_SAMPLE_STRIDE, cross_validate_grid
 from fall_predictor.learning.metrics import evaluate_lists
 from fall_predictor.learning.nested import fixed_setting, pool_results, pooled_json
@@ -39,12 +40,14 @@ def _figures(state: str, args: argparse.Namespace) -> dict:
     train = load_dataset(args.data, jobs=args.jobs, state=state).trajectories
     test = load_dataset(args.test, jobs=args.jobs, state=state).trajectories
     learner = make_learner('tree')
+    guard = dataset_guard_com_height_m(args.data)       # the training robot's, as a model records it
     setting = (args.tau_plus, args.tau_his)
     fits = cross_validate_grid(train, learner, (args.tau_plus,), (args.tau_his,), args.folds,
-                               args.seed, DEFAULT_SAMPLE_STRIDE, jobs=args.jobs, progress=True)
+                               args.seed, DEFAULT_SAMPLE_STRIDE, jobs=args.jobs, progress=True,
+                               guard_com_height_m=guard)
     cross_validated = pooled_json(fixed_setting(fits, setting))
     lists = fit_strided(train, args.tau_plus, learner, DEFAULT_SAMPLE_STRIDE)
-    result = evaluate_lists(test, lists, (args.tau_his,))[args.tau_his]
+    result = evaluate_lists(test, lists, (args.tau_his,), guard_com_height_m=guard)[args.tau_his]
     held_out = pooled_json(pool_results([result]))
     held_out['mean_rule_size'] = float(lists.mean_rule_size)
     return {'cross_validated': cross_validated, 'test_set': held_out,

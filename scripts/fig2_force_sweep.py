@@ -49,10 +49,11 @@ def one(force: float, angle: float, height: float, t_push: float, horizon_s: flo
         from fall_predictor.monitor.model_file import load_model
         from fall_predictor.monitor.predictor import predict_trajectory
 
-        lists, _ = load_model(model)
+        lists, metadata = load_model(model)
         X, mode = extract_features(result.measurements)
         t = result.t
-        prediction = predict_trajectory(lists, X, mode, t, tau_his_s)
+        prediction = predict_trajectory(lists, X, mode, t, tau_his_s,
+                                        guard_com_height_m=metadata.feature_settings.guard_com_height_m)
         t_predict = prediction.first_falling_time(t_push)
         row['time_to_predict_s'] = None if t_predict is None else t_predict - t_push
     return row

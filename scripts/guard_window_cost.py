@@ -46,7 +46,7 @@ def main() -> None:
     prepared = []
     for traj in trajectories:
         atomic = lists.predict(traj.X, traj.mode) == FALLING
-        guard = guard_predictions(traj.X)
+        guard = guard_predictions(traj.X, metadata.feature_settings.guard_com_height_m)  # the model's
         prepared.append((traj, falling_run_durations(traj.t, atomic),
                          falling_run_durations(traj.t, atomic | guard), guard))
     for tau in tau_values:
