@@ -142,10 +142,10 @@ class SensorTruth:
 def _ground_wrench(sim, side: str, contacts) -> np.ndarray:
     """Ground reaction on one sole, about the sole origin, in the sole frame."""
     foot = sim.foot_links[side]
-    ls = pb.getLinkState(sim.robot, foot, computeForwardKinematics=1, physicsClientId=sim.client)
+    frame_pos, frame_orn = sim.link_frame_pose(foot)
     # The foot's link frame is at the ankle centre; the sole frame has the same axes.
-    rot = np.array(pb.getMatrixFromQuaternion(ls[5])).reshape(3, 3)
-    origin = np.asarray(ls[4]) + rot @ np.asarray(sim.profile.feet[side].sole_origin_in_foot_m)
+    rot = np.array(pb.getMatrixFromQuaternion(frame_orn)).reshape(3, 3)
+    origin = np.asarray(frame_pos) + rot @ np.asarray(sim.profile.feet[side].sole_origin_in_foot_m)
     # Summed in Python floats: a foot has a few contact points per step, and numpy's per-call
     # cost on 3-vectors was a fifth of the generation's time.
     ox, oy, oz = origin.tolist()
@@ -196,7 +196,7 @@ def sensor_truth(sim) -> SensorTruth:
             body_com, lin, ang = ps[0], ps[6], ps[7]
         omega = np.asarray(ang)
         v_imu = np.asarray(lin) + cross3(omega, np.asarray(ls[4]) - np.asarray(body_com))
-    contacts = pb.getContactPoints(bodyA=sim.robot, bodyB=sim.plane, physicsClientId=c)
+    contacts = sim.ground_contacts()
     q, dq, tau = sim.joint_states()
     wrenches = {side: _ground_wrench(sim, side, contacts) if foot.force_torque_frame else None
                 for side, foot in profile.feet.items()}

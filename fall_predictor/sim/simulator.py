@@ -81,6 +81,7 @@ class Simulator:
         self.plane = -1
         self.t = 0.0
         self.tick = 0
+        self._measured = None      # this step's PyBullet reads (measure)
         self._push: Optional[PushSpec] = None
         self._push_force_world = np.zeros(3)
         self._push_point_local = np.zeros(3)
@@ -165,6 +166,7 @@ class Simulator:
         self.total_mass = float(self.masses.sum())
         self.t = 0.0
         self.tick = 0
+        self._measured = None      # this step's PyBullet reads (measure)
         self._push = None
         self._push_force_world = np.zeros(3)
         self._prev_measurement = None
@@ -177,6 +179,7 @@ class Simulator:
         """After ``pybullet.restoreState``: set the clock and last sample to the snapshot's,
         with no push pending."""
         self.tick = tick
+        self._measured = None      # this step's PyBullet reads (measure)
         self.t = tick * self.config.dt_s
         self._push = None
         self._push_force_world = np.zeros(3)
@@ -273,6 +276,23 @@ class Simulator:
         """Joint positions [rad], velocities [rad/s] and the motor torques [N m] of the last step."""
         return self._q.copy(), self._dq.copy(), self._torques.copy()
 
+    def link_frame_pose(self, link: int) -> tuple[tuple, tuple]:
+        """World position and quaternion (x, y, z, w) of ``link``'s frame (not its inertial frame)
+        at the current step: from this step's measurement when it read them, else from PyBullet."""
+        measured = self._measured
+        if measured is not None and measured[0] == self.tick and link in self._row:
+            state = measured[1][self._row[link]]
+            return state[4], state[5]
+        state = pb.getLinkState(self.robot, link, computeForwardKinematics=1, physicsClientId=self.client)
+        return state[4], state[5]
+
+    def ground_contacts(self) -> tuple:
+        """PyBullet's contact points between the robot and the ground at the current step."""
+        measured = self._measured
+        if measured is not None and measured[0] == self.tick:
+            return measured[2]
+        return pb.getContactPoints(bodyA=self.robot, bodyB=self.plane, physicsClientId=self.client)
+
     def measure(self) -> Measurement:
         """CoM, momenta about the CoM, heading, contacts and CoP of the current state."""
         c = self.client
@@ -302,6 +322,8 @@ class Simulator:
         heading = math.atan2(rot0[1, 0], rot0[0, 0])
 
         contacts = pb.getContactPoints(bodyA=self.robot, bodyB=self.plane, physicsClientId=c)
+        # Kept for the sensor truth of the same step (sim.sensors), which needs the same reads.
+        self._measured = (self.tick, links, contacts)
         per_foot: dict[int, list[tuple[float, float, float]]] = {lk: [] for lk in self.foot_links.values()}
         non_foot = False
         for cp in contacts:
