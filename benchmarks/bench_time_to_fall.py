@@ -102,7 +102,8 @@ def main(argv: list[str] | None = None) -> dict:
     data = {}
     for name, folder in (('dev', args.dev), ('test', args.test)):
         trajs = load_dataset(folder, jobs=args.jobs, state='estimated').trajectories
-        data[name] = (trajs, trigger_indices(trajs, lists, tau_his))
+        data[name] = (trajs, trigger_indices(trajs, lists, tau_his,
+                                             metadata.feature_settings.guard_com_height_m))
     dev, dev_triggers = data['dev']
     test, test_triggers = data['test']
     X_test, y_test = at_triggers(test, test_triggers)

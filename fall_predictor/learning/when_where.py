@@ -101,19 +101,20 @@ def actual_direction(com_xy: np.ndarray, heading: np.ndarray, t: np.ndarray, k: 
 DIRECTIONS = {'momentum': momentum_direction, 'capture_point': capture_point_direction}
 
 
-def direction_errors_deg(data_dir: PathLike, trajectories: Sequence[TrajectoryFeatures],
-                         triggers: Sequence[Optional[int]], mass_kg: float,
-                         direction: str = 'momentum') -> list[float]:
-    """Angular error [deg] of a predicted fall direction (a name of :data:`DIRECTIONS`) at
-    each trigger."""
-    predict = DIRECTIONS[direction]
+def actual_directions(data_dir: PathLike, trajectories: Sequence[TrajectoryFeatures],
+                      triggers: Sequence[Optional[int]]) -> list[Optional[np.ndarray]]:
+    """Per trajectory, the unit (2,) heading-frame direction the CoM left in from its trigger
+    sample to ``t_fallen`` (:func:`actual_direction`), from the dataset's true CoM; None where
+    there is no trigger, or the direction is undefined. Empty for a robot's recordings (no
+    true CoM to compare with)."""
     data_dir = Path(data_dir)
     if read_manifest(data_dir).get('ground_truth') is False:
-        return []                       # a robot's recordings: no true CoM to compare with
+        return []
     bags = {row.trajectory_id: row.bag for row in read_index(data_dir)}
-    errors = []
+    out: list[Optional[np.ndarray]] = []
     for traj, k in zip(trajectories, triggers):
         if k is None:
+            out.append(None)
             continue
         com = _com_entry(data_dir, bags[traj.trajectory_id], traj.trajectory_id)
         # The true CoM at the feature samples' times (estimated features may skip samples).
@@ -121,8 +122,22 @@ def direction_errors_deg(data_dir: PathLike, trajectories: Sequence[TrajectoryFe
         if at.max() >= com['t'].size or np.abs(com['t'][at] - traj.t).max() > 5e-4:
             raise DatasetError(f'{traj.trajectory_id}: the true CoM misses feature sample times')
         actual = actual_direction(com['com_xy'][at], com['heading'][at], traj.t, k, traj.t_fallen)
+        out.append(actual if np.all(np.isfinite(actual)) else None)
+    return out
+
+
+def direction_errors_deg(data_dir: PathLike, trajectories: Sequence[TrajectoryFeatures],
+                         triggers: Sequence[Optional[int]], mass_kg: float,
+                         direction: str = 'momentum') -> list[float]:
+    """Angular error [deg] of a predicted fall direction (a name of :data:`DIRECTIONS`) at
+    each trigger."""
+    predict = DIRECTIONS[direction]
+    errors = []
+    for traj, k, actual in zip(trajectories, triggers, actual_directions(data_dir, trajectories, triggers)):
+        if actual is None:
+            continue
         predicted = predict(traj.X[k].tolist(), mass_kg)
-        if np.all(np.isfinite(actual)) and np.all(np.isfinite(predicted)):
+        if np.all(np.isfinite(predicted)):
             errors.append(math.degrees(angular_error_rad(predicted, actual)))
     return errors
 
