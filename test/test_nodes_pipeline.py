@@ -57,6 +57,7 @@ from fall_predictor.msg import Measurement as MeasurementMsg
 
 STRONG_PUSH = PushSpec(force_n=450.0, angle_deg=90.0, height_m=0.1, t_push=2.5)
 NO_PUSH_RUN_S = 10.0
+SIM_DT_S = 0.001                    #: the simulator's step: one measurement each [s]
 GARBAGE_AT_S = 3.0                  #: malformed commands sent when the observer sees this [s]
 TAU_HIS_CHANGE_AT_S = 5.0           #: requested when the observer sees this sample time [s]
 NEW_TAU_HIS_S = 0.05
@@ -247,10 +248,14 @@ def test_no_push_gives_no_trigger_for_10_s(system: System, runs: Runs) -> None:
     ts = [s.t for s in run.states]
     assert ts == sorted(set(ts))
     assert {s.status for s in run.states} <= {STATUS_OK, STATUS_STALE}
-    sample_ts = [t for t, _ in run.samples]
-    assert set(ts) <= set(sample_ts)
+    # The reference is the simulator's 1 kHz grid up to the last sample, not the samples this
+    # test's own best-effort subscription happened to receive: on a loaded machine it loses
+    # some too, and a state of a sample it lost is no fault of the monitor's.
+    steps = round(run.samples[-1][0] / SIM_DT_S)
+    grid = {round(k * SIM_DT_S, 6) for k in range(steps + 1)}
+    assert {round(t, 6) for t in ts} <= grid
     lost = int(run.counters['predictor_node']['missing_samples'])
-    assert len(sample_ts) - len(ts) == lost, (len(sample_ts), len(ts), lost)
+    assert len(grid) - len(ts) == lost, (len(grid), len(ts), lost)
     assert ts                                       # (how many are lost under load: benchmarks)
 
 

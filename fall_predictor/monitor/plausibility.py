@@ -51,6 +51,7 @@ elsewhere): the check then accepts the current sample and starts over from it.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Optional, Sequence
@@ -296,17 +297,24 @@ class JointBounds:
     upper: np.ndarray
     velocity: np.ndarray
 
-    def violations(self, q: np.ndarray, dq: np.ndarray) -> list[str]:
-        """Each joint whose position or velocity is impossible, in words (empty: all plausible)."""
-        low = self.lower - JOINT_LIMIT_MARGIN_RAD
-        high = self.upper + JOINT_LIMIT_MARGIN_RAD
+    @functools.cached_property
+    def _limits(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(lowest, highest position [rad], highest speed [rad/s]) accepted per joint."""
         v_max = np.where(np.isfinite(self.velocity), JOINT_VELOCITY_LIMIT_FACTOR * self.velocity,
                          MAX_JOINT_VELOCITY_RAD_S)
+        return self.lower - JOINT_LIMIT_MARGIN_RAD, self.upper + JOINT_LIMIT_MARGIN_RAD, v_max
+
+    def violations(self, q: np.ndarray, dq: np.ndarray) -> list[str]:
+        """Each joint whose position or velocity is impossible, in words (empty: all plausible)."""
+        low, high, v_max = self._limits
         with np.errstate(invalid='ignore'):
             bad_q = ~((q >= low) & (q <= high))
             bad_v = ~(np.abs(dq) <= v_max)
+        bad = bad_q | bad_v
+        if not np.count_nonzero(bad):
+            return []
         out = []
-        for i in np.flatnonzero(bad_q | bad_v):
+        for i in np.flatnonzero(bad):
             name = self.names[i]
             if bad_q[i]:
                 out.append(f'joint {name} at {q[i]:.4g} rad, outside its limits '
