@@ -1,6 +1,7 @@
 """The ``main()`` of every node: create the nodes of a process and spin them until shutdown."""
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Sequence
 from typing import Callable, Optional
@@ -10,6 +11,36 @@ from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedE
 from rclpy.node import Node
 
 from fall_predictor.ros.parameters import NodeStartupError
+
+#: Environment variable that chooses the executor of every node process (:func:`make_executor`).
+EXECUTOR_ENV = 'FALL_PREDICTOR_EXECUTOR'
+EXECUTORS = ('single_threaded', 'events')
+
+
+def make_executor(kind: Optional[str] = None) -> Executor:
+    """The executor ``kind`` (default: ``$FALL_PREDICTOR_EXECUTOR``, else 'single_threaded'):
+    rclpy's SingleThreadedExecutor, or its experimental EventsExecutor ('events', about half the
+    CPU per message in ``benchmarks/bench_executors.py``; opt-in until the whole system has been
+    measured with it). NodeStartupError for another name."""
+    kind = kind or os.environ.get(EXECUTOR_ENV) or 'single_threaded'
+    if kind not in EXECUTORS:
+        raise NodeStartupError(f'{EXECUTOR_ENV}={kind!r} is not an executor: use one of {EXECUTORS}')
+    if kind == 'events':
+        from rclpy.experimental import EventsExecutor
+        return EventsExecutor()
+    return SingleThreadedExecutor()
+
+
+def spin_until_shutdown(executor: Executor) -> None:
+    """Spin until the context shuts down (Ctrl-C, SIGTERM, ``rclpy.shutdown()``). The
+    EventsExecutor is spun one wake-up at a time: its ``spin()`` does not return on shutdown in
+    this rclpy (measured: ``bench_executors.py`` reports it hung)."""
+    if isinstance(executor, SingleThreadedExecutor):
+        executor.spin()
+        return
+    while rclpy.ok():
+        executor.spin_once(timeout_sec=0.1)
+
 
 # --------------------------------------------------------------------------------------------
 # main()
@@ -26,8 +57,8 @@ def run_node(factory: Callable[[], Node], name: str, args: Optional[list[str]] =
 
 def run_nodes(factories: Sequence[Callable[[], Node]], name: str,
               args: Optional[list[str]] = None) -> int:
-    """Create one node per factory in this process and spin them all with one
-    SingleThreadedExecutor (the callbacks of all nodes run in turn, no threads), until
+    """Create one node per factory in this process and spin them all with one executor
+    (:func:`make_executor`: the callbacks of all nodes run in turn, no threads), until
     Ctrl-C / SIGTERM / shutdown. Exit code as :func:`run_node`; if one node cannot start,
     none runs."""
     rclpy.init(args=args)
@@ -39,11 +70,15 @@ def run_nodes(factories: Sequence[Callable[[], Node]], name: str,
         except NodeStartupError as error:
             rclpy.logging.get_logger(name).fatal(f'cannot start: {error}')
             return 1
-        executor = SingleThreadedExecutor()
+        try:
+            executor = make_executor()
+        except NodeStartupError as error:
+            rclpy.logging.get_logger(name).fatal(f'cannot start: {error}')
+            return 1
         for node in nodes:
             executor.add_node(node)
         try:
-            executor.spin()
+            spin_until_shutdown(executor)
         except (KeyboardInterrupt, ExternalShutdownException):
             pass
         except Exception:
