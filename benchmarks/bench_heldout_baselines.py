@@ -1,9 +1,10 @@
 """The hand-coded baselines on a held-out dataset, their thresholds and tau_his chosen on the
 development dataset as the learned lists' settings are (method §11): for each FPR budget, the
 (threshold, tau_his) with the longest lead at development FPR <= budget (else the lowest FPR),
-then reported once on the test dataset with Wilson / bootstrap intervals. Beside them, a model
-file evaluated on the same test set. The baselines run with the CoM guard of each dataset's robot,
-a model with the guard it records (as ``fall-predictor evaluate``).
+then reported once on the test dataset with Wilson / bootstrap intervals (budgets 0, 0.01, 0.06).
+Beside them, model files evaluated on the same test set (``--model FILE`` at its recommended
+tau_his, ``--model FILE@TAU_HIS`` at another). The baselines run with the CoM guard of each
+dataset's robot, a model with the guard it records (as ``fall-predictor evaluate``).
 
     .venv/bin/python benchmarks/bench_heldout_baselines.py --dev data/g1_dev240 \\
         --test data/g1_test150 --model models/g1_model.json --out docs/g1_heldout.json
@@ -25,8 +26,8 @@ from fall_predictor.learning.training import load_dataset
 from fall_predictor.monitor.model_file import load_model
 from fall_predictor.monitor.records import FEATURE_NAMES
 
-TAU_HIS_S = (0.0, 0.016, 0.044, 0.06)
-BUDGETS = (0.01, 0.06)
+TAU_HIS_S = (0.0, 0.016, 0.044, 0.06, 0.1)
+BUDGETS = (0.0, 0.01, 0.06)
 COM_Z, PX, PY = (FEATURE_NAMES.index(n) for n in ('com_z', 'lin_mom_x', 'lin_mom_y'))
 
 
@@ -61,7 +62,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--dev', type=Path, required=True)
     parser.add_argument('--test', type=Path, required=True)
-    parser.add_argument('--model', type=Path, action='append', default=[])
+    parser.add_argument('--model', action='append', default=[],
+                        help='model file, or FILE@TAU_HIS (repeatable)')
     parser.add_argument('--jobs', type=int, default=2)
     parser.add_argument('--out', type=Path, required=True)
     args = parser.parse_args()
@@ -87,14 +89,16 @@ def main() -> None:
                    'test': evaluation_result_json(test_result)}
             results['baselines'].append(row)
             print(name, budget, th, tau_his, round(test_result.fpr, 3), round(test_result.tau_lead_s, 3), flush=True)
-    for model in args.model:
-        lists, metadata = load_model(model)
-        tau_his = metadata.recommended_tau_his_s or 0.06
+    for spec in args.model:
+        # PATH, or PATH@TAU_HIS for a history window other than the model's recommended one.
+        path, _, window = str(spec).partition('@')
+        lists, metadata = load_model(path)
+        tau_his = float(window) if window else (metadata.recommended_tau_his_s or 0.06)
         guard = metadata.feature_settings.guard_com_height_m
         result = evaluate_lists(sets['test'][1], lists, (tau_his,), guard_com_height_m=guard)[tau_his]
-        results['models'].append({'model': str(model), 'tau_his_s': tau_his, 'guard_com_height_m': guard,
+        results['models'].append({'model': path, 'tau_his_s': tau_his, 'guard_com_height_m': guard,
                                   'test': evaluation_result_json(result)})
-        print(model, round(result.fpr, 3), round(result.tau_lead_s, 3), flush=True)
+        print(spec, round(result.fpr, 3), round(result.tau_lead_s, 3), flush=True)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(results, indent=1, default=str) + '\n')
 
