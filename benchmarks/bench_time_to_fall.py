@@ -8,7 +8,8 @@ trigger ``k``:
 
 **Time to fall** (target ``t_fallen - t_k``), absolute error of:
 
-* ``naive``: a constant, the median time to fall at the development triggers;
+* ``naive``: a constant, the median time to fall at the development triggers
+  (``naive_hindsight``: the test triggers' own median, the best constant there is);
 * ``shipped``: the model file's regressor (trained on every falling state, push to fall);
 * ``trigger_tree[<inputs>]``: a regression tree fitted on development samples from each trigger
   to ``--window`` after it (the states the monitor reports a time to fall on when it matters),
@@ -20,10 +21,12 @@ trigger ``k``:
 angular error of the momentum direction, the capture-point bearing and a naive constant (the
 development falls' circular-mean direction).
 
-Each: median and p90 with 95 % bootstrap intervals over trajectories. Writes JSON (``--out``).
+The references (naive constants, trees, boosting) are fitted on the development data
+(``--dev``), or without it by ``--folds``-fold cross-validation over the test set's trajectories
+(each fold predicted by what the others taught). Each: median and p90 with 95 % bootstrap
+intervals over trajectories. Writes JSON (``--out``).
 
-    python benchmarks/bench_time_to_fall.py --dev data/d1000s --test data/t1000s_2026 \\
-        --out docs/time_to_fall_t1000.json
+    python benchmarks/bench_time_to_fall.py --test data/t1000s_2026 --out docs/time_to_fall_t1000.json
 """
 from __future__ import annotations
 
@@ -88,7 +91,9 @@ def main(argv: list[str] | None = None) -> dict:
     from sklearn.tree import DecisionTreeRegressor
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--dev', type=Path, required=True)
+    parser.add_argument('--dev', type=Path, default=None,
+                        help='development data for the references (default: CV over --test)')
+    parser.add_argument('--folds', type=int, default=5, help='CV folds without --dev')
     parser.add_argument('--test', type=Path, required=True)
     parser.add_argument('--model', type=Path, default=MODELS / 'default_model.json')
     parser.add_argument('--window', type=float, default=0.1, help='trigger-time training window [s]')
@@ -99,61 +104,86 @@ def main(argv: list[str] | None = None) -> dict:
     lists, metadata = load_model(args.model)
     tau_his = metadata.recommended_tau_his_s or 0.0
     mass_kg = metadata.robot_mass_kg
-    data = {}
-    for name, folder in (('dev', args.dev), ('test', args.test)):
-        trajs = load_dataset(folder, jobs=args.jobs, state='estimated').trajectories
-        data[name] = (trajs, trigger_indices(trajs, lists, tau_his,
-                                             metadata.feature_settings.guard_com_height_m))
-    dev, dev_triggers = data['dev']
-    test, test_triggers = data['test']
-    X_test, y_test = at_triggers(test, test_triggers)
-    _, y_dev_triggers = at_triggers(dev, dev_triggers)
-
-    ttf = {'naive': spread(np.abs(float(np.median(y_dev_triggers)) - y_test))}
+    guard = metadata.feature_settings.guard_com_height_m
+    test = load_dataset(args.test, jobs=args.jobs, state='estimated').trajectories
+    test_triggers = trigger_indices(test, lists, tau_his, guard)
+    test_actual = actual_directions(args.test, test, test_triggers)
+    # The learned references are fitted on the development data (--dev), else by K-fold
+    # cross-validation over the test set's trajectories: each fold predicted by what the
+    # other folds taught.
+    if args.dev is not None:
+        dev = load_dataset(args.dev, jobs=args.jobs, state='estimated').trajectories
+        dev_triggers = trigger_indices(dev, lists, tau_his, guard)
+        splits = [(dev, dev_triggers, actual_directions(args.dev, dev, dev_triggers),
+                   list(range(len(test))))]
+    else:
+        fold_of = np.arange(len(test)) % args.folds
+        splits = []
+        for f in range(args.folds):
+            train = [i for i in range(len(test)) if fold_of[i] != f]
+            splits.append(([test[i] for i in train], [test_triggers[i] for i in train],
+                           [test_actual[i] for i in train], [i for i in range(len(test)) if fold_of[i] == f]))
+    names = ['naive'] + [f'trigger_tree[{g}]' for g in GROUPS] + ['trigger_boosting[all]']
+    ttf_errors: dict[str, list] = {name: [] for name in names}
+    dir_errors: dict[str, list] = {'momentum': [], 'capture_point': [], 'naive': []}
+    y_all, window_samples_n, importances = [], 0, np.zeros(len(FEATURE_NAMES))
+    for train, train_triggers, train_actual, held in splits:
+        held = [i for i in held if test_triggers[i] is not None]
+        if not held:
+            continue
+        X_held = np.array([test[i].X[test_triggers[i]] for i in held])
+        y_held = np.array([test[i].t_fallen - test[i].t[test_triggers[i]] for i in held])
+        y_all.extend(y_held)
+        _, y_train = at_triggers(train, train_triggers)
+        ttf_errors['naive'].extend(np.abs(float(np.median(y_train)) - y_held))
+        X_win, y_win = window_samples(train, train_triggers, args.window)
+        window_samples_n += y_win.size
+        for group, cols_names in GROUPS.items():
+            cols = [FEATURE_NAMES.index(n) for n in cols_names]
+            tree = DecisionTreeRegressor(max_depth=6, min_samples_leaf=20, random_state=0)
+            tree.fit(X_win[:, cols], y_win)
+            ttf_errors[f'trigger_tree[{group}]'].extend(np.abs(tree.predict(X_held[:, cols]) - y_held))
+            if group == 'all':
+                importances += tree.feature_importances_ / len(splits)
+        boost = HistGradientBoostingRegressor(max_iter=300, learning_rate=0.05, random_state=0)
+        boost.fit(X_win, y_win)
+        ttf_errors['trigger_boosting[all]'].extend(np.abs(boost.predict(X_held) - y_held))
+        # Direction: the naive constant is the training falls' circular-mean direction.
+        known = [a for a in train_actual if a is not None]
+        mean_angle = math.atan2(sum(a[1] for a in known), sum(a[0] for a in known))
+        naive = np.array([math.cos(mean_angle), math.sin(mean_angle)])
+        for i in held:
+            actual = test_actual[i]
+            if actual is None:
+                continue
+            x = test[i].X[test_triggers[i]].tolist()
+            for name, predicted in (('momentum', momentum_direction(x, mass_kg)),
+                                    ('capture_point', capture_point_direction(x, mass_kg)),
+                                    ('naive', naive)):
+                if np.all(np.isfinite(predicted[:2])):
+                    dir_errors[name].append(math.degrees(angular_error_rad(predicted, actual)))
+    y_test = np.array(y_all)
+    ttf = {name: spread(v) for name, v in ttf_errors.items()}
+    ttf['naive_hindsight'] = spread(np.abs(float(np.median(y_test)) - y_test))
     if metadata.time_to_fall is not None:
         predicted = np.array([metadata.time_to_fall.predict_one(traj.X[k].tolist(), int(traj.mode[k]))
                               for traj, k in zip(test, test_triggers) if k is not None])
-        ttf['shipped'] = spread(np.abs(predicted - y_test))
-    X_win, y_win = window_samples(dev, dev_triggers, args.window)
-    importances = {}
-    for group, names in GROUPS.items():
-        cols = [FEATURE_NAMES.index(n) for n in names]
-        tree = DecisionTreeRegressor(max_depth=6, min_samples_leaf=20, random_state=0)
-        tree.fit(X_win[:, cols], y_win)
-        ttf[f'trigger_tree[{group}]'] = spread(np.abs(tree.predict(X_test[:, cols]) - y_test))
-        if group == 'all':
-            importances = dict(zip(names, (round(float(v), 3) for v in tree.feature_importances_)))
-    boost = HistGradientBoostingRegressor(max_iter=300, learning_rate=0.05, random_state=0)
-    boost.fit(X_win, y_win)
-    ttf['trigger_boosting[all]'] = spread(np.abs(boost.predict(X_test) - y_test))
-
-    # Direction: the naive constant is the development falls' circular-mean direction.
-    dev_actual = [a for a in actual_directions(args.dev, dev, dev_triggers) if a is not None]
-    mean_angle = math.atan2(sum(a[1] for a in dev_actual), sum(a[0] for a in dev_actual))
-    naive = np.array([math.cos(mean_angle), math.sin(mean_angle)])
-    errors = {'momentum': [], 'capture_point': [], 'naive': []}
-    for traj, k, actual in zip(test, test_triggers, actual_directions(args.test, test, test_triggers)):
-        if actual is None:
-            continue
-        x = traj.X[k].tolist()
-        for name, predicted in (('momentum', momentum_direction(x, mass_kg)),
-                                ('capture_point', capture_point_direction(x, mass_kg)),
-                                ('naive', naive)):
-            if np.all(np.isfinite(predicted[:2])):
-                errors[name].append(math.degrees(angular_error_rad(predicted, actual)))
+        y_in_order = np.array([traj.t_fallen - traj.t[k] for traj, k in zip(test, test_triggers)
+                               if k is not None])
+        ttf['shipped'] = spread(np.abs(predicted - y_in_order))
     result = {
-        'dev': str(args.dev), 'test': str(args.test), 'model': str(args.model), 'tau_his_s': tau_his,
-        'triggers': {'dev': int(sum(k is not None for k in dev_triggers)),
-                     'test': int(sum(k is not None for k in test_triggers)),
+        'dev': None if args.dev is None else str(args.dev), 'test': str(args.test),
+        'references_fitted': 'on --dev' if args.dev is not None else f'{args.folds}-fold CV over --test',
+        'model': str(args.model), 'tau_his_s': tau_his, 'guard_com_height_m': guard,
+        'triggers': {'test': int(sum(k is not None for k in test_triggers)),
                      'test_fallen': int(sum(t.fallen for t in test))},
         'time_to_fall_at_trigger_s': {'median': float(np.median(y_test)),
                                       'p10': float(np.percentile(y_test, 10)),
                                       'p90': float(np.percentile(y_test, 90))},
-        'naive_constant_s': float(np.median(y_dev_triggers)),
-        'trigger_window_s': args.window, 'trigger_window_samples': int(y_win.size),
-        'time_to_fall_error_s': ttf, 'trigger_tree_importances': importances,
-        'direction_error_deg': {name: spread(v) for name, v in errors.items()},
-        'naive_direction_deg': math.degrees(mean_angle),
+        'trigger_window_s': args.window, 'trigger_window_samples': int(window_samples_n),
+        'time_to_fall_error_s': ttf,
+        'trigger_tree_importances': dict(zip(FEATURE_NAMES, (round(float(v), 3) for v in importances))),
+        'direction_error_deg': {name: spread(v) for name, v in dir_errors.items()},
         'aims': {'time_to_fall_median_s': 0.05, 'time_to_fall_p90_s': 0.2, 'direction_median_deg': 15.0},
     }
     text = json.dumps(result, indent=1, default=float)
