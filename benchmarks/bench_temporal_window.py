@@ -17,8 +17,9 @@ lead at test FPR <= 0.01 and <= 0.06 over tau_his: a comparison of the learners 
 curves, chosen in hindsight on the test set, so **not** a held-out figure of any one of them.
 Writes JSON (``--out``).
 
-    python benchmarks/bench_temporal_window.py --train data/d1000s --test data/t1000s_2026 \\
-        --out docs/temporal_window_t1000.json
+    python benchmarks/bench_temporal_window.py --test data/t1000s_2026 --out docs/temporal_window.json
+
+(without ``--train``, one dataset split by trajectory: the even ones train, the odd ones test).
 """
 from __future__ import annotations
 
@@ -85,7 +86,8 @@ def atomic(models, trajs):
 
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--train', type=Path, required=True)
+    parser.add_argument('--train', type=Path, default=None,
+                        help='training data (default: the even trajectories of --test; the odd ones test)')
     parser.add_argument('--test', type=Path, required=True)
     parser.add_argument('--tau-plus', type=float, default=-0.25)
     parser.add_argument('--budget', type=float, default=0.06, help='FPR printed per learner')
@@ -93,11 +95,17 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument('--jobs', type=int, default=2)
     parser.add_argument('--out', type=Path, default=None)
     args = parser.parse_args(argv)
-    guard = dataset_guard_com_height_m(args.train)
-    base = {'train': load_dataset(args.train, jobs=args.jobs, state='estimated').trajectories,
-            'test': load_dataset(args.test, jobs=args.jobs, state='estimated').trajectories}
+    guard = dataset_guard_com_height_m(args.test)
+    test = load_dataset(args.test, jobs=args.jobs, state='estimated').trajectories
+    if args.train is not None:
+        base = {'train': load_dataset(args.train, jobs=args.jobs, state='estimated').trajectories,
+                'test': test}
+    else:
+        # One dataset, split by trajectory: the even ones train, the odd ones test.
+        base = {'train': test[0::2], 'test': test[1::2]}
     window = {k: [windowed(t) for t in v] for k, v in base.items()}
-    result = {'train': str(args.train), 'test': str(args.test), 'tau_plus_s': args.tau_plus,
+    result = {'train': str(args.train) if args.train else f'{args.test}, even trajectories',
+              'test': str(args.test) if args.train else f'{args.test}, odd trajectories', 'tau_plus_s': args.tau_plus,
               'lags_s': LAGS_S, 'budget': args.budget, 'learners': {}}
     for name, kind, sets in (('tree', 'tree', base), ('tree_window', 'tree', window),
                              ('hgb', 'hgb', base), ('hgb_window', 'hgb', window)):
