@@ -37,10 +37,10 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from std_msgs.msg import Float64MultiArray
 
-from fall_predictor.contract.topics import MEASUREMENT, STATE
-from fall_predictor.contract.wire import I_STATE_STATUS, I_STATE_T, STATUS_OK
+from fall_predictor.contract import messages
+from fall_predictor.contract.topics import MEASUREMENT, ODOM_FRAME, STATE
+from fall_predictor.msg import FallState, Measurement
 from fall_predictor.monitor.records import PushSpec
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.ros.bringup import ros_environment, start_process, stop_nodes
@@ -82,20 +82,19 @@ def replay(deployment: str, measurements: list, domain_id: int) -> dict[str, obj
     rclpy.init(context=context, domain_id=domain_id)
     sender = Node('bench_robot', context=context)
     receiver = Node('bench_receiver', context=context)
-    publisher = create_publisher(sender, Float64MultiArray, MEASUREMENT)
+    publisher = create_publisher(sender, Measurement, MEASUREMENT)
     arrivals: dict[int, float] = {}
     counters: dict[str, dict[str, str]] = {}
 
-    def on_state(msg: Float64MultiArray) -> None:
-        now = time.monotonic()
-        if msg.data[I_STATE_STATUS] == STATUS_OK:
-            arrivals.setdefault(round(msg.data[I_STATE_T] * 1000), now)
+    def on_state(msg) -> None:
+        # Every state answers its sample (OK, or FALLEN once the robot is down).
+        arrivals.setdefault(messages.stamp_ns(msg), time.monotonic())
 
     def on_diagnostics(msg: DiagnosticArray) -> None:
         for status in msg.status:
             counters[status.name] = {kv.key: kv.value for kv in status.values}
 
-    state_sub = create_subscription(receiver, Float64MultiArray, STATE, on_state, lossless=True)
+    state_sub = create_subscription(receiver, FallState, STATE, on_state, lossless=True)
     receiver.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 50)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(receiver)
@@ -117,14 +116,17 @@ def replay(deployment: str, measurements: list, domain_id: int) -> dict[str, obj
                     n.log_tail() for n in nodes.values()))
             time.sleep(0.05)
         time.sleep(1.0)
-        # Sample times follow wall time from the first publish on (t0 = the first sample's).
-        messages = [ros_qos.measurement_to_msg(m) for m in measurements]
+        # Sample stamps follow ROS time from the first publish on, as a robot's do.
+        stamp0 = time.time_ns() + 10_000_000
+        stamps = [stamp0 + round((m.t - measurements[0].t) * 1e9) for m in measurements]
+        msgs = [messages.measurement_msg(ros_qos.TYPES, ns, ODOM_FRAME, m)
+                for ns, m in zip(stamps, measurements)]
         cpu_before = {name: _cpu_seconds(n.process.pid) for name, n in nodes.items()}
         load_before = os.getloadavg()
         t0 = measurements[0].t
-        sent = np.empty(len(messages))
-        start = time.monotonic() + 0.01
-        for k, (m, msg) in enumerate(zip(measurements, messages)):
+        sent = np.empty(len(msgs))
+        start = time.monotonic() + (stamp0 - time.time_ns()) / 1e9
+        for k, (m, msg) in enumerate(zip(measurements, msgs)):
             due = start + (m.t - t0)
             # Sleep (releasing the CPU and the GIL: the nodes and the receiving thread need
             # them) until just before the due time, then wait out the rest.
@@ -147,12 +149,13 @@ def replay(deployment: str, measurements: list, domain_id: int) -> dict[str, obj
         receiver.destroy_node()
         rclpy.try_shutdown(context=context)
         codes = stop_nodes(nodes)
-    keys = [round(m.t * 1000) for m in measurements]
+    keys = stamps
     latencies = np.array([arrivals[k] - sent[i] for i, k in enumerate(keys) if k in arrivals])
     publish_lag = np.diff(sent) - 0.001
     return {
         'deployment': ('fall_monitor: feature + predictor nodes, one process' if deployment ==
                        'single' else 'feature_node and predictor_node, two processes'),
+        'executor': os.environ.get('FALL_PREDICTOR_EXECUTOR') or 'single_threaded',
         'samples': len(keys),
         'states_received': int(latencies.size),
         'dropped_samples': len(keys) - int(latencies.size),
