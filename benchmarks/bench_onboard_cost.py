@@ -132,8 +132,7 @@ def time_chain(profile, messages: list) -> dict[str, tuple[np.ndarray, float]]:
     # synchronised sample, the estimator), less the estimator: the sensor input's own cost.
     pipeline = chain_for(profile).pipeline
     c0 = time.thread_time_ns()
-    n = sum(len(pipeline.joint_state(r)[0]) if s == 'joints' else
-            len(pipeline.imu(r)) if s == 'imu' else len(pipeline.wrench(s, r)) for s, r in messages)
+    n = sum(len(pipeline.add(stream, reading)) for stream, reading in messages)
     whole_us = (time.thread_time_ns() - c0) / n / 1e3
     out['sensor_input_us'] = (None, whole_us - out['estimator_us'][1])
     return out

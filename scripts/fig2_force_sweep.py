@@ -53,12 +53,7 @@ def _estimated_measurements(result, seed: int) -> list:
                               layout.force_sensors)
     estimates = []
     for stream, reading in driver_messages(apply_sensors(result.sensor_truths, SensorParams(), seed=seed)):
-        if stream == 'joints':
-            estimates.extend(pipeline.joint_state(reading)[0])
-        elif stream == 'imu':
-            estimates.extend(pipeline.imu(reading))
-        else:
-            estimates.extend(pipeline.wrench(stream, reading))
+        estimates.extend(pipeline.add(stream, reading))
     estimates.extend(pipeline.flush())
     return [replace(e.measurement, t=e.stamp_ns / 1e9) for e in estimates if e.measurement is not None]
 

@@ -57,12 +57,7 @@ def run_pipeline(path: str | os.PathLike[str], urdf: Optional[str] = None,
         raise BagError(f'{bag}: /robot_description: {error}') from error
     estimates: list[Estimate] = []
     for stream, reading in read_sensor_messages(bag):
-        if stream == 'joints':
-            estimates.extend(pipeline.joint_state(reading)[0])
-        elif stream == 'imu':
-            estimates.extend(pipeline.imu(reading))
-        else:
-            estimates.extend(pipeline.wrench(stream, reading))
+        estimates.extend(pipeline.add(stream, reading))
     return estimates + pipeline.flush()
 
 

@@ -50,13 +50,7 @@ class OnboardChain:
 
     def add(self, stream: str, reading: Reading) -> list[ChainOutput]:
         """One sensor message: stream 'joints', 'imu', 'l' or 'r'."""
-        if stream == 'joints':
-            estimates = self.pipeline.joint_state(reading)[0]
-        elif stream == 'imu':
-            estimates = self.pipeline.imu(reading)
-        else:
-            estimates = self.pipeline.wrench(stream, reading)
-        return [self._decide(e) for e in estimates]
+        return [self._decide(e) for e in self.pipeline.add(stream, reading)]
 
     def flush(self) -> list[ChainOutput]:
         return [self._decide(e) for e in self.pipeline.flush()]

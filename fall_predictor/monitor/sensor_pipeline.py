@@ -107,6 +107,16 @@ class SensorPipeline:
         self.sync.add_wrench(side, reading)
         return self._after_reading(None)
 
+    def add(self, stream: str, reading) -> list[Estimate]:
+        """One message of ``stream`` ('joints', 'imu', 'l' or 'r': the drivers' stream names);
+        the estimates it completes (joint names the description lacks are dropped: use
+        :meth:`joint_state` to hear of them). ValueError if a joint state is malformed."""
+        if stream == 'joints':
+            return self.joint_state(reading)[0]
+        if stream == 'imu':
+            return self.imu(reading)
+        return self.wrench(stream, reading)
+
     def flush(self) -> list[Estimate]:
         """The estimate of a driving stamp still waiting for readings (end of a recording)."""
         return self._estimate_pending()
