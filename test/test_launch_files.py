@@ -18,6 +18,7 @@ from pathlib import Path
 
 import pytest
 import rclpy
+from rclpy.parameter import Parameter
 import yaml
 
 REPO = Path(__file__).resolve().parents[1]
@@ -33,7 +34,7 @@ def _console_scripts() -> set[str]:
 
 
 @pytest.fixture(scope='module')
-def declared() -> dict[str, set[str]]:
+def declared(tmp_path_factory) -> dict[str, set[str]]:
     """Node name -> the parameters the node declares, from the node classes themselves."""
     from fall_predictor.ros.controller_node import ControllerNode
     from fall_predictor.ros.feature_node import FeatureNode
@@ -47,9 +48,12 @@ def declared() -> dict[str, set[str]]:
     rclpy.init(context=context, domain_id=231)
     names: dict[str, set[str]] = {}
     try:
+        # The recorder creates its bag directory on construction: not in the working directory.
+        bags = Parameter('bag_path', value=str(tmp_path_factory.mktemp('bags')))
         for cls in (SimulatorNode, ControllerNode, StateEstimatorNode, FeatureNode, PredictorNode,
                     RecorderNode, MarkerNode):
-            node = cls(context=context)
+            node = cls(context=context, **({'parameter_overrides': [bags]}
+                                           if cls is RecorderNode else {}))
             names[node.get_name()] = set(node._parameters)
             node.destroy_node()
     finally:
