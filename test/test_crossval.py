@@ -128,3 +128,25 @@ def test_the_test_folds_run_with_the_given_guard():
     default = cross_validated_evaluation(trajectories, make_learner('tree'), 0.0, (0.0,), folds=2,
                                          seed=0)[0]
     assert [r.tau_lead_guard_only_s for r in default.per_fold] == [0.0, 0.0]
+
+
+def test_mirror_trains_each_fold_on_its_trajectories_and_their_mirror_images():
+    """The CV with mirror equals, fold by fold, a training on the fold's training trajectories
+    plus their mirror images (fit_strided(mirror=True)) evaluated on the recorded test fold."""
+    from fall_predictor.learning.evaluation import evaluate_lists
+    from fall_predictor.learning.mirror import with_mirror_images
+    from fall_predictor.learning.training import fit_strided
+
+    trajectories = make_dataset(4, 4, seed=7)
+    learner = make_learner('tree')
+    fits = cross_validate_grid(trajectories, learner, (0.0,), (0.0, 0.02), folds=2, seed=3,
+                               sample_stride=20, mirror=True)
+    for fit, test_index in zip(fits, stratified_trajectory_folds(trajectories, 2, 3)):
+        train = [t for i, t in enumerate(trajectories) if i not in set(test_index.tolist())]
+        assert fit.n_train == len(train)             # counted as recorded trajectories
+        lists = fit_strided(with_mirror_images(train), 0.0, learner, 20)
+        expected = evaluate_lists([trajectories[i] for i in test_index], lists, (0.0, 0.02))
+        assert fit.rule_sizes == lists.rule_sizes
+        for tau_his in (0.0, 0.02):
+            assert fit.results[tau_his].n_false_positives == expected[tau_his].n_false_positives
+            assert fit.results[tau_his].tau_lead_s == pytest.approx(expected[tau_his].tau_lead_s)

@@ -172,3 +172,10 @@ def test_the_sweep_and_its_test_set_use_the_dataset_robots_guard(tmp_path):
     assert asimo_guard.baselines.com_height[0].fpr == 0.0       # CoM below 0.40 m: never here
     with pytest.raises(ValueError, match='guard_com_height_m'):
         SweepConfig(guard_com_height_m=-0.1)
+
+
+def test_the_mirror_setting_is_validated_and_recorded():
+    assert SweepConfig(mirror=True).as_json()['mirror'] is True
+    assert SweepConfig().as_json()['mirror'] is False
+    with pytest.raises(ValueError, match='mirror'):
+        SweepConfig(mirror='yes')

@@ -18,7 +18,8 @@ def cmd_sweep(args) -> int:
 
     settings = {'folds': args.folds, 'seed': args.seed, 'learner_name': args.learner,
                 'learner_params': dict(args.param), 'sample_stride': args.stride,
-                'capture_point': not args.no_capture_point, 'state': args.state}
+                'capture_point': not args.no_capture_point, 'state': args.state,
+                'mirror': args.mirror}
     if args.tau_plus is not None:
         settings['tau_plus_values_s'] = args.tau_plus
     if args.tau_his is not None:
@@ -104,6 +105,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--test-data', type=Path, default=None, metavar='DIR',
                    help='held-out test dataset (another seed): the chosen predictors are trained on '
                         'all of --data and evaluated on DIR, written to test_set.json')
+    p.add_argument('--mirror', action='store_true',
+                   help='every training also learns from its trajectories\' left-right mirror images '
+                        '(as train --mirror); the test folds stay as recorded')
     p.add_argument('--no-capture-point', action='store_true',
                    help='skip the capture-point baseline (it reads every bag once to fill its cache)')
     p.add_argument('--quick', action='store_true',

@@ -74,14 +74,15 @@ class _Trajectories:
 
 
 def _fit_and_predict(trajectories: _Trajectories, train_index: np.ndarray, test_index: np.ndarray,
-                     tau_plus_s: float, learner: RuleListLearner, sample_stride: int
+                     tau_plus_s: float, learner: RuleListLearner, sample_stride: int,
+                     mirror: bool = False
                      ) -> tuple[list[np.ndarray], tuple[int, ...], tuple[int, ...], float]:
-    """Train on the trajectories ``train_index``; atomic falling predictions (bool per
-    sample) on those of ``test_index``."""
+    """Train on the trajectories ``train_index`` (with their mirror images if ``mirror``);
+    atomic falling predictions (bool per sample) on those of ``test_index``."""
     train = [trajectories.items[i] for i in train_index]
     test = [trajectories.items[i] for i in test_index]
     start = time.perf_counter()
-    lists = fit_strided(train, tau_plus_s, learner, sample_stride)
+    lists = fit_strided(train, tau_plus_s, learner, sample_stride, mirror=mirror)
     fit_s = time.perf_counter() - start
     atomic = [lists.predict(traj.X, traj.mode) == FALLING for traj in test]
     return atomic, lists.rule_sizes, lists.depths, fit_s
@@ -117,7 +118,8 @@ def cross_validate_grid(trajectories: Sequence[TrajectoryFeatures], learner: Rul
                         sample_stride: int = DEFAULT_SAMPLE_STRIDE,
                         train_sizes: Sequence[Optional[int]] = (None,), jobs: int = 1,
                         progress: bool = False,
-                        guard_com_height_m: float = GUARD_COM_HEIGHT_M) -> list[FoldFit]:
+                        guard_com_height_m: float = GUARD_COM_HEIGHT_M,
+                        mirror: bool = False) -> list[FoldFit]:
     """k-fold cross-validation by trajectory over a grid: one training per (training size,
     tau_plus, fold), all ``tau_his_values`` [s] evaluated from its atomic predictions.
 
@@ -129,7 +131,8 @@ def cross_validate_grid(trajectories: Sequence[TrajectoryFeatures], learner: Rul
     enclosing :func:`~fall_predictor.data.parallel.compute_backend`. The test folds are evaluated
     with the CoM guard ``guard_com_height_m`` [m]: the robot's (a dataset's callers pass
     :func:`~fall_predictor.data.dataset.dataset_guard_com_height_m`; the default is the
-    ASIMO-like robot's).
+    ASIMO-like robot's). With ``mirror`` each training also learns from its trajectories'
+    left-right mirror images (the test folds stay as recorded).
     """
     from joblib import delayed
     from tqdm import tqdm
@@ -157,7 +160,8 @@ def cross_validate_grid(trajectories: Sequence[TrajectoryFeatures], learner: Rul
     with tempfile.TemporaryDirectory(prefix='fall_predictor_cv_') as folder:
         shared = _Trajectories(_shared_memory_view(trajectories, folder) if jobs > 1 else trajectories)
         outputs = compute_parallel(jobs, return_as='generator')(
-            delayed(_fit_and_predict)(shared, chosen, test_index, tau_plus_s, learner, sample_stride)
+            delayed(_fit_and_predict)(shared, chosen, test_index, tau_plus_s, learner, sample_stride,
+                                      mirror)
             for _, tau_plus_s, _, chosen, test_index in tasks)
         fits = []
         for (fold, tau_plus_s, n_train, chosen, test_index), output in tqdm(

@@ -49,7 +49,8 @@ def evaluate_on_test_set(result: SweepResult, nested_document: Optional[dict[str
              else config.guard_com_height_m)
     learner = make_learner(config.learner_name, config.learner_params)
     settings = chosen_settings(nested_document)
-    models = {tau_plus: fit_strided(train.trajectories, tau_plus, learner, config.sample_stride)
+    models = {tau_plus: fit_strided(train.trajectories, tau_plus, learner, config.sample_stride,
+                                    mirror=config.mirror)
               for tau_plus in sorted({s[0] for s in settings.values()})}
     predictors = []
     for name, (tau_plus, tau_his) in settings.items():

@@ -86,7 +86,7 @@ def sweep_table(result: SweepResult) -> str:
         f'fallen (fingerprint `{result.dataset_fingerprint}`). {c.folds}-fold cross-validation by '
         f'trajectory (seed {c.seed}); learner `{c.learner_name}` '
         f'{make_learner(c.learner_name, c.learner_params).get_params()}, sample stride '
-        f'{c.sample_stride}. FPR, tau_lead and lead fraction are means over folds; misses and '
+        f'{c.sample_stride}' + (', trained with mirror images' if c.mirror else '') + '. FPR, tau_lead and lead fraction are means over folds; misses and '
         'pre-push alarms are totals.' + (f' Command: `{result.command}`.' if result.command else ''), '',
         '## Table 2 analogue', '',
         f'Selection rule: {SELECTION_RULE}.', '',

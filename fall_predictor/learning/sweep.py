@@ -90,7 +90,7 @@ def compute_sweep(data_dir: PathLike, config: SweepConfig = SweepConfig(), jobs:
         fits = cross_validate_grid(trajectories, learner, config.tau_plus_values_s,
                                    config.tau_his_values_s, config.folds, config.seed,
                                    config.sample_stride, jobs=jobs, progress=progress,
-                                   guard_com_height_m=guard)
+                                   guard_com_height_m=guard, mirror=config.mirror)
         curve_fits = _learning_curve_fits(trajectories, learner, fits, config, jobs, progress)
     cross_validation_s = time.perf_counter() - start
 
@@ -142,7 +142,8 @@ def _learning_curve_fits(trajectories: Sequence[TrajectoryFeatures], learner: Ru
         fits = cross_validate_grid(trajectories, learner, (config.learning_curve_tau_plus_s,),
                                    (config.learning_curve_tau_his_s,), config.folds, config.seed,
                                    config.sample_stride, train_sizes=sizes, jobs=jobs,
-                                   progress=progress, guard_com_height_m=config.guard_com_height_m)
+                                   progress=progress, guard_com_height_m=config.guard_com_height_m,
+                                   mirror=config.mirror)
     if reuse:
         fits += [fit for fit in sweep_fits if fit.tau_plus_s == config.learning_curve_tau_plus_s]
     return fits

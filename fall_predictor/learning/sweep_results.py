@@ -55,6 +55,9 @@ class SweepConfig:
     #: (:func:`~fall_predictor.data.dataset.dataset_guard_com_height_m`). The sweep records the
     #: guard actually used.
     guard_com_height_m: Optional[float] = None
+    #: Every training also learns from its trajectories' left-right mirror images
+    #: (:mod:`fall_predictor.learning.mirror`); the test folds stay as recorded.
+    mirror: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, 'tau_plus_values_s', tuple(float(v) for v in self.tau_plus_values_s))
@@ -79,6 +82,8 @@ class SweepConfig:
         make_learner(self.learner_name, self.learner_params)
         if self.state not in STATES:
             raise ValueError(f'state must be one of {STATES}, got {self.state!r}')
+        if not isinstance(self.mirror, bool):
+            raise ValueError(f'mirror must be true or false, got {self.mirror!r}')
         if self.guard_com_height_m is not None and not (
                 isinstance(self.guard_com_height_m, (int, float)) and 0.0 <= self.guard_com_height_m <= 2.0):
             raise ValueError(f'guard_com_height_m must be None or in [0, 2] m, got {self.guard_com_height_m!r}')
@@ -109,7 +114,7 @@ class SweepConfig:
                 'baseline_grids': {k: [json_float(v) for v in values] for k, values
                                    in dataclasses.asdict(self.baseline_grids).items()},
                 'capture_point': self.capture_point, 'state': self.state,
-                'guard_com_height_m': self.guard_com_height_m}
+                'guard_com_height_m': self.guard_com_height_m, 'mirror': self.mirror}
 
 
 @dataclass(frozen=True)
