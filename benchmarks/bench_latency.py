@@ -14,6 +14,12 @@ publish. Printed as one JSON object:
   ``real_time_factor_target``); below the target, ``cpu_percent`` (per process, over the run)
   and ``load_average`` show what holds it back.
 
+With ``--sensors`` the simulator publishes the robot's sensor topics (1 kHz, one stamp per step)
+and the monitor estimates its state from them (``state_estimator_node``, or ``fall_monitor
+--estimator`` with ``--single-process-monitor``), as on a robot; the publish time is then noted
+after the sample's sensor messages. The nodes' executor is their default or
+``FALL_PREDICTOR_EXECUTOR`` (``ros/runner.py``), recorded in the JSON.
+
 Usage: ``python benchmarks/bench_latency.py [--duration 60] [--real-time-factor 1.0]
 [--model M]`` (default model: a hand-built momentum model in a temporary directory).
 """
@@ -32,7 +38,6 @@ from typing import Optional
 import numpy as np
 import rclpy
 from rclpy.node import Node
-from std_msgs.msg import Float64MultiArray
 from rclpy.subscription import Subscription
 
 from fall_predictor.ros.bringup import (NodeProcess, default_domain_id, default_params_file,
@@ -40,6 +45,8 @@ from fall_predictor.ros.bringup import (NodeProcess, default_domain_id, default_
                                     stop_nodes)
 from fall_predictor.monitor.decision_list import Condition, DecisionList, PerModeDecisionLists, Rule
 from fall_predictor.monitor.model_file import ModelMetadata, save_model
+from fall_predictor.contract import messages
+from fall_predictor.msg import FallState
 from fall_predictor.ros.endpoints import create_subscription
 from fall_predictor.ros.runner import run_node, run_nodes
 from fall_predictor.ros.simulated_robot import robot_nodes
@@ -47,20 +54,22 @@ from fall_predictor.ros.observer import Observer
 from fall_predictor.ros.simulator_node import NODE_NAME, SimulatorNode
 from fall_predictor.monitor.records import FALLING, FEATURE_NAMES, N_CONTACT_MODES, Measurement
 from fall_predictor.contract.topics import STATE
-from fall_predictor.contract.wire import I_STATE_STATUS, I_STATE_T, STATUS_STALE
 
 _SIMULATOR_CHILD = '--simulator-child'
 
 
 def _run_timed_simulator(out: Path, ros_args: list[str], composed: bool = False) -> int:
-    """The simulator node, noting (sample time [ms], wall time [s]) before each publish;
-    ``composed``: with the controller node in this process (``simulated_robot``)."""
+    """The simulator node, noting (sample time [ms], wall time [s]) before each publish (with
+    ``publish_sensors``: after, when the sensor messages are out); ``composed``: with the
+    controller node in this process (``simulated_robot``)."""
     published: list[tuple[int, float]] = []
 
     class TimedSimulatorNode(SimulatorNode):
         def _publish_sample(self, m: Measurement) -> None:
-            published.append((round(m.t * 1000), time.monotonic()))
+            before = time.monotonic()
             super()._publish_sample(m)
+            published.append((round(m.t * 1000),
+                              time.monotonic() if self._sensors is not None else before))
 
     if composed:
         code = run_nodes(robot_nodes(TimedSimulatorNode), 'simulated_robot', ros_args)
@@ -94,12 +103,12 @@ def _subscribe_timed_states(node: Node, arrivals: list[tuple[int, float]]) -> Su
     The benchmark's own subscription (its observer follows no stream): the time is taken
     first thing and only the stamp is read, so that little of this process's work is counted.
     """
-    def on_state(msg: Float64MultiArray) -> None:
+    def on_state(msg: FallState) -> None:
         now = time.monotonic()
-        if msg.data[I_STATE_STATUS] != STATUS_STALE:
-            arrivals.append((round(msg.data[I_STATE_T] * 1000), now))
+        if msg.status != FallState.STATUS_STALE:
+            arrivals.append((round(messages.stamp_ns(msg) / 1e6), now))
 
-    return create_subscription(node, Float64MultiArray, STATE, on_state, lossless=True)
+    return create_subscription(node, FallState, STATE, on_state, lossless=True)
 
 
 def _percentiles_ms(latencies_s: np.ndarray) -> dict[str, float]:
@@ -115,7 +124,7 @@ NODE_NAMES = ('predictor_node', 'feature_node', 'controller_node', 'simulator_no
 
 def run_benchmark(duration_s: float, real_time_factor: float, model: Optional[Path],
                   domain_id: int, single_process_monitor: bool = False,
-                  composed_robot: bool = False) -> dict[str, object]:
+                  composed_robot: bool = False, sensors: bool = False) -> dict[str, object]:
     tmp = Path(tempfile.mkdtemp(prefix='bench_latency_'))
     model = model or _momentum_model(tmp / 'model.json')
     env = ros_environment(domain_id)
@@ -129,13 +138,20 @@ def run_benchmark(duration_s: float, real_time_factor: float, model: Optional[Pa
     state_arrivals: list[tuple[int, float]] = []     # (sample time [ms], wall [s])
     try:
         monitor = ((('fall_monitor', {'model_path': str(model)}),) if single_process_monitor
-                   else (('predictor_node', {'model_path': str(model)}), ('feature_node', {})))
-        controller = () if composed_robot else (('controller_node', {}),)
+                   else (('predictor_node', {'model_path': str(model)}), ('feature_node', {}),
+                         *((('state_estimator_node', {}),) if sensors else ())))
+        controller = () if composed_robot else (('controller_node', {'ground_truth': 'true'}
+                                                 if sensors else {}),)
         for name, overrides in (*monitor, *controller):
-            nodes[name] = start_node(name, params, overrides, env, tmp)
-        ros_args = node_command('simulator_node', params, {
-            'real_time_factor': repr(float(real_time_factor)), 'autostart': 'false',
-            'lockstep': 'true'})[3:]                  # without "python -m <module>"
+            command = node_command(name, params, overrides)
+            if name == 'fall_monitor' and sensors:
+                command.insert(3, '--estimator')    # after "python -m <module>"
+            nodes[name] = start_process(name, command, env, tmp)
+        simulator = {'real_time_factor': repr(float(real_time_factor)), 'autostart': 'false',
+                     'lockstep': 'true'}
+        if sensors:
+            simulator['publish_sensors'] = 'true'
+        ros_args = node_command('simulator_node', params, simulator)[3:]  # no "python -m <module>"
         robot = 'simulated_robot' if composed_robot else 'simulator_node'
         nodes[robot] = start_process(
             robot, [sys.executable, __file__, _SIMULATOR_CHILD + ('-composed' if composed_robot
@@ -150,7 +166,8 @@ def run_benchmark(duration_s: float, real_time_factor: float, model: Optional[Pa
                 if node.process.poll() is not None:
                     raise RuntimeError(f'{node.name} exited:\n{node.log_tail()}')
 
-        if not observer.spin_until(lambda: observer.connected(NODE_NAMES)
+        names = NODE_NAMES + (('state_estimator_node',) if sensors else ())
+        if not observer.spin_until(lambda: observer.connected(names)
                                    and state_sub.get_publisher_count() >= 1, 60.0, check_alive):
             raise RuntimeError(f'the nodes did not come up (logs in {tmp})')
         load_before = os.getloadavg()
@@ -189,7 +206,10 @@ def run_benchmark(duration_s: float, real_time_factor: float, model: Optional[Pa
         'duration_s': simulated_s,
         'wall_s': round(wall_s, 3),
         'real_time_factor_target': real_time_factor,
-        'monitor': 'fall_monitor (one process)' if single_process_monitor else 'two processes',
+        'monitor': ('fall_monitor (one process)' if single_process_monitor else 'two processes'
+                    if not sensors else 'three processes') + (', from the sensor topics' if sensors
+                                                              else ', fed measurements'),
+        'executor': os.environ.get('FALL_PREDICTOR_EXECUTOR') or 'default',
         'robot': ('simulated_robot (simulator + controller, one process)' if composed_robot
                   else 'simulator_node and controller_node, two processes'),
         'real_time_factor': round(simulated_s / wall_s, 4),
@@ -222,11 +242,14 @@ def main() -> None:
     parser.add_argument('--composed-robot', action='store_true',
                         help='run the simulator and controller nodes as simulated_robot '
                              '(one process, lock-step closed in process)')
+    parser.add_argument('--sensors', action='store_true',
+                        help='the simulator publishes the sensor topics; the monitor estimates '
+                             'the state (with the state estimator)')
     parser.add_argument('--out', type=Path, default=None, help='also write the JSON here')
     args = parser.parse_args()
     result = run_benchmark(args.duration, args.real_time_factor, args.model,
                            default_domain_id() if args.domain_id is None else args.domain_id,
-                           args.single_process_monitor, args.composed_robot)
+                           args.single_process_monitor, args.composed_robot, args.sensors)
     text = json.dumps(result, indent=1)
     print(text)
     if args.out is not None:

@@ -1,23 +1,30 @@
 #!/usr/bin/env python3
 """The fall monitor fed at 1 kHz, as on a robot: drops, sample -> state latency, CPU per node.
 
-A simulated trajectory (a walk, then a push that fells the robot) is replayed measurement by
-measurement at 1 kHz of wall time, sample times following wall time as a robot's do, into the
-monitor deployed in one of two ways:
+A simulated trajectory (a walk, then a push that fells the robot) is replayed at 1 kHz of wall
+time, stamps following ROS time as a robot's do, into the monitor deployed in one of three ways:
 
 * ``single``: the ``fall_monitor`` executable (feature + predictor nodes, one process, one
-  executor);
-* ``separate``: ``feature_node`` and ``predictor_node`` as two processes.
+  executor) fed ``fall_predictor/measurement``;
+* ``separate``: ``feature_node`` and ``predictor_node`` as two processes, fed the same;
+* ``estimator``: ``fall_monitor --estimator`` (state estimator + feature + predictor nodes, one
+  process) fed the robot's sensor topics (joint states, IMU, foot wrenches) and its
+  ``robot_description``, timed by ``--timing``: ``simulator`` (every stream at 1 kHz, one stamp
+  per step), ``robot_1khz`` / ``robot_500hz`` (a robot's drivers: joint states split into legs and
+  upper body at 1 kHz / 500 Hz, IMU 0.3 ms and foot sensors 0.4 ms after them;
+  :class:`~fall_predictor.sim.drivers.DriverTiming`).
 
 The monitor runs with ``config/monitor.yaml`` (REP 2003 QoS: it reads best effort, depth 10) and
-the shipped model. This process publishes each measurement at its due time (sleeping until
-0.3 ms before it, then waiting on ``CLOCK_MONOTONIC``) and receives the states on a second
-thread; latency = state arrival minus
-the measurement's publish time, so it includes this process's own receive path. A sample
-without a state is a drop (the nodes count those they lost as missing or stale samples; those
-counters are in the JSON too). CPU is each node process's user + system time over the replay.
+the shipped model. This process publishes each message at its due time (sleeping until 0.3 ms
+before it, then waiting on ``CLOCK_MONOTONIC``) and receives the states on a second thread.
+A sample is one measurement, or the sensor messages of one driving (legs') joint state stamp
+and those stamped less than 1 ms after it; latency = state arrival minus the publish time of
+the sample's last message, so it includes this process's own receive path. A sample without a
+state is a drop (the nodes count those they lost as missing or stale samples; those counters are
+in the JSON too). CPU is each node process's user + system time over the replay. The executor is
+the nodes' default, or ``FALL_PREDICTOR_EXECUTOR`` (``ros/runner.py``).
 
-    .venv/bin/python benchmarks/bench_monitor_latency.py --seconds 30 \\
+    .venv/bin/python benchmarks/bench_monitor_latency.py --seconds 10 --deployment all \\
         --out docs/bench_monitor_latency.json
 """
 from __future__ import annotations
@@ -30,26 +37,62 @@ import sys
 import tempfile
 import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import WrenchStamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from sensor_msgs.msg import Imu, JointState
+from std_msgs.msg import String
 
 from fall_predictor.contract import messages
-from fall_predictor.contract.topics import MEASUREMENT, ODOM_FRAME, STATE
+from fall_predictor.contract.topics import (IMU, LEFT_FOOT_WRENCH, MEASUREMENT, ODOM_FRAME,
+                                            RIGHT_FOOT_WRENCH, ROBOT_DESCRIPTION,
+                                            SENSOR_JOINT_STATES, STATE)
 from fall_predictor.msg import FallState, Measurement
 from fall_predictor.monitor.records import PushSpec
+from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.ros.bringup import ros_environment, start_process, stop_nodes
 from fall_predictor.ros.endpoints import create_publisher, create_subscription
-from fall_predictor.sim.trajectory import run_trajectory
+from fall_predictor.sim.drivers import DriverTiming, driver_messages
+from fall_predictor.sim.sensors import SensorParams, apply_sensors
+from fall_predictor.sim.trajectory import TrajectoryResult, run_trajectory
 
 REPO = Path(__file__).resolve().parents[1]
 COUNTERS = ('missing_samples', 'stale_samples', 'out_of_order', 'invalid_measurements',
-            'invalid_features', 'states')
+            'invalid_features', 'states', 'estimates', 'degraded_estimates')
+LEGS = tuple(f'{s}_{j}' for s in rm.SIDES for j in rm.LEG_JOINTS)
+UPPER = tuple(n for n in rm.JOINT_NAMES if n not in LEGS)
+TIMINGS = {'simulator': DriverTiming(),
+           'robot_1khz': DriverTiming.robot(1000.0, (LEGS, UPPER)),
+           'robot_500hz': DriverTiming.robot(500.0, (LEGS, UPPER))}
+DEPLOYMENTS = {
+    'single': ('fall_monitor: feature + predictor nodes, one process, fed measurements',
+               {'fall_monitor': []}),
+    'separate': ('feature_node and predictor_node, two processes, fed measurements',
+                 {'feature_node': [], 'predictor_node': []}),
+    'estimator': ('fall_monitor --estimator: estimator + feature + predictor nodes, one '
+                  'process, fed the sensor topics', {'fall_monitor': ['--estimator']}),
+}
+_SAMPLE_WINDOW_NS = 1_000_000       # sensor messages this soon after a driving stamp: its sample
+
+
+@dataclass
+class Feed:
+    """What the benchmark publishes: message k on ``topics[k]``, stamped ``stamps_ns[k]`` after
+    the replay's start (the header is set at publish time, as a driver does);
+    ``sample_of[k]``: the stamp of the sample (answered by a state with that stamp) the message
+    belongs to, or -1."""
+
+    topics: list[str]
+    msgs: list[object]
+    stamps_ns: np.ndarray
+    sample_of: np.ndarray
 
 
 def _cpu_seconds(pid: int) -> float:
@@ -64,30 +107,67 @@ def _percentiles_ms(latencies_s: np.ndarray) -> dict[str, float]:
                             ('max', 100))}
 
 
-def simulate(seconds: float) -> list:
-    """Measurements of a walk pushed hard at ``seconds - 1.5`` s (it falls): the replay input."""
+def simulate(seconds: float) -> TrajectoryResult:
+    """A walk pushed hard at ``seconds - 1.5`` s (it falls), its sensor truth recorded."""
     push = PushSpec(force_n=450.0, angle_deg=0.0, height_m=0.1, t_push=max(0.5, seconds - 1.5))
-    return run_trajectory(push, seconds, stop_when_fallen=False).measurements
+    return run_trajectory(push, seconds, stop_when_fallen=False, record_sensors=True)
 
 
-def replay(deployment: str, measurements: list, domain_id: int) -> dict[str, object]:
+def measurement_feed(run: TrajectoryResult) -> Feed:
+    t0 = run.measurements[0].t
+    stamps = [round((m.t - t0) * 1e9) for m in run.measurements]
+    return Feed(['measurement'] * len(stamps),
+                [messages.measurement_msg(ros_qos.TYPES, ns, ODOM_FRAME, m)
+                 for ns, m in zip(stamps, run.measurements)],
+                np.array(stamps), np.array(stamps))
+
+
+def sensor_feed(run: TrajectoryResult, timing: DriverTiming) -> Feed:
+    """The drivers' messages of the run's noisy sensor samples."""
+    samples = apply_sensors(run.sensor_truths, SensorParams(), seed=0)
+    timing = DriverTiming(**{**timing.to_dict(), 'joint_groups': timing.joint_groups,
+                             'clock_offset_ns': -round(samples[0].t * 1e9)})
+    build = {'joints': messages.joint_state_msg, 'imu': messages.imu_msg,
+             'l': messages.wrench_msg, 'r': messages.wrench_msg}
+    topics, msgs, stamps, sample_of = [], [], [], []
+    driving = -1
+    for stream, reading in driver_messages(samples, timing):
+        if stream == 'joints' and set(reading.names) & set(LEGS):
+            driving = reading.stamp_ns
+        topics.append(stream)
+        msgs.append(build[stream](ros_qos.TYPES, reading))
+        stamps.append(reading.stamp_ns)
+        within = driving >= 0 and reading.stamp_ns - driving < _SAMPLE_WINDOW_NS
+        sample_of.append(driving if within else -1)
+    return Feed(topics, msgs, np.array(stamps), np.array(sample_of))
+
+
+def replay(deployment: str, feed: Feed, domain_id: int,
+           node_params: list[str]) -> dict[str, object]:
+    label, modules = DEPLOYMENTS[deployment]
     tmp = Path(tempfile.mkdtemp(prefix=f'bench_monitor_{deployment}_'))
     env = ros_environment(domain_id)
-    ros_args = ['--ros-args', '--params-file', str(REPO / 'config' / 'monitor.yaml')]
-    modules = ['fall_monitor'] if deployment == 'single' else ['feature_node', 'predictor_node']
+    ros_args = ['--ros-args', '--params-file', str(REPO / 'config' / 'monitor.yaml'), *node_params]
+    executable = 'fall_monitor' if 'fall_monitor' in modules else None
     nodes = {name: start_process(name, [sys.executable, '-m', f'fall_predictor.ros.{name}',
-                                        *ros_args], env, tmp) for name in modules}
+                                        *options, *ros_args], env, tmp)
+             for name, options in modules.items()}
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     context = rclpy.Context()
     rclpy.init(context=context, domain_id=domain_id)
     sender = Node('bench_robot', context=context)
     receiver = Node('bench_receiver', context=context)
-    publisher = create_publisher(sender, Measurement, MEASUREMENT)
+    sensors = deployment == 'estimator'
+    publishers = ({'joints': create_publisher(sender, JointState, SENSOR_JOINT_STATES),
+                   'imu': create_publisher(sender, Imu, IMU),
+                   'l': create_publisher(sender, WrenchStamped, LEFT_FOOT_WRENCH),
+                   'r': create_publisher(sender, WrenchStamped, RIGHT_FOOT_WRENCH)} if sensors
+                  else {'measurement': create_publisher(sender, Measurement, MEASUREMENT)})
     arrivals: dict[int, float] = {}
     counters: dict[str, dict[str, str]] = {}
 
     def on_state(msg) -> None:
-        # Every state answers its sample (OK, or FALLEN once the robot is down).
+        # Every state answers its sample (OK, DEGRADED, or FALLEN once the robot is down).
         arrivals.setdefault(messages.stamp_ns(msg), time.monotonic())
 
     def on_diagnostics(msg: DiagnosticArray) -> None:
@@ -107,27 +187,27 @@ def replay(deployment: str, measurements: list, domain_id: int) -> dict[str, obj
     thread = threading.Thread(target=receive, daemon=True)
     thread.start()
     try:
+        if sensors:
+            create_publisher(sender, String, ROBOT_DESCRIPTION).publish(
+                String(data=rm.URDF_PATH.read_text()))
         deadline = time.monotonic() + 60.0
-        while not (publisher.get_subscription_count() >= 1 and state_sub.get_publisher_count() >= 1
-                   and len(counters) >= 2):
+        while not (all(p.get_subscription_count() >= 1 for p in publishers.values())
+                   and state_sub.get_publisher_count() >= 1 and len(counters) >= 2 + sensors):
             if time.monotonic() > deadline or any(n.process.poll() is not None
                                                   for n in nodes.values()):
-                raise RuntimeError('monitor did not start:\n' + '\n'.join(
+                raise RuntimeError(f'monitor did not start ({executable}):\n' + '\n'.join(
                     n.log_tail() for n in nodes.values()))
             time.sleep(0.05)
-        time.sleep(1.0)
-        # Sample stamps follow ROS time from the first publish on, as a robot's do.
+        time.sleep(1.0)                     # discovery settles; the estimator builds its model
+        pubs = [publishers[topic] for topic in feed.topics]
+        offsets_s = feed.stamps_ns / 1e9
         stamp0 = time.time_ns() + 10_000_000
-        stamps = [stamp0 + round((m.t - measurements[0].t) * 1e9) for m in measurements]
-        msgs = [messages.measurement_msg(ros_qos.TYPES, ns, ODOM_FRAME, m)
-                for ns, m in zip(stamps, measurements)]
         cpu_before = {name: _cpu_seconds(n.process.pid) for name, n in nodes.items()}
         load_before = os.getloadavg()
-        t0 = measurements[0].t
-        sent = np.empty(len(msgs))
+        sent = np.empty(len(feed.msgs))
         start = time.monotonic() + (stamp0 - time.time_ns()) / 1e9
-        for k, (m, msg) in enumerate(zip(measurements, msgs)):
-            due = start + (m.t - t0)
+        for k, (publisher, msg) in enumerate(zip(pubs, feed.msgs)):
+            due = start + offsets_s[k]
             # Sleep (releasing the CPU and the GIL: the nodes and the receiving thread need
             # them) until just before the due time, then wait out the rest.
             ahead = due - time.monotonic() - 0.0003
@@ -135,13 +215,16 @@ def replay(deployment: str, measurements: list, domain_id: int) -> dict[str, obj
                 time.sleep(ahead)
             while time.monotonic() < due:
                 pass
-            sent[k] = time.monotonic()
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp0 + int(feed.stamps_ns[k]),
+                                                                   1_000_000_000)
             publisher.publish(msg)
+            sent[k] = time.monotonic()
         wall_s = time.monotonic() - start
         time.sleep(2.0)                     # states in flight, and one more diagnostics report
         cpu = {name: round(100.0 * (_cpu_seconds(n.process.pid) - cpu_before[name]) / wall_s, 1)
                for name, n in nodes.items()}
         load_after = os.getloadavg()
+        lag = sent - (start + offsets_s)
     finally:
         stop.set()
         thread.join(timeout=2.0)
@@ -149,19 +232,22 @@ def replay(deployment: str, measurements: list, domain_id: int) -> dict[str, obj
         receiver.destroy_node()
         rclpy.try_shutdown(context=context)
         codes = stop_nodes(nodes)
-    keys = stamps
-    latencies = np.array([arrivals[k] - sent[i] for i, k in enumerate(keys) if k in arrivals])
-    publish_lag = np.diff(sent) - 0.001
+    # A sample's reference time: its last message's publish.
+    ready: dict[int, float] = {}
+    for stamp, t in zip(feed.sample_of.tolist(), sent.tolist()):
+        if stamp >= 0:
+            ready[stamp0 + stamp] = max(ready.get(stamp0 + stamp, t), t)
+    latencies = np.array([arrivals[k] - t for k, t in ready.items() if k in arrivals])
     return {
-        'deployment': ('fall_monitor: feature + predictor nodes, one process' if deployment ==
-                       'single' else 'feature_node and predictor_node, two processes'),
-        'executor': os.environ.get('FALL_PREDICTOR_EXECUTOR') or 'single_threaded',
-        'samples': len(keys),
+        'deployment': label,
+        'executor': os.environ.get('FALL_PREDICTOR_EXECUTOR') or 'default',
+        'messages_published': len(feed.msgs),
+        'samples': len(ready),
         'states_received': int(latencies.size),
-        'dropped_samples': len(keys) - int(latencies.size),
+        'dropped_samples': len(ready) - int(latencies.size),
         'latency_ms': _percentiles_ms(latencies),
         'replay_wall_s': round(wall_s, 3),
-        'replay_period_jitter_ms_p99': round(float(np.percentile(publish_lag, 99)) * 1e3, 3),
+        'publish_lag_ms_p99': round(float(np.percentile(lag, 99)) * 1e3, 3),
         'cpu_percent_of_one_core': cpu,
         'node_counters': {name: {k: v for k, v in values.items() if k in COUNTERS}
                           for name, values in counters.items()},
@@ -174,18 +260,32 @@ def replay(deployment: str, measurements: list, domain_id: int) -> dict[str, obj
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--seconds', type=float, default=30.0, help='replayed seconds')
-    parser.add_argument('--deployment', choices=('single', 'separate', 'both'), default='both')
+    parser.add_argument('--deployment', choices=(*DEPLOYMENTS, 'both', 'all'), default='both',
+                        help='both: single and separate; all: the three')
+    parser.add_argument('--timing', choices=(*TIMINGS, 'all'), default='simulator',
+                        help='sensor stream timing of the estimator deployment')
     parser.add_argument('--domain-id', type=int, default=1 + os.getpid() % 100)
     parser.add_argument('--out', type=Path, default=None, help='also write the JSON here')
     args = parser.parse_args()
-    measurements = simulate(args.seconds)
-    deployments = ('single', 'separate') if args.deployment == 'both' else (args.deployment,)
+    run = simulate(args.seconds)
+    deployments = {'both': ('single', 'separate'), 'all': tuple(DEPLOYMENTS)}.get(
+        args.deployment, (args.deployment,))
+    timings = tuple(TIMINGS) if args.timing == 'all' else (args.timing,)
+    runs = []
+    for deployment in deployments:
+        if deployment != 'estimator':
+            runs.append(replay(deployment, measurement_feed(run), args.domain_id, []))
+            continue
+        for name in timings:
+            timing = TIMINGS[name]
+            driving = ['-p', 'driving_joints:=' + json.dumps(list(LEGS))] if timing.joint_groups else []
+            result = replay(deployment, sensor_feed(run, timing), args.domain_id, driving)
+            runs.append({'timing': name, **result})
     result = {
         'command': 'benchmarks/bench_monitor_latency.py ' + ' '.join(sys.argv[1:]),
-        'replayed_s': round(measurements[-1].t - measurements[0].t, 3),
+        'replayed_s': round(run.measurements[-1].t - run.measurements[0].t, 3),
         'model': 'models/default_model.json', 'params': 'config/monitor.yaml',
-        'runs': [replay(d, measurements, args.domain_id) for d in deployments],
-        'cpus': os.cpu_count(), 'python': platform.python_version(),
+        'runs': runs, 'cpus': os.cpu_count(), 'python': platform.python_version(),
     }
     text = json.dumps(result, indent=1)
     print(text)
