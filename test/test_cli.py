@@ -121,3 +121,45 @@ def test_every_offline_subcommand_runs_without_ros(small_dataset, tmp_path):
     assert 'bringup needs ROS 2' in result['stderr']
     assert (tmp_path / 'generated' / 'index' / 'traj_00000.json').exists()
     assert (tmp_path / 'sweep' / 'sweep.json').exists() and model.exists()
+
+
+def _session_processes(session_id: int) -> list[int]:
+    """Processes of the machine still in the session ``session_id``."""
+    import os
+    from pathlib import Path
+    pids = []
+    for stat in Path('/proc').glob('[0-9]*/stat'):
+        try:
+            fields = stat.read_text().rsplit(')', 1)[1].split()
+        except OSError:
+            continue                        # ended while we looked
+        if int(fields[3]) == session_id and fields[0] != 'Z':
+            pids.append(int(stat.parent.name))
+    return [p for p in pids if p != os.getpid()]
+
+
+@pytest.mark.skipif(not sys.platform.startswith('linux'), reason='reads /proc')
+def test_sigterm_stops_generate_and_its_worker_processes(tmp_path):
+    """A terminated generate (SIGTERM, as a job scheduler or a `kill` sends it) takes its joblib
+    workers with it: no process of its session is left afterwards; rerunning finishes the set."""
+    import time
+    from pathlib import Path
+    out = tmp_path / 'd'
+    command = [sys.executable, '-m', 'fall_predictor.cli', 'generate', '--trajectories', '6',
+               '--seed', '3', '--horizon', '1.0', '--jobs', '2', '--out', str(out), '--json']
+    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                               start_new_session=True)
+    deadline = time.monotonic() + 120.0
+    while len(_session_processes(process.pid)) < 3:         # the tool and its two workers
+        assert process.poll() is None and time.monotonic() < deadline, process.stderr.read()
+        time.sleep(0.1)
+    process.terminate()
+    process.wait(timeout=60)
+    assert process.returncode != 0
+    deadline = time.monotonic() + 30.0
+    while _session_processes(process.pid) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert _session_processes(process.pid) == []
+    process.stderr.close()
+    assert main(command[3:-1] + ['--json']) == 0
+    assert len(list(Path(out, 'bags').iterdir())) == 6

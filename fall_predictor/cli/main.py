@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
 
 #: The command groups, one module each under fall_predictor/cli/, each exposing
@@ -19,7 +20,15 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _interrupt_on_sigterm(signum: int, frame: object) -> None:
+    # As Ctrl-C: joblib then stops its worker processes instead of leaving them orphaned
+    # (a killed generate is finished by running it again).
+    raise KeyboardInterrupt(f'signal {signum}')
+
+
 def main(argv: list[str] | None = None) -> int:
+    if argv is None:                     # the process's own command line: it owns the signals
+        signal.signal(signal.SIGTERM, _interrupt_on_sigterm)
     parser = build_parser()
     args = parser.parse_args(argv)
     args.argv = list(sys.argv[1:] if argv is None else argv)   # recorded by sweep
