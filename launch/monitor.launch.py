@@ -60,9 +60,12 @@ def generate_launch_description() -> LaunchDescription:
         node('fall_monitor', IfCondition(single_process),
              arguments=[PythonExpression(["'--estimator' if '", estimator,
                                           "' == 'true' else ''"])]),
-        node('state_estimator_node',
-             IfCondition(PythonExpression(["'", single_process, "' != 'true' and '", estimator,
-                                           "' == 'true'"])), 'state_estimator_node'),
+        # The state estimator reads no model: the params file alone.
+        Node(package='fall_predictor', executable='state_estimator_node',
+             name='state_estimator_node', namespace=namespace, parameters=[params_file],
+             remappings=remappings, output='screen',
+             condition=IfCondition(PythonExpression(["'", single_process, "' != 'true' and '",
+                                                     estimator, "' == 'true'"]))),
         node('feature_node', UnlessCondition(single_process), 'feature_node'),
         node('predictor_node', UnlessCondition(single_process), 'predictor_node'),
     ])

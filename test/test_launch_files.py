@@ -176,6 +176,15 @@ def test_parameters_set_by_a_launch_file_are_declared_by_a_node_they_reach(file_
         assert any(parameter in declared[n] for n in nodes), (parameter, sorted(nodes))
 
 
+@pytest.mark.parametrize('file_name', LAUNCH_FILES)
+def test_a_launch_file_sets_no_node_a_parameter_it_does_not_declare(file_name, declared):
+    """ROS 2 silently ignores an undeclared parameter: each process's nodes declare what it gets."""
+    for executable, parameters in LaunchFile(file_name).nodes():
+        nodes = PROCESS_NODES.get(executable, (executable,))
+        ignored = {p for p in parameters if not any(p in declared[n] for n in nodes)}
+        assert not ignored, f'{file_name}: {executable} ignores {sorted(ignored)}'
+
+
 @pytest.mark.parametrize('file_name', ('fall_predictor.yaml', 'monitor.yaml'))
 def test_params_file_parameters_are_declared_by_their_node(file_name, declared):
     sections = yaml.safe_load((REPO / 'config' / file_name).read_text())
