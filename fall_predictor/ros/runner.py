@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+import signal
 import time
 from collections.abc import Sequence
 from typing import Callable, Optional
@@ -9,6 +10,7 @@ from typing import Callable, Optional
 import rclpy
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
 
 from fall_predictor.ros.parameters import NodeStartupError
 
@@ -31,15 +33,40 @@ def make_executor(kind: Optional[str] = None) -> Executor:
     return SingleThreadedExecutor()
 
 
-def spin_until_shutdown(executor: Executor) -> None:
-    """Spin until the context shuts down (Ctrl-C, SIGTERM, ``rclpy.shutdown()``). The
-    EventsExecutor is spun one wake-up at a time: its ``spin()`` does not return on shutdown in
-    this rclpy (measured: ``bench_executors.py`` reports it hung)."""
-    if isinstance(executor, SingleThreadedExecutor):
-        executor.spin()
-        return
-    while rclpy.ok():
-        executor.spin_once(timeout_sec=0.1)
+#: Longest wait [s] of one spin: a stop request is seen within this.
+_SPIN_PERIOD_S = 0.1
+
+
+class StopRequest:
+    """SIGINT / SIGTERM as a request to stop between callbacks (installed by :func:`run_nodes`).
+
+    rclpy's own handlers shut the context down at once, in C, under a callback that may be
+    running: its next publish then fails, and the EventsExecutor logs that at FATAL. Handled
+    here, the signal only sets a flag; the spin loop ends after the callback in progress and the
+    nodes are destroyed in order.
+    """
+
+    def __init__(self) -> None:
+        self.signal: Optional[int] = None
+
+    def __call__(self, signum: int, frame: object) -> None:
+        self.signal = signum
+
+    def install(self) -> None:
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, self)
+
+    @property
+    def requested(self) -> bool:
+        return self.signal is not None
+
+
+def spin_until_shutdown(executor: Executor, stop: Optional[StopRequest] = None) -> None:
+    """Spin until ``stop`` is requested or the context shuts down (``rclpy.shutdown()``), one
+    wake-up at a time for either executor (the EventsExecutor's ``spin()`` does not return on
+    shutdown in this rclpy: ``bench_executors.py`` reports it hung)."""
+    while rclpy.ok() and not (stop is not None and stop.requested):
+        executor.spin_once(timeout_sec=_SPIN_PERIOD_S)
 
 
 # --------------------------------------------------------------------------------------------
@@ -61,7 +88,9 @@ def run_nodes(factories: Sequence[Callable[[], Node]], name: str,
     (:func:`make_executor`: the callbacks of all nodes run in turn, no threads), until
     Ctrl-C / SIGTERM / shutdown. Exit code as :func:`run_node`; if one node cannot start,
     none runs."""
-    rclpy.init(args=args)
+    stop = StopRequest()
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop.install()
     nodes: list[Node] = []
     try:
         try:
@@ -78,13 +107,14 @@ def run_nodes(factories: Sequence[Callable[[], Node]], name: str,
         for node in nodes:
             executor.add_node(node)
         try:
-            spin_until_shutdown(executor)
+            spin_until_shutdown(executor, stop)
         except (KeyboardInterrupt, ExternalShutdownException):
             pass
         except Exception:
-            # Ctrl-C / SIGTERM invalidate the context at once, in C; a callback that was already
-            # running then fails on its next publish ("publisher's context is invalid"). That is
-            # the shutdown, not a fault; with the context still valid it is one.
+            # A shutdown by another path than the signals (rclpy.shutdown() from a callback or
+            # another thread) invalidates the context at once; a callback already running then
+            # fails on its next publish ("publisher's context is invalid"). That is the
+            # shutdown, not a fault; with the context still valid it is one.
             if rclpy.ok():
                 raise
         return 0
