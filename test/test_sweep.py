@@ -179,3 +179,17 @@ def test_the_mirror_setting_is_validated_and_recorded():
     assert SweepConfig().as_json()['mirror'] is False
     with pytest.raises(ValueError, match='mirror'):
         SweepConfig(mirror='yes')
+
+
+def test_a_sweep_without_nested_baselines_has_the_same_learned_points(fixture_dataset):
+    """--no-nested-baselines drops only the baselines' nested selection: every learned point
+    and the hindsight baseline curves equal the full sweep's."""
+    from fall_predictor.learning.sweep import compute_sweep
+
+    settings = dict(folds=2, tau_plus_values_s=(-0.5, 0.0), tau_his_values_s=(0.0, 0.06),
+                    learning_curve_sizes=())
+    full = compute_sweep(fixture_dataset, SweepConfig.quick(**settings))
+    learned = compute_sweep(fixture_dataset, SweepConfig.quick(nested_baselines=False, **settings))
+    assert full.baselines_nested and learned.baselines_nested is None
+    assert learned.points == full.points and learned.baselines == full.baselines
+    assert learned.config.as_json()['nested_baselines'] is False

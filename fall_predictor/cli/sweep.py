@@ -19,7 +19,7 @@ def cmd_sweep(args) -> int:
     settings = {'folds': args.folds, 'seed': args.seed, 'learner_name': args.learner,
                 'learner_params': dict(args.param), 'sample_stride': args.stride,
                 'capture_point': not args.no_capture_point, 'state': args.state,
-                'mirror': args.mirror}
+                'mirror': args.mirror, 'nested_baselines': not args.no_nested_baselines}
     if args.tau_plus is not None:
         settings['tau_plus_values_s'] = args.tau_plus
     if args.tau_his is not None:
@@ -108,6 +108,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--mirror', action='store_true',
                    help='every training also learns from its trajectories\' left-right mirror images '
                         '(as train --mirror); the test folds stay as recorded')
+    p.add_argument('--no-nested-baselines', action='store_true',
+                   help='skip choosing the baselines\' thresholds and tau_his on training folds (the '
+                        'longest part; e.g. for a learner-only sweep such as --mirror)')
     p.add_argument('--no-capture-point', action='store_true',
                    help='skip the capture-point baseline (it reads every bag once to fill its cache)')
     p.add_argument('--quick', action='store_true',

@@ -77,11 +77,13 @@ def compute_sweep(data_dir: PathLike, config: SweepConfig = SweepConfig(), jobs:
     capture_point_s = time.perf_counter() - start
     start = time.perf_counter()
     baselines = baseline_curves(trajectories, distances, config.baseline_grids, guard)
-    from fall_predictor.learning.tilt_detector import imu_signals_cached
-    imu = imu_signals_cached(data_dir, trajectories, jobs, progress)
-    baselines_nested = cross_validated_baselines(trajectories, distances, config.baseline_grids,
-                                                 config.tau_his_values_s, config.folds,
-                                                 config.seed, imu=imu, guard_com_height_m=guard)
+    baselines_nested = None
+    if config.nested_baselines:
+        from fall_predictor.learning.tilt_detector import imu_signals_cached
+        imu = imu_signals_cached(data_dir, trajectories, jobs, progress)
+        baselines_nested = cross_validated_baselines(
+            trajectories, distances, config.baseline_grids, config.tau_his_values_s, config.folds,
+            config.seed, imu=imu, guard_com_height_m=guard)
     baselines_s = time.perf_counter() - start
 
     start = time.perf_counter()

@@ -58,6 +58,10 @@ class SweepConfig:
     #: Every training also learns from its trajectories' left-right mirror images
     #: (:mod:`fall_predictor.learning.mirror`); the test folds stay as recorded.
     mirror: bool = False
+    #: The baselines' operating points chosen on training folds (nested, over the tau_his grid:
+    #: the sweep's longest part); off for a sweep that compares learners (the hindsight baseline
+    #: curves are computed either way).
+    nested_baselines: bool = True
 
     def __post_init__(self) -> None:
         object.__setattr__(self, 'tau_plus_values_s', tuple(float(v) for v in self.tau_plus_values_s))
@@ -82,8 +86,9 @@ class SweepConfig:
         make_learner(self.learner_name, self.learner_params)
         if self.state not in STATES:
             raise ValueError(f'state must be one of {STATES}, got {self.state!r}')
-        if not isinstance(self.mirror, bool):
-            raise ValueError(f'mirror must be true or false, got {self.mirror!r}')
+        for name in ('mirror', 'nested_baselines'):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f'{name} must be true or false, got {getattr(self, name)!r}')
         if self.guard_com_height_m is not None and not (
                 isinstance(self.guard_com_height_m, (int, float)) and 0.0 <= self.guard_com_height_m <= 2.0):
             raise ValueError(f'guard_com_height_m must be None or in [0, 2] m, got {self.guard_com_height_m!r}')
@@ -114,7 +119,8 @@ class SweepConfig:
                 'baseline_grids': {k: [json_float(v) for v in values] for k, values
                                    in dataclasses.asdict(self.baseline_grids).items()},
                 'capture_point': self.capture_point, 'state': self.state,
-                'guard_com_height_m': self.guard_com_height_m, 'mirror': self.mirror}
+                'guard_com_height_m': self.guard_com_height_m, 'mirror': self.mirror,
+                'nested_baselines': self.nested_baselines}
 
 
 @dataclass(frozen=True)
