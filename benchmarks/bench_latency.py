@@ -47,6 +47,7 @@ from fall_predictor.monitor.decision_list import Condition, DecisionList, PerMod
 from fall_predictor.monitor.model_file import ModelMetadata, save_model
 from fall_predictor.contract import messages
 from fall_predictor.msg import FallState
+from fall_predictor.ros.runner import executor_kind
 from fall_predictor.ros.endpoints import create_subscription
 from fall_predictor.ros.runner import run_node, run_nodes
 from fall_predictor.ros.simulated_robot import robot_nodes
@@ -209,7 +210,7 @@ def run_benchmark(duration_s: float, real_time_factor: float, model: Optional[Pa
         'monitor': ('fall_monitor (one process)' if single_process_monitor else 'two processes'
                     if not sensors else 'three processes') + (', from the sensor topics' if sensors
                                                               else ', fed measurements'),
-        'executor': os.environ.get('FALL_PREDICTOR_EXECUTOR') or 'default',
+        'executor': executor_kind(),
         'robot': ('simulated_robot (simulator + controller, one process)' if composed_robot
                   else 'simulator_node and controller_node, two processes'),
         'real_time_factor': round(simulated_s / wall_s, 4),

@@ -58,6 +58,7 @@ from fall_predictor.monitor.records import PushSpec
 from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.ros.bringup import ros_environment, start_process, stop_nodes
+from fall_predictor.ros.runner import executor_kind
 from fall_predictor.ros.endpoints import create_publisher, create_subscription
 from fall_predictor.sim.drivers import DriverTiming, driver_messages
 from fall_predictor.sim.sensors import SensorParams, apply_sensors
@@ -240,7 +241,7 @@ def replay(deployment: str, feed: Feed, domain_id: int,
     latencies = np.array([arrivals[k] - t for k, t in ready.items() if k in arrivals])
     return {
         'deployment': label,
-        'executor': os.environ.get('FALL_PREDICTOR_EXECUTOR') or 'default',
+        'executor': executor_kind(),
         'messages_published': len(feed.msgs),
         'samples': len(ready),
         'states_received': int(latencies.size),

@@ -243,19 +243,20 @@ def test_no_push_gives_no_trigger_for_10_s(system: System, runs: Runs) -> None:
     assert {mode for _, mode in run.modes} <= {'balance'}
     # One state per sample, stamped with its sample's own stamp: predicted (OK), or STALE when
     # it arrived too late. The monitor reads best effort (REP 2003), so a saturated machine may
-    # lose samples, never silently: every sample without a state is a gap in the features the
-    # predictor received (lost before the feature node, or between the two), counted exactly.
+    # lose samples, never silently: every sample up to the predictor's last one has a state
+    # published or is a gap in the features it received (lost before the feature node, or
+    # between the two), counted exactly. The reference is the simulator's 1 kHz grid, and the
+    # predictor's own count of the states it published: this test's subscriptions lose some
+    # on a loaded machine too (its observer follows every 1 kHz stream), no fault of the monitor.
+    predictor = run.counters['predictor_node']
+    samples = round(int(predictor['stamp_ns']) * 1e-9 / SIM_DT_S) + 1
+    assert int(predictor['states']) + int(predictor['missing_samples']) == samples, predictor
     ts = [s.t for s in run.states]
     assert ts == sorted(set(ts))
     assert {s.status for s in run.states} <= {STATUS_OK, STATUS_STALE}
-    # The reference is the simulator's 1 kHz grid up to the last sample, not the samples this
-    # test's own best-effort subscription happened to receive: on a loaded machine it loses
-    # some too, and a state of a sample it lost is no fault of the monitor's.
     steps = round(run.samples[-1][0] / SIM_DT_S)
     grid = {round(k * SIM_DT_S, 6) for k in range(steps + 1)}
     assert {round(t, 6) for t in ts} <= grid
-    lost = int(run.counters['predictor_node']['missing_samples'])
-    assert len(grid) - len(ts) == lost, (len(grid), len(ts), lost)
     assert ts                                       # (how many are lost under load: benchmarks)
 
 
@@ -308,7 +309,11 @@ def test_strong_push_is_predicted_before_fallen_and_controller_switches_for_good
     assert all(s.latched for s in run.states if s.t >= predicted.t)
     status = system.observer.fresh_diagnostics('controller_node')
     assert status.values['mode'] == 'fall'
-    assert float(status.values['t_switch_s']) >= predicted.t
+    # The switch answers the trigger: from the switch on, every state says latched (the first
+    # falling state this test received may come after it: its subscription loses some under load).
+    t_switch = float(status.values['t_switch_s'])
+    assert STRONG_PUSH.t_push <= t_switch
+    assert all(s.latched for s in run.states if s.t >= t_switch)
 
 
 @pytest.mark.usefixtures('runs')                # after the runs, the simulator paused

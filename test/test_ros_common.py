@@ -27,9 +27,14 @@ _NODE = textwrap.dedent('''
             super().__init__('shutdown_race')
             self.pub = self.create_publisher(Bool, 'flag', 1)
             self.create_timer(0.05, self.tick)
+            if sys.argv[1] == 'guard':
+                self.guard = self.create_guard_condition(
+                    lambda: print('guard ran', file=sys.stderr, flush=True))
 
         def tick(self):
-            if sys.argv[1] == 'shutdown':
+            if sys.argv[1] == 'guard':
+                self.guard.trigger()
+            elif sys.argv[1] == 'shutdown':
                 rclpy.get_default_context().shutdown()
             elif sys.argv[1] == 'busy':         # a long callback that a signal interrupts
                 print('in callback', file=sys.stderr, flush=True)
@@ -90,6 +95,29 @@ def test_a_signal_during_a_callback_ends_the_process_cleanly_after_it(executor: 
         process.kill()
         process.stderr.close()
     assert 'FATAL' not in log and 'Traceback' not in log and 'Exception' not in log, log
+
+
+@pytest.mark.parametrize('executor', ['single_threaded', 'events'])
+def test_a_process_with_guard_conditions_runs_them_with_either_setting(executor: str) -> None:
+    """The EventsExecutor refuses guard conditions (simulated_robot's lock-step loop uses one):
+    such a process spins on the SingleThreadedExecutor, and says so."""
+    env = ros_environment(test_domain_id(170))
+    env['FALL_PREDICTOR_EXECUTOR'] = executor
+    process = subprocess.Popen([sys.executable, '-c', _NODE, 'guard'], env=env,
+                               stderr=subprocess.PIPE, text=True)
+    try:
+        lines = []
+        while not lines or lines[-1] != 'guard ran':
+            line = process.stderr.readline()
+            assert line, '\n'.join(lines)
+            lines.append(line.strip())
+        process.send_signal(signal.SIGINT)
+        assert process.wait(timeout=10) == 0
+    finally:
+        process.kill()
+        process.stderr.close()
+    fallback = any('spinning on the SingleThreadedExecutor' in line for line in lines)
+    assert fallback == (executor == 'events'), lines
 
 
 def test_an_unknown_executor_is_refused_in_words() -> None:

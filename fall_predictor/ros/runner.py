@@ -19,14 +19,25 @@ EXECUTOR_ENV = 'FALL_PREDICTOR_EXECUTOR'
 EXECUTORS = ('single_threaded', 'events')
 
 
-def make_executor(kind: Optional[str] = None) -> Executor:
-    """The executor ``kind`` (default: ``$FALL_PREDICTOR_EXECUTOR``, else 'single_threaded'):
-    rclpy's SingleThreadedExecutor, or its experimental EventsExecutor ('events', about half the
-    CPU per message in ``benchmarks/bench_executors.py``; opt-in until the whole system has been
-    measured with it). NodeStartupError for another name."""
-    kind = kind or os.environ.get(EXECUTOR_ENV) or 'single_threaded'
+#: The executor of a node process unless ``$FALL_PREDICTOR_EXECUTOR`` says otherwise.
+DEFAULT_EXECUTOR = 'events'
+
+
+def executor_kind(kind: Optional[str] = None) -> str:
+    """``kind``, else ``$FALL_PREDICTOR_EXECUTOR``, else :data:`DEFAULT_EXECUTOR`; checked
+    (NodeStartupError naming the choices)."""
+    kind = kind or os.environ.get(EXECUTOR_ENV) or DEFAULT_EXECUTOR
     if kind not in EXECUTORS:
         raise NodeStartupError(f'{EXECUTOR_ENV}={kind!r} is not an executor: use one of {EXECUTORS}')
+    return kind
+
+
+def make_executor(kind: Optional[str] = None) -> Executor:
+    """The executor ``kind`` (:func:`executor_kind`): rclpy's experimental EventsExecutor
+    ('events', the default: a third less CPU and half the tail latency for the monitor in
+    ``benchmarks/bench_monitor_latency.py``, docs/results.md) or its SingleThreadedExecutor
+    ('single_threaded', the fallback). NodeStartupError for another name."""
+    kind = executor_kind(kind)
     if kind == 'events':
         from rclpy.experimental import EventsExecutor
         return EventsExecutor()
@@ -100,10 +111,17 @@ def run_nodes(factories: Sequence[Callable[[], Node]], name: str,
             rclpy.logging.get_logger(name).fatal(f'cannot start: {error}')
             return 1
         try:
-            executor = make_executor()
+            kind = executor_kind()
         except NodeStartupError as error:
             rclpy.logging.get_logger(name).fatal(f'cannot start: {error}')
             return 1
+        if kind == 'events' and any(list(node.guards) for node in nodes):
+            # This rclpy's EventsExecutor refuses guard conditions ("Guard conditions not
+            # supported"), which the in-process lock-step loop of simulated_robot uses.
+            rclpy.logging.get_logger(name).info(
+                'guard conditions in use: spinning on the SingleThreadedExecutor')
+            kind = 'single_threaded'
+        executor = make_executor(kind)
         for node in nodes:
             executor.add_node(node)
         try:

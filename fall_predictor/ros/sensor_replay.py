@@ -44,6 +44,9 @@ class ReplayResult:
     states: int = 0                                         #: FallState messages
     status_counts: dict[int, int] = field(default_factory=dict)
     joint_messages: int = 0                                 #: joint state messages published
+    #: States that answer a published joint state's stamp (OK, DEGRADED, FALLEN, or STALE for a
+    #: sample that came too late), each stamp once; the watchdog's STALE states answer none.
+    sample_states: int = 0
     publish_lag_s: float = 0.0                              #: worst lag of the publishing loop
 
     @property
@@ -109,16 +112,20 @@ class SensorReplayer:
         timing = DriverTiming(**{**timing.to_dict(), 'clock_offset_ns': offset_ns,
                                  'joint_groups': timing.joint_groups})
         result = ReplayResult()
+        joint_stamps = set()
         for stream, reading in driver_messages(samples, timing):
             while time.time_ns() < reading.stamp_ns:
                 self.executor.spin_once(timeout_sec=0.0)
             result.publish_lag_s = max(result.publish_lag_s, (time.time_ns() - reading.stamp_ns) / 1e9)
             self.pubs[stream].publish(_BUILD[stream](ros_qos.TYPES, reading))
-            result.joint_messages += stream == 'joints'
+            if stream == 'joints':
+                result.joint_messages += 1
+                joint_stamps.add(reading.stamp_ns)
         self.spin_until(lambda: False, drain_s)
         result.falling_s = [(stamp - offset_ns) / 1e9 for stamp, kind in self._events
                             if kind == EVENT_FALLING]
         result.states = len(self._states)
+        result.sample_states = len({stamp for stamp, _ in self._states} & joint_stamps)
         for _, status in self._states:
             result.status_counts[status] = result.status_counts.get(status, 0) + 1
         return result
