@@ -62,8 +62,8 @@ def messages_of(profile, duration_s: float, push: PushSpec, seed: int) -> list:
     return list(driver_messages(samples))
 
 
-def chain_for(profile) -> OnboardChain:
-    lists, metadata = load_model(MODELS / profile.model)
+def chain_for(profile, model: Path | None = None) -> OnboardChain:
+    lists, metadata = load_model(model or MODELS / profile.model)
     settings = metadata.feature_settings
     layout = profile.sensor_layout()
     pipeline = SensorPipeline(layout.description(profile.urdf_xml()), layout.imu_frame,
@@ -114,9 +114,10 @@ def time_stage(calls, reset) -> tuple[np.ndarray, float]:
     return per_call / 1e3, cpu_mean_us
 
 
-def time_chain(profile, messages: list) -> dict[str, tuple[np.ndarray, float]]:
+def time_chain(profile, messages: list, model: Path | None = None
+               ) -> dict[str, tuple[np.ndarray, float]]:
     """Per stage: per-call times [us] and mean CPU per sample [us] (module docstring)."""
-    chain = chain_for(profile)
+    chain = chain_for(profile, model)
     rec = record_stages(chain, messages)
     estimator, extractor, monitor = chain.pipeline.estimator, chain.extractor, chain.monitor
     out = {}
@@ -130,7 +131,7 @@ def time_chain(profile, messages: list) -> dict[str, tuple[np.ndarray, float]]:
         monitor.new_run)
     # The whole input path per estimate (readings into the buffers, the time rule, the
     # synchronised sample, the estimator), less the estimator: the sensor input's own cost.
-    pipeline = chain_for(profile).pipeline
+    pipeline = chain_for(profile, model).pipeline
     c0 = time.thread_time_ns()
     n = sum(len(pipeline.add(stream, reading)) for stream, reading in messages)
     whole_us = (time.thread_time_ns() - c0) / n / 1e3
@@ -143,15 +144,18 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument('--robot', action='append', help='robot profile (repeatable)')
     parser.add_argument('--duration', type=float, default=4.0, help='simulated seconds')
     parser.add_argument('--repeats', type=int, default=3, help='passes over the recording')
+    parser.add_argument('--model', type=Path, default=None,
+                        help="model file instead of the robot profile's shipped one")
     parser.add_argument('--out', type=Path, default=None)
     args = parser.parse_args(argv)
     result = {'aims_us': AIMS_US, 'robots': {}, 'python': platform.python_version(),
+              'model': str(args.model) if args.model else 'each robot profile\'s shipped model',
               'machine': platform.machine(), 'cores': os.cpu_count()}
     for name in args.robot or ['asimo_like', 'g1']:
         profile = load_profile(name)
         push = PushSpec(0.6 * profile.push_force_n[1], 90.0, 0.1, 1.0)
         messages = messages_of(profile, args.duration, push, seed=0)
-        runs = [time_chain(profile, messages) for _ in range(args.repeats)]
+        runs = [time_chain(profile, messages, args.model) for _ in range(args.repeats)]
         row = {}
         for stage in runs[0]:
             cpu = min(r[stage][1] for r in runs)           # the least disturbed pass
