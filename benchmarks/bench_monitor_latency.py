@@ -64,14 +64,11 @@ from fall_predictor.sim.drivers import DriverTiming, driver_messages
 from fall_predictor.sim.sensors import SensorParams, apply_sensors
 from fall_predictor.sim.trajectory import TrajectoryResult, run_trajectory
 
+from bench_robot_streams import LEGS, TIMINGS   # the robot-streams benchmark's three timings
+
 REPO = Path(__file__).resolve().parents[1]
 COUNTERS = ('missing_samples', 'stale_samples', 'out_of_order', 'invalid_measurements',
             'invalid_features', 'states', 'estimates', 'degraded_estimates')
-LEGS = tuple(f'{s}_{j}' for s in rm.SIDES for j in rm.LEG_JOINTS)
-UPPER = tuple(n for n in rm.JOINT_NAMES if n not in LEGS)
-TIMINGS = {'simulator': DriverTiming(),
-           'robot_1khz': DriverTiming.robot(1000.0, (LEGS, UPPER)),
-           'robot_500hz': DriverTiming.robot(500.0, (LEGS, UPPER))}
 DEPLOYMENTS = {
     'single': ('fall_monitor: feature + predictor nodes, one process, fed measurements',
                {'fall_monitor': []}),

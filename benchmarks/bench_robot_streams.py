@@ -43,8 +43,7 @@ from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.sim.drivers import DriverTiming, driver_messages
 
 MODEL = Path(__file__).resolve().parents[1] / 'models' / 'default_model.json'
-LEGS = tuple(f'{s}_{j}' for s in rm.SIDES for j in rm.LEG_JOINTS)
-UPPER = tuple(n for n in rm.JOINT_NAMES if n not in LEGS)
+LEGS, UPPER = rm.PROFILE.legs_and_upper_body()
 TIMINGS = {'simulator': DriverTiming(),
            'robot_1khz': DriverTiming.robot(1000.0, (LEGS, UPPER)),
            'robot_500hz': DriverTiming.robot(500.0, (LEGS, UPPER))}

@@ -196,3 +196,12 @@ def test_the_constant_check_sees_one(tmp_path):
                       'def f():\n    """l_sole"""\n    return 0.2\n')
     numbers, names = _robot_constants()
     assert _constants_in(module, numbers, names, tmp_path) == ["fake.py:2: 42.1", "fake.py:3: 'l_sole'"]
+
+
+@pytest.mark.parametrize('name', ['asimo_like', 'g1'])
+def test_legs_and_upper_body_split_every_joint_once(name):
+    profile = load_profile(name)
+    legs, upper = profile.legs_and_upper_body()
+    assert legs == profile.leg_joints('l') + profile.leg_joints('r') and len(legs) == 12
+    assert sorted(legs + upper) == sorted(profile.joint_names) and not set(legs) & set(upper)
+    assert list(upper) == [n for n in profile.joint_names if n in upper]   # in the joint order

@@ -117,6 +117,12 @@ class RobotProfile:
         """The joints of leg ``side`` from hip to ankle."""
         return self.joint_groups[f'{side}_leg']
 
+    def legs_and_upper_body(self) -> tuple[tuple[str, ...], tuple[str, ...]]:
+        """Both legs' joints (left then right) and every other joint, in the joint order: the
+        two joint state messages of a robot whose legs and upper body have their own drivers."""
+        legs = self.leg_joints('l') + self.leg_joints('r')
+        return legs, tuple(n for n in self.joint_names if n not in legs)
+
     def group_of(self, joint: str) -> str:
         """The joint group ``joint`` belongs to (ProfileError if none)."""
         for group, joints in self.joint_groups.items():

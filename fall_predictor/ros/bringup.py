@@ -265,7 +265,7 @@ def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
             overrides['simulator_node'].update(
                 sensor_joint_rate_hz='500.0', sensor_imu_offset_s='0.0003',
                 sensor_wrench_offset_s='0.0004', sensor_split_joints='true')
-            legs = profile.leg_joints('l') + profile.leg_joints('r')
+            legs = profile.legs_and_upper_body()[0]
             overrides[ESTIMATOR_NODE] = {'driving_joints': '[' + ', '.join(f'"{j}"' for j in legs) + ']'}
         overrides.setdefault(ESTIMATOR_NODE, {})
         if robot != DEFAULT_ROBOT:

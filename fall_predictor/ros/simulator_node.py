@@ -136,9 +136,7 @@ PARAMS = (
 
 def _driver_timing(p: Mapping[str, ParamValue], profile: RobotProfile) -> DriverTiming:
     """How the simulated robot's drivers publish its sensors (the ``sensor_*`` parameters)."""
-    legs = profile.leg_joints('l') + profile.leg_joints('r')
-    groups = (legs, tuple(n for n in profile.joint_names if n not in legs)) \
-        if p['sensor_split_joints'] else ()
+    groups = profile.legs_and_upper_body() if p['sensor_split_joints'] else ()
     return DriverTiming(joint_rate_hz=float(p['sensor_joint_rate_hz']),
                         imu_rate_hz=float(p['sensor_imu_rate_hz']),
                         wrench_rate_hz=float(p['sensor_wrench_rate_hz']),
