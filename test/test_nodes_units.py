@@ -274,6 +274,62 @@ def test_fall_monitor_hands_each_features_message_to_the_predictor_in_process(tm
     assert predictor.counts['features'] == len(measurements)
 
 
+def test_fall_monitor_without_other_subscribers_hands_decoded_samples_and_builds_no_message(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """With nobody of another process on ``fall_predictor/features``, the feature node hands the
+    predictor the decoded features and builds no features message (building and decoding one
+    cost more than the estimator); the states are still the library's offline ones, and a
+    measurement handed over in process passes the checks a decoded message passes: an
+    implausible one is refused and counted, and gets no state."""
+    model = write_momentum_model(tmp_path / 'model.json')
+    lists, _ = load_model(model)
+    measurements = run_trajectory(PushSpec(450.0, 0.0, 0.1, 0.3), 1.0,
+                                  stop_when_fallen=False).measurements
+    extractor = FeatureSettings().extractor()
+    offline = FallMonitor(lists, MODEL_TAU_HIS_S, fallen_config_for('asimo_like'),
+                          FeatureSettings().sample_period_s, FeatureSettings().guard_com_height_m)
+    expected = [offline.step(m.t, *extractor.update(m), base_tilt_rad(m.torso_rotation))[0].status
+                for m in measurements]
+    built: list[int] = []
+    features_msg = messages.features_msg
+    monkeypatch.setattr(messages, 'features_msg',
+                        lambda *args: built.append(1) or features_msg(*args))
+    implausible = dataclasses.replace(measurements[-1], com=np.array([0.0, 0.0, -1.0]))
+    with ros_context(DOMAIN) as context:
+        feature, predictor = [make() for make in in_process_chain(
+            MONITOR_NODES, context=context,
+            parameter_overrides=[Parameter('model_path', value=str(model)),
+                                 Parameter('max_sample_age_s', value=0.0)])]
+        probe = rclpy.node.Node('hand_off_probe', context=context)
+        statuses: list[int] = []
+        create_subscription(probe, FallState, STATE, lambda msg: statuses.append(msg.status),
+                            lossless=True)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(probe)
+        try:
+            assert spin_until(executor, lambda: predictor._state_pub.get_subscription_count() >= 1,
+                              10.0)
+            assert feature.output.publisher.get_subscription_count() == 0
+            for k, m in enumerate(measurements):
+                feature._take_measurement(messages.StampedMeasurement(
+                    ros_qos.sim_ns(m.t), 'odom', '', m))
+                if k % 50 == 49:                # keep the reliable queue short
+                    spin_until(executor, lambda: len(statuses) == k + 1, 10.0)
+            feature._take_measurement(messages.StampedMeasurement(
+                ros_qos.sim_ns(measurements[-1].t) + 1_000_000, 'odom', '', implausible))
+            assert spin_until(executor, lambda: len(statuses) == len(measurements), 10.0)
+            spin_until(executor, lambda: False, 0.3)    # (a state for the refused one: none)
+        finally:
+            executor.shutdown()
+            for node in (probe, predictor, feature):
+                node.destroy_node()
+    assert statuses == expected
+    assert built == []
+    assert feature.counts['measurements'] == len(measurements) + 1
+    assert feature._bad_inputs.count == 1 and 'CoM height' in feature._bad_inputs.last
+    assert predictor.counts['features'] == len(measurements)
+
+
 def test_simulated_robot_closes_the_lock_step_loop_in_process() -> None:
     """simulator + controller in one process: every sample's command comes back in process
     (no missed or late command, no command subscription), and the world follows exactly the

@@ -205,34 +205,51 @@ def _contacts(sole: Any) -> np.ndarray:
     return np.array(rows, dtype=float).reshape(-1, 3)
 
 
-def measurement_from_msg(msg: Any) -> StampedMeasurement:
-    """``fall_predictor/msg/Measurement`` -> StampedMeasurement, checked (WireFormatError)."""
-    ns = stamp_ns(msg)
-    fault = str(msg.fault)
-    if fault:
-        return StampedMeasurement(ns, msg.header.frame_id, fault, None)
-    com, lin, ang = _xyz(msg.com), _xyz(msg.linear_momentum), _xyz(msg.angular_momentum)
-    cop, push = _xyz(msg.cop), _xyz(msg.push_force)
-    feet = [[float(s.x), float(s.y), float(s.yaw)] for s in (msg.left_sole, msg.right_sole)]
-    left, right = _contacts(msg.left_sole), _contacts(msg.right_sole)
-    heading = float(msg.heading)
-    values = [*com, *lin, *ang, heading, *feet[0], *feet[1], *push]
+def check_measurement(m: Measurement) -> None:
+    """The checks every measurement a node takes passes, decoded from a message or handed over
+    in process (WireFormatError): finite values where a measurement promises them, a CoP all
+    finite or all NaN, a finite base orientation, and the physical bounds of
+    :mod:`~fall_predictor.monitor.plausibility`."""
+    com, lin, ang = m.com.tolist(), m.lin_mom.tolist(), m.ang_mom.tolist()
+    cop, push = m.cop.tolist(), m.push_force.tolist()
+    feet = [m.left_foot.tolist(), m.right_foot.tolist()]
+    values = [*com, *lin, *ang, float(m.heading), *feet[0], *feet[1], *push]
     if not all(math.isfinite(v) for v in values):
         raise WireFormatError('measurement has non-finite values (and no fault)')
     if not (all(math.isfinite(v) for v in cop) or all(math.isnan(v) for v in cop)):
         raise WireFormatError(f'measurement.cop must be all finite or all NaN, got {cop}')
-    contacts = np.vstack([left, right])
+    contacts = np.vstack([m.left_contacts, m.right_contacts])
     if not np.isfinite(contacts).all():
         raise WireFormatError('measurement contacts are not finite')
+    if m.torso_rotation is not None and not np.isfinite(m.torso_rotation).all():
+        raise WireFormatError('measurement base orientation is not finite')
     try:
-        check_measurement_bounds(None, com, lin, ang, heading, cop, feet[0], feet[1], push, contacts)
+        check_measurement_bounds(None, com, lin, ang, m.heading, cop, feet[0], feet[1], push,
+                                 contacts)
     except ImplausibleSample as error:
         raise WireFormatError(f'measurement: {error}') from None
-    m = Measurement(t=ns / NS_PER_S, com=np.array(com), lin_mom=np.array(lin), ang_mom=np.array(ang),
-                    heading=heading, cop=np.array(cop), left_contacts=left, right_contacts=right,
-                    left_foot=np.array(feet[0]), right_foot=np.array(feet[1]),
-                    non_foot_contact=bool(msg.non_foot_contact), push_force=np.array(push),
-                    torso_rotation=_rotation(msg.base_orientation))
+
+
+def measurement_from_msg(msg: Any) -> StampedMeasurement:
+    """``fall_predictor/msg/Measurement`` -> StampedMeasurement, checked (WireFormatError;
+    :func:`check_measurement`)."""
+    ns = stamp_ns(msg)
+    fault = str(msg.fault)
+    if fault:
+        return StampedMeasurement(ns, msg.header.frame_id, fault, None)
+    m = Measurement(t=ns / NS_PER_S, com=np.array(_xyz(msg.com)),
+                    lin_mom=np.array(_xyz(msg.linear_momentum)),
+                    ang_mom=np.array(_xyz(msg.angular_momentum)), heading=float(msg.heading),
+                    cop=np.array(_xyz(msg.cop)), left_contacts=_contacts(msg.left_sole),
+                    right_contacts=_contacts(msg.right_sole),
+                    left_foot=np.array([float(msg.left_sole.x), float(msg.left_sole.y),
+                                        float(msg.left_sole.yaw)]),
+                    right_foot=np.array([float(msg.right_sole.x), float(msg.right_sole.y),
+                                         float(msg.right_sole.yaw)]),
+                    non_foot_contact=bool(msg.non_foot_contact),
+                    push_force=np.array(_xyz(msg.push_force)), torso_rotation=None)
+    check_measurement(m)
+    m.torso_rotation = _rotation(msg.base_orientation)
     return StampedMeasurement(ns, msg.header.frame_id, '', m)
 
 
@@ -264,26 +281,37 @@ def features_msg(types: MessageTypes, ns: int, x: Optional[Sequence[float]], mod
         base_tilt=float(base_tilt_rad))
 
 
-def features_from_msg(msg: Any) -> StampedFeatures:
-    """``fall_predictor/msg/Features`` -> StampedFeatures, checked (WireFormatError)."""
-    ns = stamp_ns(msg)
-    fault = str(msg.fault)
-    if fault:
-        return StampedFeatures(ns, fault, None, None, math.nan)
-    x = np.asarray(msg.features, dtype=float)
-    if x.shape != (N_FEATURES,) or not np.isfinite(x).all():
+def check_features(f: StampedFeatures) -> None:
+    """The checks every features sample a node takes passes, decoded from a message or handed
+    over in process (WireFormatError): none with a fault; else finite features of the model's
+    length, a known contact mode, a base tilt in [0, pi] and the bounds of
+    :mod:`~fall_predictor.monitor.plausibility`."""
+    if f.fault:
+        return
+    x = f.x
+    if x is None or x.shape != (N_FEATURES,) or not np.isfinite(x).all():
         raise WireFormatError(f'features must be {N_FEATURES} finite values (and no fault)')
-    mode = int(msg.contact_mode)
-    if not 0 <= mode < N_CONTACT_MODES:
-        raise WireFormatError(f'features.contact_mode must be < {N_CONTACT_MODES}, got {mode}')
-    tilt = float(msg.base_tilt)
-    if not 0.0 <= tilt <= math.pi:
-        raise WireFormatError(f'features.base_tilt must lie in [0, pi] rad, got {tilt!r}')
+    if f.mode is None or not 0 <= f.mode < N_CONTACT_MODES:
+        raise WireFormatError(f'features.contact_mode must be < {N_CONTACT_MODES}, got {f.mode}')
+    if not 0.0 <= f.base_tilt_rad <= math.pi:
+        raise WireFormatError(f'features.base_tilt must lie in [0, pi] rad, got {f.base_tilt_rad!r}')
     try:
         check_feature_bounds(None, x.tolist())
     except ImplausibleSample as error:
         raise WireFormatError(f'features: {error}') from None
-    return StampedFeatures(ns, '', x, mode, tilt)
+
+
+def features_from_msg(msg: Any) -> StampedFeatures:
+    """``fall_predictor/msg/Features`` -> StampedFeatures, checked (WireFormatError;
+    :func:`check_features`)."""
+    ns = stamp_ns(msg)
+    fault = str(msg.fault)
+    if fault:
+        return StampedFeatures(ns, fault, None, None, math.nan)
+    decoded = StampedFeatures(ns, '', np.asarray(msg.features, dtype=float), int(msg.contact_mode),
+                              float(msg.base_tilt))
+    check_features(decoded)
+    return decoded
 
 
 # --------------------------------------------------------------------------------------------

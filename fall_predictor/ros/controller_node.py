@@ -91,7 +91,7 @@ class ControllerNode(Node):
         self._mode_pub = create_publisher(self, String, CONTROLLER_MODE)
         source = GROUND_TRUTH if p['ground_truth'] else MEASUREMENT
         inputs = [*connect_input(self, Measurement, source, self._on_measurement,
-                                 upstream, lossless=True),
+                                 upstream, lossless=True, take=self._take_measurement),
                   create_subscription(self, Bool, FALLING, self._on_falling)]
         create_subscription(self, FallEvent, FALL_EVENT, self._on_fall_event)
 
@@ -135,7 +135,17 @@ class ControllerNode(Node):
 
     @guarded('measurement')
     def _on_measurement(self, msg: Measurement) -> None:
-        decoded = messages.measurement_from_msg(msg)
+        self._control(messages.measurement_from_msg(msg))
+
+    @guarded('measurement')
+    def _take_measurement(self, decoded: messages.StampedMeasurement) -> None:
+        """A measurement handed over in process (``simulated_robot``): the checks a decoded
+        message passes, then the same path."""
+        if decoded.measurement is not None:
+            messages.check_measurement(decoded.measurement)
+        self._control(decoded)
+
+    def _control(self, decoded: messages.StampedMeasurement) -> None:
         kind = self._timeline.classify(decoded.stamp_ns)
         if kind is Stamp.NEW_RUN and self._switch.mode == 'balance':
             self._switch = self._new_switch()   # C_fall stays until the reset (one-way)

@@ -10,7 +10,9 @@ For every ``fall_predictor/measurement`` (``fall_predictor/msg/Measurement``) wh
 rule accepts (:mod:`fall_predictor.monitor.timeline`: duplicates, out-of-order samples and stray
 stamps are dropped and counted; a confirmed clock jump or the monitor's RESET event on
 ``fall_predictor/fall_event`` starts a new run, clearing the momentum history) it publishes
-``fall_predictor/features`` (``fall_predictor/msg/Features``) with the measurement's own stamp:
+``fall_predictor/features`` (``fall_predictor/msg/Features``) with the measurement's own stamp
+(in ``fall_monitor``, handed to the predictor node in process and published only while another
+process subscribes, see ``ros/in_process.py``):
 the features of :class:`~fall_predictor.monitor.features.FeatureExtractor`, or the fault that
 prevented them (the measurement's own, or why the extractor refused it, e.g. a jump faster than
 physics allows), so that every accepted sample gets a state downstream.
@@ -22,10 +24,13 @@ dropped or samples missing in the last period; STALE when no measurement arrived
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import replace
+from functools import partial
 from typing import Optional
 
+import numpy as np
 from rclpy.parameter import Parameter
 
 from fall_predictor.contract import messages
@@ -77,7 +82,8 @@ class FeatureNode(MonitorLifecycleNode):
 
         #: The features, published and handed to in-process consumers (``fall_monitor``).
         self.output = Output(create_publisher(self, Features, FEATURES))
-        inputs = connect_input(self, Measurement, MEASUREMENT, self._on_measurement, upstream)
+        inputs = connect_input(self, Measurement, MEASUREMENT, self._on_measurement, upstream,
+                               take=self._take_measurement)
         create_subscription(self, FallEvent, FALL_EVENT, self._on_fall_event)
         self._timeline = StampTimeline()
         self._bad_inputs = InputErrors(self)
@@ -119,11 +125,27 @@ class FeatureNode(MonitorLifecycleNode):
 
     @guarded('measurement')
     def _on_measurement(self, msg: Measurement) -> None:
+        if self._received():
+            self._process(messages.measurement_from_msg(msg))
+
+    @guarded('measurement')
+    def _take_measurement(self, decoded: messages.StampedMeasurement) -> None:
+        """A measurement handed over in process (``fall_monitor --estimator``): the checks a
+        decoded message passes, then the same path."""
+        if self._received():
+            if decoded.measurement is not None:
+                messages.check_measurement(decoded.measurement)
+            self._process(decoded)
+
+    def _received(self) -> bool:
+        """Count a measurement; whether the node is active to process it."""
         if not self.active:
-            return
+            return False
         self.counts['measurements'] += 1
         self._last_input_wall = time.monotonic()
-        decoded = messages.measurement_from_msg(msg)
+        return True
+
+    def _process(self, decoded: messages.StampedMeasurement) -> None:
         kind = self._timeline.classify(decoded.stamp_ns)
         if not kind.accepted:
             return                          # duplicate, out of order, stray: counted
@@ -141,8 +163,11 @@ class FeatureNode(MonitorLifecycleNode):
                 own = f'measurement refused: {error}'
         self._faults.update(own)
         fault = decoded.fault or own
-        features = messages.features_msg(ros_qos.TYPES, decoded.stamp_ns, x, mode, tilt, fault)
-        self.output.publish(features)
+        stamp_ns = decoded.stamp_ns
+        features = messages.StampedFeatures(stamp_ns, fault, None if fault else np.asarray(x, dtype=float),
+                                            None if fault else mode, math.nan if fault else tilt)
+        self.output.hand_off(features, partial(messages.features_msg, ros_qos.TYPES, stamp_ns,
+                                               features.x, features.mode, tilt, fault))
         self.counts['faults' if fault else 'features'] += 1
 
     def _check_rate(self) -> None:

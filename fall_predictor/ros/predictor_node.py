@@ -107,7 +107,8 @@ class PredictorNode(MonitorLifecycleNode):
         self._event_pub = create_publisher(self, FallEventMsg, FALL_EVENT)
         self._falling_pub = create_publisher(self, Bool, FALLING)
         self._direction_pub = create_publisher(self, Vector3Stamped, FALL_DIRECTION)
-        inputs = connect_input(self, Features, FEATURES, self._on_features, upstream)
+        inputs = connect_input(self, Features, FEATURES, self._on_features, upstream,
+                               take=self._take_features)
         self._timeline = StampTimeline()
         self._age = SampleAge(self)
         self._bad_inputs = InputErrors(self)
@@ -213,9 +214,29 @@ class PredictorNode(MonitorLifecycleNode):
         try:
             decoded = messages.features_from_msg(msg)
         except ValueError as error:
-            self._bad_inputs.reject('features', error)
-            self._publish_unusable(self._timeline.last_ns or 0, f'invalid features: {error}', True)
+            self._refuse(error)
             return
+        self._step(decoded)
+
+    @guarded('features')
+    def _take_features(self, decoded: messages.StampedFeatures) -> None:
+        """Features handed over in process (``fall_monitor``): the checks a decoded message
+        passes, then the same path."""
+        if not self.active:
+            return
+        self.counts['features'] += 1
+        try:
+            messages.check_features(decoded)
+        except ValueError as error:
+            self._refuse(error)
+            return
+        self._step(decoded)
+
+    def _refuse(self, error: ValueError) -> None:
+        self._bad_inputs.reject('features', error)
+        self._publish_unusable(self._timeline.last_ns or 0, f'invalid features: {error}', True)
+
+    def _step(self, decoded: messages.StampedFeatures) -> None:
         kind = self._timeline.classify(decoded.stamp_ns)
         if not kind.accepted:
             return                          # duplicate, out of order, stray: counted

@@ -53,6 +53,7 @@ from __future__ import annotations
 
 import math
 import time
+from functools import partial
 from collections.abc import Mapping
 from dataclasses import replace
 from typing import Optional
@@ -441,7 +442,9 @@ class SimulatorNode(Node):
         self._clock_pub.publish(Clock(clock=ros_qos.stamp(stamp_ns)))
         self._in_publish = True
         try:
-            self.output.publish(messages.measurement_msg(ros_qos.TYPES, stamp_ns, ODOM_FRAME, m))
+            self.output.hand_off(messages.StampedMeasurement(stamp_ns, ODOM_FRAME, '', m),
+                                 partial(messages.measurement_msg, ros_qos.TYPES, stamp_ns,
+                                         ODOM_FRAME, m))
         finally:
             self._in_publish = False
         self.counts['measurements'] += 1

@@ -29,6 +29,7 @@ is dropped, a confirmed clock jump starts a new run). The RESET event on
 from __future__ import annotations
 
 import time
+from functools import partial
 from typing import Optional
 
 from geometry_msgs.msg import WrenchStamped
@@ -209,15 +210,14 @@ class StateEstimatorNode(MonitorLifecycleNode):
 
     def _publish(self, estimates: list[Estimate]) -> None:
         for e in estimates:
-            try:
-                msg = messages.measurement_msg(ros_qos.TYPES, e.stamp_ns, ODOM_FRAME, e.measurement,
-                                               e.fault)
-            except HANDLED_ERRORS as error:
-                self._bad_inputs.reject(f'estimate at {e.stamp_ns} ns', error)
-                continue
             self._faults.update(e.fault)
             self.counts['faults' if e.fault else 'measurements'] += 1
-            self.output.publish(msg)
+            sample = messages.StampedMeasurement(e.stamp_ns, ODOM_FRAME, e.fault, e.measurement)
+            try:
+                self.output.hand_off(sample, partial(messages.measurement_msg, ros_qos.TYPES,
+                                                     e.stamp_ns, ODOM_FRAME, e.measurement, e.fault))
+            except HANDLED_ERRORS as error:
+                self._bad_inputs.reject(f'estimate at {e.stamp_ns} ns', error)
 
     # -- health ----------------------------------------------------------------------------
     def _report(self) -> Report:
