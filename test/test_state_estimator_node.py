@@ -11,7 +11,7 @@ from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import String
 from test_nodes_support import ros_context, test_domain_id
 
-from fall_predictor.contract import messages
+from fall_predictor.contract import cdr, messages
 from fall_predictor.contract.topics import (IMU, LEFT_FOOT_WRENCH, MEASUREMENT, RIGHT_FOOT_WRENCH,
                                             ROBOT_DESCRIPTION, SENSOR_JOINT_STATES)
 from fall_predictor.monitor.records import PushSpec
@@ -104,6 +104,7 @@ def test_the_node_publishes_what_the_offline_pipeline_computes(samples, timing):
                             expected=len(expected), params=params)
     assert sorted(g.stamp_ns for g in got) == sorted(expected)
     assert counts['measurements'] + counts['faults'] == len(got)
+    assert counts['rclpy_decoded_messages'] == 0        # every sensor message read as CDR
     for g in got:
         ref = expected[g.stamp_ns]
         assert g.fault == ref.fault
@@ -285,3 +286,28 @@ def test_a_g1_standing_on_its_topics_without_foot_sensors():
         # The world frame's origin lies between the soles: the CoP sits at the CoM's offset.
         assert m.cop[:2] == pytest.approx(cop_offset, abs=1e-3)
         assert np.linalg.norm(m.lin_mom) < 1e-3
+
+
+def test_a_message_cdr_cannot_read_is_decoded_by_rclpy_and_garbage_is_refused():
+    """The node reads its sensor messages as little-endian CDR; a big-endian one (built here by
+    hand with ``struct``) goes to rclpy's deserialization, counted; bytes nothing reads raise the
+    wire-format error the node's guard counts (never a crash)."""
+    import struct
+    from fall_predictor.contract.topics import WireFormatError
+    frame = b'l_sole\x00'
+    body = struct.pack('>iII', 12, 345, len(frame)) + frame
+    body += b'\x00' * ((-len(body)) % 8) + struct.pack('>6d', 1.0, 2.0, 300.0, 4.0, 5.0, 6.0)
+    big_endian = b'\x00\x00\x00\x00' + body
+    with ros_context(DOMAIN) as context:
+        node = StateEstimatorNode(context=context)
+        try:
+            reading = node._read(big_endian, cdr.wrench_reading, WrenchStamped,
+                                 messages.wrench_reading)
+            assert (reading.stamp_ns, reading.frame_id) == (12_000_000_345, 'l_sole')
+            np.testing.assert_array_equal(reading.wrench, [1.0, 2.0, 300.0, 4.0, 5.0, 6.0])
+            assert node.counts['rclpy_decoded_messages'] == 1
+            with pytest.raises(WireFormatError):
+                node._read(b'\x00\x00\x00\x00\x01', cdr.wrench_reading, WrenchStamped,
+                           messages.wrench_reading)
+        finally:
+            node.destroy_node()
