@@ -108,3 +108,19 @@ def test_a_new_fault_after_a_quiet_second_is_logged_at_once(clock: _Clock) -> No
     assert node.logger.lines == [('warning', 'no /left_foot/wrench: no prediction'),
                                  ('info', 'back to normal after 0.2 s of: no /left_foot/wrench'),
                                  ('warning', 'IMU stuck: no prediction')]
+
+
+def test_a_summary_names_another_fault_that_came_and_went_in_between(clock: _Clock) -> None:
+    node = _Node()
+    log = FaultLog(node)
+    log.update('')
+    log.update('no features received')              # logged at once
+    clock.now_ms += 100
+    log.update('sample arrived 0.200 s after its stamp')
+    clock.now_ms += 100
+    log.update('')
+    clock.now_ms += 1000
+    log.update('no features received')              # due: the summary names the one between
+    assert node.logger.lines[-1] == (
+        'warning', 'no features received: no prediction (the fault changed 3 times in the last '
+                   '1.2 s; also: sample arrived 0.200 s after its stamp)')

@@ -412,8 +412,22 @@ def test_example_consumer_sees_the_trigger(robot: Robot) -> None:
         while ', ok, falling False' not in ''.join(lines):
             assert time.monotonic() < deadline and consumer.poll() is None, ''.join(lines)
             robot.stream(0.5)
-        robot.stream(0.2, p_x=FALLING_P)
-        consumer.wait(timeout=20.0)
+        # A robot keeps publishing: stream the falling samples until the consumer has seen the
+        # trigger. (A fixed 0.2 s burst failed about 1 run in 10 on a saturated machine: the
+        # monitor, seen 0.2 s behind the stream at its start, rightly answered the burst STALE,
+        # older than max_sample_age_s 0.15 s, and no later sample came to trigger on.)
+        falling = robot.stream(0.2, p_x=FALLING_P)
+        deadline = time.monotonic() + 20.0
+        while consumer.poll() is None and time.monotonic() < deadline:
+            falling += robot.stream(0.1, p_x=FALLING_P)
+        try:
+            consumer.wait(timeout=5.0)
+        except subprocess.TimeoutExpired:
+            answered = robot.states_since(falling[0], None)
+            reasons = sorted({(s.status, s.reason.split(' (')[0]) for s in answered})
+            pytest.fail(f'no trigger reached the consumer: {len(falling)} falling samples sent, '
+                        f'{len(answered)} states for them, falling {sum(s.falling for s in answered)}, '
+                        f'(status, reason) {reasons[:5]}; consumer: {"".join(lines)}')
         reader.join(timeout=5.0)
         out = ''.join(lines)
     finally:

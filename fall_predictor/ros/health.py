@@ -146,6 +146,7 @@ class FaultLog:
         self._since = 0.0
         self._logged_at = -float('inf')
         self._changes = 0           # changes of the fault since the last line
+        self._between = ''          # the last fault since the last line other than the current
         self._ended: tuple[str, float] = ('', 0.0)   # the last fault that ended, how long it lasted
 
     def update(self, fault: str) -> None:
@@ -154,6 +155,7 @@ class FaultLog:
             now = time.monotonic()
             if self._fault:
                 self._ended = (self._fault, now - self._since)
+                self._between = self._fault
             self._changes += 1
             self._fault, self._since = fault, now
         elif not fault and not self._changes:
@@ -169,8 +171,12 @@ class FaultLog:
         changes = self._changes
         also = ''
         if changes > 1:             # (then an earlier line exists: a first change logs at once)
-            also = f' (the fault changed {changes} times in the last {now - self._logged_at:.1f} s)'
+            also = f' (the fault changed {changes} times in the last {now - self._logged_at:.1f} s'
+            if self._between and self._between != (fault or self._ended[0]):
+                also += f'; also: {self._between}'
+            also += ')'
         self._changes = 0
+        self._between = ''
         self._logged_at = now
         if fault and changes:
             logger.warning(f'{fault}: no prediction{also}')
