@@ -2,7 +2,7 @@
 the sweep's point at the model's own (tau_plus, recommended tau_his), with the commands that made
 the dataset, the sweep and the model.
 
-    .venv/bin/python scripts/model_evaluation.py --sweep docs/sweep/sweep.json \
+    .venv/bin/python scripts/model_evaluation.py --sweep docs/sweep_wide_mirror/sweep.json \
         --model models/default_model.json --out models/default_model.evaluation.json
 """
 from __future__ import annotations
@@ -36,8 +36,8 @@ def main() -> None:
                         f'settings of {args.model}: each fold trains on {round(point["n_train"])} trajectories '
                         f'with these settings and is evaluated on the other {n - round(point["n_train"])} at tau_his = {tau_his} s. '
                         f'The shipped model itself is then trained on all {n}.'),
-        'model_command': f'fall-predictor train --data data/d1000s --tau-plus={tau_plus} '
-                         f'--tau-his-recommended {tau_his} --out {args.model} --jobs 2',
+        'model_command': f'fall-predictor train --data data/d1000s {"--mirror " if metadata.mirror else ""}'
+                         f'--tau-plus={tau_plus} --tau-his-recommended {tau_his} --out {args.model} --jobs 2',
         'dataset_command': args.dataset_command,
         'evaluation_command': sweep['command'],
         'dataset_fingerprint': sweep['dataset']['fingerprint'],
