@@ -164,8 +164,10 @@ class FeatureNode(MonitorLifecycleNode):
         self._faults.update(own)
         fault = decoded.fault or own
         stamp_ns = decoded.stamp_ns
-        features = messages.StampedFeatures(stamp_ns, fault, None if fault else np.asarray(x, dtype=float),
-                                            None if fault else mode, math.nan if fault else tilt)
+        if fault:
+            features = messages.StampedFeatures(stamp_ns, fault, None, None, math.nan)
+        else:
+            features = messages.StampedFeatures(stamp_ns, '', np.asarray(x, dtype=float), mode, tilt)
         self.output.hand_off(features, partial(messages.features_msg, ros_qos.TYPES, stamp_ns,
                                                features.x, features.mode, tilt, fault))
         self.counts['faults' if fault else 'features'] += 1
