@@ -295,7 +295,9 @@ def test_fall_monitor_without_other_subscribers_hands_decoded_samples_and_builds
     monkeypatch.setattr(messages, 'features_msg',
                         lambda *args: built.append(1) or features_msg(*args))
     implausible = dataclasses.replace(measurements[-1], com=np.array([0.0, 0.0, -1.0]))
-    with ros_context(DOMAIN) as context:
+    # A domain of its own: the previous test's features probe may still be matched in DOMAIN
+    # until DDS discovery notices it is gone.
+    with ros_context(test_domain_id(71)) as context:
         feature, predictor = [make() for make in in_process_chain(
             MONITOR_NODES, context=context,
             parameter_overrides=[Parameter('model_path', value=str(model)),
