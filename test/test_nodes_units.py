@@ -211,6 +211,17 @@ def test_predictor_process_refuses_to_start_with_a_clear_error(tmp_path: Path) -
 
 # -- fall_monitor: the nodes of one process hand samples over in process -----------------------
 
+def _offline_states(model: Path, measurements: list) -> list:
+    """The library's extractor and predictor run offline over ``measurements`` with ``model``:
+    the states the monitor nodes must publish."""
+    lists, _ = load_model(model)
+    extractor = FeatureSettings().extractor()
+    offline = FallMonitor(lists, MODEL_TAU_HIS_S, fallen_config_for('asimo_like'),
+                          FeatureSettings().sample_period_s, FeatureSettings().guard_com_height_m)
+    return [offline.step(m.t, *extractor.update(m), base_tilt_rad(m.torso_rotation))[0]
+            for m in measurements]
+
+
 def test_fall_monitor_hands_each_features_message_to_the_predictor_in_process(tmp_path: Path
                                                                              ) -> None:
     """In ``fall_monitor`` the predictor has no features subscription: the feature node hands
@@ -218,14 +229,9 @@ def test_fall_monitor_hands_each_features_message_to_the_predictor_in_process(tm
     predictor run offline on the same measurements), and still publishes every features
     message for other processes (a probe receives them over DDS)."""
     model = write_momentum_model(tmp_path / 'model.json')
-    lists, _ = load_model(model)
     measurements = run_trajectory(PushSpec(450.0, 0.0, 0.1, 0.3), 1.2,
                                   stop_when_fallen=False).measurements
-    extractor = FeatureSettings().extractor()
-    offline = FallMonitor(lists, MODEL_TAU_HIS_S, fallen_config_for('asimo_like'),
-                          FeatureSettings().sample_period_s, FeatureSettings().guard_com_height_m)
-    outputs = [offline.step(m.t, *extractor.update(m), base_tilt_rad(m.torso_rotation))[0]
-               for m in measurements]
+    outputs = _offline_states(model, measurements)
     expected = [o.falling for o in outputs]
     # The robot is down (FALLEN, no prediction) from its first sample with the CoM below 0.33 m
     # or the torso tilted beyond 60 degrees (it stays down: it does not get up).
@@ -282,14 +288,9 @@ def test_fall_monitor_without_other_subscribers_hands_decoded_samples_and_builds
     measurement handed over in process passes the checks a decoded message passes: an
     implausible one is refused and counted, and gets no state."""
     model = write_momentum_model(tmp_path / 'model.json')
-    lists, _ = load_model(model)
     measurements = run_trajectory(PushSpec(450.0, 0.0, 0.1, 0.3), 1.0,
                                   stop_when_fallen=False).measurements
-    extractor = FeatureSettings().extractor()
-    offline = FallMonitor(lists, MODEL_TAU_HIS_S, fallen_config_for('asimo_like'),
-                          FeatureSettings().sample_period_s, FeatureSettings().guard_com_height_m)
-    expected = [offline.step(m.t, *extractor.update(m), base_tilt_rad(m.torso_rotation))[0].status
-                for m in measurements]
+    expected = [o.status for o in _offline_states(model, measurements)]
     built: list[int] = []
     features_msg = messages.features_msg
     monkeypatch.setattr(messages, 'features_msg',

@@ -112,23 +112,24 @@ class JointStateDecoder:
         return self._names, offset
 
 
-def imu_reading(data: bytes) -> ImuReading:
-    """``sensor_msgs/Imu`` -> ImuReading (covariances are not read)."""
+def _fixed_after_header(data: bytes, layout: struct.Struct, type_name: str
+                        ) -> tuple[int, str, tuple[float, ...]]:
+    """A stamped message whose body is ``layout`` (doubles): (stamp [ns], frame_id, values)."""
     try:
         stamp_ns, frame_id, offset = _header(data)
-        v = _IMU.unpack_from(data, _ORIGIN + _align(offset, 8))
+        return stamp_ns, frame_id, layout.unpack_from(data, _ORIGIN + _align(offset, 8))
     except (struct.error, UnicodeDecodeError) as error:
-        raise CdrError(f'sensor_msgs/Imu: {error}') from None
+        raise CdrError(f'{type_name}: {error}') from None
+
+
+def imu_reading(data: bytes) -> ImuReading:
+    """``sensor_msgs/Imu`` -> ImuReading (covariances are not read)."""
+    stamp_ns, frame_id, v = _fixed_after_header(data, _IMU, 'sensor_msgs/Imu')
     return ImuReading(stamp_ns, frame_id, np.array(v[0:4]), np.array(v[13:16]),
                       np.array(v[25:28]))
 
 
 def wrench_reading(data: bytes) -> WrenchReading:
     """``geometry_msgs/WrenchStamped`` -> WrenchReading."""
-    try:
-        stamp_ns, frame_id, offset = _header(data)
-        v = _WRENCH.unpack_from(data, _ORIGIN + _align(offset, 8))
-    except (struct.error, UnicodeDecodeError) as error:
-        raise CdrError(f'geometry_msgs/WrenchStamped: {error}') from None
+    stamp_ns, frame_id, v = _fixed_after_header(data, _WRENCH, 'geometry_msgs/WrenchStamped')
     return WrenchReading(stamp_ns, frame_id, np.array(v))
-

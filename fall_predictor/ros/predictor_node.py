@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Optional
+from typing import Callable, Optional
 
 from geometry_msgs.msg import Vector3Stamped
 from rclpy.parameter import Parameter
@@ -208,33 +208,30 @@ class PredictorNode(MonitorLifecycleNode):
     # -- samples ---------------------------------------------------------------------------
     @guarded('features')
     def _on_features(self, msg: Features) -> None:
-        if not self.active:
-            return
-        self.counts['features'] += 1
-        try:
-            decoded = messages.features_from_msg(msg)
-        except ValueError as error:
-            self._refuse(error)
-            return
-        self._step(decoded)
+        self._receive(lambda: messages.features_from_msg(msg))
 
     @guarded('features')
     def _take_features(self, decoded: messages.StampedFeatures) -> None:
         """Features handed over in process (``fall_monitor``): the checks a decoded message
         passes, then the same path."""
+        def checked() -> messages.StampedFeatures:
+            messages.check_features(decoded)
+            return decoded
+        self._receive(checked)
+
+    def _receive(self, decode: Callable[[], messages.StampedFeatures]) -> None:
+        """Count a features sample, decode or check it (``decode``), then step the monitor; an
+        invalid one is refused with an unusable state."""
         if not self.active:
             return
         self.counts['features'] += 1
         try:
-            messages.check_features(decoded)
+            decoded = decode()
         except ValueError as error:
-            self._refuse(error)
+            self._bad_inputs.reject('features', error)
+            self._publish_unusable(self._timeline.last_ns or 0, f'invalid features: {error}', True)
             return
         self._step(decoded)
-
-    def _refuse(self, error: ValueError) -> None:
-        self._bad_inputs.reject('features', error)
-        self._publish_unusable(self._timeline.last_ns or 0, f'invalid features: {error}', True)
 
     def _step(self, decoded: messages.StampedFeatures) -> None:
         kind = self._timeline.classify(decoded.stamp_ns)
