@@ -30,12 +30,13 @@ def cmd_generate(args) -> int:
     from fall_predictor.sim.pushes import PushDistribution
 
     profile = load_profile(args.robot)
-    # Another robot: its push range; a robot whose controller only stands draws no gait.
+    # Another robot: its push range; a robot whose controller only stands, or whose profile
+    # says so, draws no gait.
     standing = bool(profile.controller.get('gait', {}).get('standing', False))
     extra = {} if args.robot == DEFAULT_ROBOT else {
         'robot': args.robot, 'push_distribution': PushDistribution.for_robot(profile)}
     config = GenerationConfig(seed=args.seed, horizon_after_push_s=args.horizon,
-                              gait_variety=not (args.fixed_gait or standing),
+                              gait_variety=not (args.fixed_gait or standing) and profile.gait_variety,
                               sensor_noise_scale=args.sensor_noise,
                               sensor_timing=_sensor_timing(args), **extra)
     start = time.perf_counter()

@@ -85,6 +85,8 @@ class RobotProfile:
     joint_groups: dict[str, tuple[str, ...]]
     servo_gains: dict[str, ServoGains] = field(default_factory=dict)
     push_force_n: tuple[float, float] = (0.0, 0.0)
+    #: Its datasets draw a gait per trajectory (method §3); False: they walk the profile's gait.
+    gait_variety: bool = True
     #: The balance controller's settings that differ for this robot: per part ('gait', 'reflex',
     #: 'stabilizer'), field -> value (robot/controllers.py GaitConfig, ReflexConfig, ...).
     controller: dict[str, dict[str, Union[float, bool]]] = field(default_factory=dict)
@@ -275,6 +277,9 @@ def _parse(path: Path, raw: Any) -> RobotProfile:
     unknown = sorted(set(posture) - {j for joints in groups.values() for j in joints})
     if unknown:
         raise ProfileError(f'{path}: posture names joints in no joint group: {unknown}')
+    gait_variety = r.get('gait_variety', True)
+    if not isinstance(gait_variety, bool):
+        raise ProfileError(f'{path}: gait_variety must be true or false, got {gait_variety!r}')
     urdf = r.file('urdf')
     return RobotProfile(
         name=r.text('name'), description=r.text('description', ''), source=path,
@@ -282,5 +287,6 @@ def _parse(path: Path, raw: Any) -> RobotProfile:
         total_mass_kg=r.number('total_mass_kg', 1.0, 1000.0), imu_frame=r.text('imu_frame'),
         feet=feet, fallen_com_height_m=fallen, guard_com_height_m=guard, joint_groups=groups,
         servo_gains=gains,
-        push_force_n=r.vector('push_force_n', 2, (0.0, 0.0)), controller=controller,
+        push_force_n=r.vector('push_force_n', 2, (0.0, 0.0)), gait_variety=gait_variety,
+        controller=controller,
         posture=posture, model=r.text('model', 'default_model.json'))
