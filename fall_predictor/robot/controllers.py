@@ -27,6 +27,12 @@ N_JOINTS = len(rm.JOINT_NAMES)
 _EYE = np.eye(3)
 #: Within a leg (the profile's hip-to-ankle order): the ankle pitch and roll joints.
 _ANKLE_PITCH, _ANKLE_ROLL = 4, 5
+#: A walk of an hour is planned at once, but only its next steps and seconds are kept in world
+#: coordinates: each landing moves the plan with the measured foothold, and moving every step and
+#: ZMP sample of the hour cost ~80 ms a landing (a tenth of the simulation's time on the G1).
+#: Steps further ahead and later ZMP samples take the accumulated move when they come near.
+_SHIFTED_STEPS = 4
+_ZMP_CHUNK_S = 5.0
 
 
 
@@ -159,10 +165,25 @@ class BalanceController:
     def _set_plan(self, plan: WalkingPlan, t_now: float) -> None:
         self.plan = plan
         self._steps = list(plan.steps)
+        #: How far the footholds have moved the plan since it was set, and how many steps at the
+        #: head of ``_steps`` carry that move already.
+        self._plan_shift = np.zeros(2)
+        self._n_shifted = min(len(self._steps), _SHIFTED_STEPS)
         self._t0 = t_now
-        horizon = max(plan.zmp_knots_t[-1] - t_now, 0.0) + self.gait.preview_s + 1.0
-        times = t_now + self.dt_s * np.arange(int(horizon / self.dt_s) + 2)
-        self._zmp_ref = plan.zmp_reference(times)
+        self._ref_base = 0                     # tick (from _t0) of the first row of _zmp_ref
+        self._zmp_ref = np.empty((0, 2))
+        self._ref_index = 0
+        self._extend_zmp_reference()
+
+    def _extend_zmp_reference(self) -> None:
+        """Tabulate the next chunk of the ZMP reference (the plan held at its end, moved by the
+        footholds), dropping the rows already used."""
+        start = self._ref_base + len(self._zmp_ref)
+        horizon = max(self.plan.zmp_knots_t[-1] - self._t0 - start * self.dt_s, 0.0) + self.gait.preview_s + 1.0
+        ticks = np.arange(start, start + int(min(horizon, _ZMP_CHUNK_S + self.gait.preview_s) / self.dt_s) + 2)
+        rows = self.plan.zmp_reference(self._t0 + self.dt_s * ticks) + self._plan_shift
+        self._zmp_ref = np.vstack([self._zmp_ref[self._ref_index:], rows])
+        self._ref_base += self._ref_index
         self._ref_index = 0
 
     # -- control -----------------------------------------------------------------------------
@@ -174,11 +195,10 @@ class BalanceController:
             self._start(m)
         if self.reflex.enabled and self.reflex_event is None and self._momentum_departed(m):
             self._fire_reflex(m)
+        if self._ref_index + self.preview.n_preview + 1 > len(self._zmp_ref):
+            self._extend_zmp_reference()
         i = self._ref_index
         ref = self._zmp_ref
-        if i + self.preview.n_preview + 1 > len(ref):
-            ref = np.vstack([ref, np.repeat(ref[-1:], self.preview.n_preview + 1, axis=0)])
-            self._zmp_ref = ref
         com_xy = self.preview.step(ref[i:i + self.preview.n_preview + 1])
         self._ref_index += 1
         t = m.t + self.dt_s
@@ -238,22 +258,43 @@ class BalanceController:
         the walking plan with them: the plan is anchored to the real footholds, so the small
         slips of every step do not add up to a drift the stabilizer would fight."""
         while self._steps and t > self._steps[0].t_land + 1e-9:
-            done = self._steps.pop(0)
+            done = self._pop_step()
             landed = np.array(done.target)
             if done is not self._reflex_step:
                 measured = (m.left_foot if done.side == 'l' else m.right_foot)[:2]
                 limit = self.gait.max_reanchor_m
                 delta = np.clip(measured - landed, -limit, limit)
-                self._steps = [replace(step, start=tuple(np.add(step.start, delta)),
-                                       target=tuple(np.add(step.target, delta))) for step in self._steps]
-                self._zmp_ref[self._ref_index:] += delta
+                self._move_plan(delta)
                 landed = landed + delta
             self.feet[done.side] = landed
+
+    def _move_plan(self, delta: np.ndarray) -> None:
+        """Move the rest of the plan by ``delta``: the near steps and the tabulated ZMP now, the
+        later steps when they come near (:data:`_SHIFTED_STEPS`)."""
+        n = self._n_shifted
+        self._steps[:n] = [_moved(step, delta) for step in self._steps[:n]]
+        self._plan_shift = self._plan_shift + delta
+        self._promote_steps()
+        self._zmp_ref[self._ref_index:] += delta
+
+    def _promote_steps(self) -> None:
+        steps, n = self._steps, self._n_shifted
+        while n < min(len(steps), _SHIFTED_STEPS):
+            steps[n] = _moved(steps[n], self._plan_shift)
+            n += 1
+        self._n_shifted = n
+
+    def _pop_step(self) -> Footstep:
+        """The finished first step, taken off the plan."""
+        done = self._steps.pop(0)
+        self._n_shifted = max(0, self._n_shifted - 1)
+        self._promote_steps()
+        return done
 
     def _active_step(self, side: str, t: float) -> Optional[Footstep]:
         # Drop finished steps (their targets become the planted feet).
         while self._steps and t > self._steps[0].t_land + 1e-9:
-            done = self._steps.pop(0)
+            done = self._pop_step()
             self.feet[done.side] = np.array(done.target)
         for step in self._steps[:2]:
             if step.side == side and step.t_lift <= t <= step.t_land + 1e-9:
@@ -391,6 +432,10 @@ class BalanceController:
         if swinging:
             return swinging[0]
         return max(SIDES, key=lambda s_: float(np.linalg.norm(self.feet[s_] - capture)))
+
+
+def _moved(step: Footstep, delta: np.ndarray) -> Footstep:
+    return replace(step, start=tuple(np.add(step.start, delta)), target=tuple(np.add(step.target, delta)))
 
 
 def controller_configs(profile: RobotProfile) -> tuple[GaitConfig, ReflexConfig, StabilizerConfig]:

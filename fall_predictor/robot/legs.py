@@ -7,8 +7,8 @@ Two solvers behind one interface (:class:`LegSolver`):
   meet in a point, in the order hip yaw, roll, pitch, knee, ankle pitch, roll (the ASIMO-like
   robot): the closed form of robot/kinematics.py, its geometry read from the URDF;
 - :class:`NumericLegs`, for any 6-joint leg (the G1's hip pitch-roll-yaw with offset axes):
-  damped least squares on Pinocchio's sole-frame Jacobian, warm-started from the previous solution
-  of the same leg, so that at 1 kHz one or two iterations suffice.
+  damped least squares on Pinocchio's sole-frame Jacobian, warm-started from the last two
+  solutions of the same leg (extrapolated), so that at 1 kHz one or two iterations suffice.
 
 Both take the base (the URDF's root link) pose and each sole's target pose in the world, and
 return the six leg angles in the profile's leg order (``joint_groups.<side>_leg``).
@@ -69,51 +69,79 @@ class ClosedFormLegs(LegSolver):
 
 
 class NumericLegs(LegSolver):
-    """Damped least squares on the sole frame (module docs)."""
+    """Damped least squares on the sole frame (module docs), each leg on a model of its own chain
+    (the base and the six leg joints; the rest locked at zero), so the forward kinematics of an
+    iteration visits 7 joints, not the whole robot's."""
 
     def __init__(self, profile: RobotProfile, robot: RobotDescription, tolerance_m: float = 1e-5,
                  max_iterations: int = 20, damping: float = 1e-4) -> None:
         super().__init__(profile, robot)
-        self.data = robot.model.createData()
         self.tolerance_m = tolerance_m
         self.max_iterations = max_iterations
         self.damping = damping
-        self.leg_q = {side: np.array([robot.model.joints[robot.model.getJointId(j)].idx_q
-                                      for j in profile.leg_joints(side)]) for side in SIDES}
-        self.leg_v = {side: np.array([robot.model.joints[robot.model.getJointId(j)].idx_v
-                                      for j in profile.leg_joints(side)]) for side in SIDES}
-        self.lower = {s: robot.model.lowerPositionLimit[self.leg_q[s]] for s in SIDES}
-        self.upper = {s: robot.model.upperPositionLimit[self.leg_q[s]] for s in SIDES}
+        self._chains = {side: _LegChain.of(robot, profile.leg_joints(side), robot.sole_ids[side])
+                        for side in SIDES}
         self._warm: dict[str, Optional[np.ndarray]] = {side: None for side in SIDES}
-        self._q = pin.neutral(robot.model)
+        self._previous: dict[str, Optional[np.ndarray]] = {side: None for side in SIDES}
+        self._eye = np.eye(6)
         self.last_error = 0.0
 
     def seed(self, side: str, q_leg: np.ndarray) -> None:
         """Start the next solve of leg ``side`` from ``q_leg``."""
         self._warm[side] = np.asarray(q_leg, dtype=float).copy()
+        self._previous[side] = None
 
     def solve(self, side, base_pos, base_rot, sole_pos, sole_rot):
-        model, data = self.robot.model, self.data
+        chain = self._chains[side]
+        model, data, q, iq, frame = chain.model, chain.data, chain.q, chain.iq, chain.frame
         target = pin.SE3(base_rot, base_pos).actInv(pin.SE3(sole_rot, sole_pos))   # in the base
-        q = self._q
-        iq, iv = self.leg_q[side], self.leg_v[side]
-        leg = self._warm[side]
-        q[iq] = leg if leg is not None else np.clip(0.0, self.lower[side], self.upper[side])
-        frame = self.robot.sole_ids[side]
+        leg, previous = self._warm[side], self._previous[side]
+        if leg is None:
+            q[iq] = np.clip(0.0, chain.lower, chain.upper)
+        elif previous is None:
+            q[iq] = leg
+        else:
+            # Targets move smoothly at 1 kHz: the last step's motion, repeated, is most often
+            # within tolerance already (one forward kinematics, no Jacobian).
+            q[iq] = np.clip(2.0 * leg - previous, chain.lower, chain.upper)
         err = np.full(6, np.inf)
         for _ in range(self.max_iterations):
-            pin.forwardKinematics(model, data, q)
+            pin.computeJointJacobians(model, data, q)       # and the joints' placements
             current = pin.updateFramePlacement(model, data, frame)
-            err = pin.log6(current.actInv(target)).vector
+            relative = current.actInv(target)
+            err = pin.log6(relative).vector
             if float(np.abs(err).max()) < self.tolerance_m:
                 break
-            jac = pin.computeFrameJacobian(model, data, q, frame, pin.ReferenceFrame.LOCAL)[:, iv]
-            jac = pin.Jlog6(current.actInv(target)) @ jac
-            step = np.linalg.solve(jac.T @ jac + self.damping * np.eye(len(iv)), jac.T @ err)
-            q[iq] = np.clip(q[iq] + step, self.lower[side], self.upper[side])
+            jac = pin.Jlog6(relative) @ pin.getFrameJacobian(model, data, frame, pin.ReferenceFrame.LOCAL)[:, chain.iv]
+            step = np.linalg.solve(jac.T @ jac + self.damping * self._eye, jac.T @ err)
+            q[iq] = np.clip(q[iq] + step, chain.lower, chain.upper)
         self.last_error = float(np.abs(err).max())
+        self._previous[side] = leg
         self._warm[side] = q[iq].copy()
         return q[iq].copy()
+
+
+class _LegChain:
+    """One leg's own model: the robot with every joint but the root and the leg's locked at zero
+    (their neutral), its data, the sole frame and the leg joints' indices and limits."""
+
+    def __init__(self, model: pin.Model, frame: int, leg_joints: tuple[str, ...]) -> None:
+        self.model, self.data, self.frame = model, model.createData(), frame
+        ids = [model.getJointId(j) for j in leg_joints]
+        self.iq = np.array([model.joints[i].idx_q for i in ids])
+        self.iv = np.array([model.joints[i].idx_v for i in ids])
+        self.lower = model.lowerPositionLimit[self.iq]
+        self.upper = model.upperPositionLimit[self.iq]
+        self.q = pin.neutral(model)
+
+    @classmethod
+    def of(cls, robot: RobotDescription, leg_joints: tuple[str, ...], sole_frame: int) -> '_LegChain':
+        full = robot.model
+        keep = {full.getJointId(j) for j in leg_joints}
+        root = 1 if full.joints[1].shortname() == 'JointModelFreeFlyer' else None
+        lock = [j for j in range(1, full.njoints) if j not in keep and j != root]
+        model = pin.buildReducedModel(full, lock, pin.neutral(full))
+        return cls(model, model.getFrameId(full.frames[sole_frame].name), leg_joints)
 
 
 def leg_solver(profile: RobotProfile) -> LegSolver:
