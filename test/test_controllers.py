@@ -68,3 +68,31 @@ def test_switch_to_fall_control_is_one_way_and_freezes_the_target():
         assert switch.trigger_fall(m.t) is False           # one-way: no second switch
     assert moved > 0.05       # C_bal's own targets moved by more than 0.05 rad meanwhile
     assert switch.mode == 'fall' and switch.t_switch == walk[n_before].t
+
+
+def test_an_hour_long_plan_moved_by_its_footholds_equals_the_plan_moved_at_once():
+    """The controller keeps only the next steps and seconds of its walk in world coordinates;
+    every step and ZMP sample it uses must still be the planned one plus every foothold's move."""
+    from fall_predictor.robot.gait import plan_walk
+    controller = BalanceController()
+    plan = plan_walk((0.0, 0.1), (0.0, -0.1), 0.0, 3600.0, 0.5, 0.2, 0.08, 0.5)
+    controller._set_plan(plan, 0.0)
+    planned = list(plan.steps)
+    rng = np.random.default_rng(2)
+    total = np.zeros(2)
+    for k in range(30):
+        delta = rng.uniform(-0.01, 0.01, 2)
+        controller._move_plan(delta)
+        total += delta
+        controller._pop_step()
+        controller._ref_index += 700            # one step's time of ZMP samples used
+        if controller._ref_index + 1601 > len(controller._zmp_ref):     # as update() does
+            controller._extend_zmp_reference()
+        # The steps the controller can reach (the next four) carry every move so far.
+        for got, want in zip(controller._steps[:4], planned[k + 1:k + 5]):
+            assert np.allclose(got.start, np.add(want.start, total), atol=1e-12)
+            assert np.allclose(got.target, np.add(want.target, total), atol=1e-12)
+        tick = controller._ref_base + controller._ref_index
+        ahead = tick + np.arange(0, 1600, 37)
+        expected = plan.zmp_reference(ahead * controller.dt_s) + total
+        assert np.allclose(controller._zmp_ref[ahead - controller._ref_base], expected, atol=1e-12)
