@@ -87,8 +87,8 @@ def test_g1_pushes(sim, push, falls):
 
 
 def test_g1_sensors_give_the_estimator_its_state():
-    """Efforts (0.5 N m noise), the pelvis IMU and no F/T, over 4 s of walking with a recovered sideways push: the
-    estimated CoM and CoP against the simulator's."""
+    """Efforts (0.5 N m noise), the pelvis IMU and no F/T, over 4 s of walking with a recovered
+    sideways push: the estimated CoM and CoP against the simulator's."""
     run = run_trajectory(PushSpec(60.0, 90.0, 0.1, 2.0), 4.0, record_sensors=True, profile=G1)
     readings = apply_sensors(run.sensor_truths, SensorParams(), seed=3, profile=G1)
     assert readings[0].left_wrench is None and readings[0].imu_frame == 'imu_in_pelvis'
