@@ -3,8 +3,8 @@ TinyRenderer, headless), so a reader sees what the robot does.
 
     .venv/bin/python scripts/render_push.py --force 250 --angle 90 --out docs/figures/push_survived.png
     .venv/bin/python scripts/render_push.py --force 450 --angle 90 --out docs/figures/push_fallen.png
-    .venv/bin/python scripts/render_push.py --robot g1 --force 100 --angle 90 --onset 1.0 \
-        --out docs/figures/g1_push_100n_sideways.png
+    .venv/bin/python scripts/render_push.py --robot g1 --force 40 --angle 0 --after 2.0 \
+        --out docs/figures/g1_walk_push_40n_forward.png
 """
 from __future__ import annotations
 
