@@ -57,6 +57,7 @@ def main() -> None:
         switch = ControllerSwitch(BalanceController(gait, reflex, stabilizer=stabilizer, profile=profile))
         q0, torso0 = switch.balance.initial_posture()
         m = sim.reset(q0, torso0)
+        sim.draw_ground()
         sim.schedule_push(push)
         # Camera looks along the push, from the side, so the motion is in the image plane.
         yaw = args.angle

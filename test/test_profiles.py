@@ -119,6 +119,8 @@ def test_a_user_profile_loads_from_its_own_folder(tmp_path):
     (lambda r: r['monitor'].update(guard_com_height_m=0.1), 'guard_com_height_m must be'),
     (lambda r: r['servo_gains'].update(knee_pitch=[1, 2]), 'servo_gains.knee_pitch'),
     (lambda r: r['posture'].update(tail=0.3), r"posture names joints in no joint group: \['tail'\]"),
+    (lambda r: r.update(gait_variety='yes'), 'gait_variety must be true or false'),
+    (lambda r: r.update(sim_ground='sand'), "sim_ground must be 'plane' or 'slab'"),
 ])
 def test_a_malformed_profile_says_which_key(tmp_path, change, message):
     src = PROFILES_DIR / 'asimo_like'

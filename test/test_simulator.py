@@ -119,3 +119,30 @@ def test_quaternions_to_matrices_matches_pybullet():
         assert np.allclose(np.array(pybullet.getMatrixFromQuaternion(quaternion)).reshape(3, 3), rot, atol=1e-12)
     assert np.allclose(rots @ rots.transpose(0, 2, 1), np.eye(3), atol=1e-12)
     assert np.allclose(np.linalg.det(rots), 1.0, atol=1e-12)
+
+
+def test_a_slab_ground_carries_a_standing_robot_as_the_plane_does():
+    """The G1 stands on a slab ground (its profile's): the soles touch its top face at z = 0, the
+    weight is carried, and the CoM stands within a millimetre of where it stands on a plane."""
+    from dataclasses import replace
+    from fall_predictor.profiles import load_profile
+    from fall_predictor.robot.controllers import controller_configs
+    g1 = load_profile('g1')
+    assert g1.sim_ground == 'slab'
+    standing = replace(controller_configs(g1)[0], standing=True)
+    com = {}
+    for ground in ('slab', 'plane'):
+        profile = replace(g1, sim_ground=ground)
+        controller = BalanceController(profile=profile, gait=standing)
+        with Simulator(profile=profile) as sim:
+            m = sim.reset(*controller.initial_posture())
+            while m.t < 1.0:
+                sim.set_joint_targets(controller.update(m))
+                m = sim.step()
+            heights = [cp[6][2] for cp in sim.ground_contacts()]
+        assert not m.fallen and len(heights) == 8          # four spheres a sole
+        assert max(abs(z) for z in heights) < 1e-3
+        normal = m.left_contacts[:, 2].sum() + m.right_contacts[:, 2].sum()
+        assert normal == pytest.approx(g1.total_mass_kg * GRAVITY, rel=0.02)
+        com[ground] = m.com
+    assert np.abs(com['slab'] - com['plane']).max() < 1e-3

@@ -87,6 +87,9 @@ class RobotProfile:
     push_force_n: tuple[float, float] = (0.0, 0.0)
     #: Its datasets draw a gait per trajectory (method §3); False: they walk the profile's gait.
     gait_variety: bool = True
+    #: The simulated ground's shape: 'plane' (infinite) or 'slab' (a box with the same top face,
+    #: which spares PyBullet testing links far above it; sim/simulator.py).
+    sim_ground: str = 'plane'
     #: The balance controller's settings that differ for this robot: per part ('gait', 'reflex',
     #: 'stabilizer'), field -> value (robot/controllers.py GaitConfig, ReflexConfig, ...).
     controller: dict[str, dict[str, Union[float, bool]]] = field(default_factory=dict)
@@ -280,6 +283,9 @@ def _parse(path: Path, raw: Any) -> RobotProfile:
     gait_variety = r.get('gait_variety', True)
     if not isinstance(gait_variety, bool):
         raise ProfileError(f'{path}: gait_variety must be true or false, got {gait_variety!r}')
+    sim_ground = r.text('sim_ground', 'plane')
+    if sim_ground not in ('plane', 'slab'):
+        raise ProfileError(f"{path}: sim_ground must be 'plane' or 'slab', got {sim_ground!r}")
     urdf = r.file('urdf')
     return RobotProfile(
         name=r.text('name'), description=r.text('description', ''), source=path,
@@ -288,5 +294,6 @@ def _parse(path: Path, raw: Any) -> RobotProfile:
         feet=feet, fallen_com_height_m=fallen, guard_com_height_m=guard, joint_groups=groups,
         servo_gains=gains,
         push_force_n=r.vector('push_force_n', 2, (0.0, 0.0)), gait_variety=gait_variety,
+        sim_ground=sim_ground,
         controller=controller,
         posture=posture, model=r.text('model', 'default_model.json'))
