@@ -163,3 +163,20 @@ def test_sigterm_stops_generate_and_its_worker_processes(tmp_path):
     process.stderr.close()
     assert main(command[3:-1] + ['--json']) == 0
     assert len(list(Path(out, 'bags').iterdir())) == 6
+
+
+@pytest.mark.parametrize('argv, robot, gait_variety, force_n', [
+    ([], 'asimo_like', True, (0.0, 500.0)),
+    (['--fixed-gait'], 'asimo_like', False, (0.0, 500.0)),
+    # The G1's profile: its own push range, its own gait (gait_variety: false).
+    (['--robot', 'g1'], 'g1', False, (0.0, 200.0)),
+])
+def test_generate_takes_the_push_range_and_the_gait_draws_from_the_robot_profile(argv, robot, gait_variety,
+                                                                                 force_n):
+    from fall_predictor.cli import build_parser
+    from fall_predictor.cli.dataset import generation_config
+    config = generation_config(build_parser().parse_args(['generate', '--trajectories', '2', '--out', 'x']
+                                                         + argv))
+    assert config.robot == robot
+    assert config.gait_variety is gait_variety
+    assert tuple(config.push_distribution.force_n) == force_n

@@ -22,23 +22,28 @@ def _sensor_timing(args) -> Optional[dict]:
     return DriverTiming.robot(args.joint_rate_hz, groups, clock_offset_ns=0).to_dict()
 
 
-def cmd_generate(args) -> int:
-    from fall_predictor.data.dataset import DatasetError, read_manifest
-    from fall_predictor.data.generation import GenerationConfig, generate_dataset
-
+def generation_config(args):
+    """The ``GenerationConfig`` of ``generate``'s arguments: another robot's push range, and no gait
+    draws for a robot whose controller only stands or whose profile says so (``gait_variety``)."""
+    from fall_predictor.data.generation import GenerationConfig
     from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
     from fall_predictor.sim.pushes import PushDistribution
 
     profile = load_profile(args.robot)
-    # Another robot: its push range; a robot whose controller only stands, or whose profile
-    # says so, draws no gait.
     standing = bool(profile.controller.get('gait', {}).get('standing', False))
     extra = {} if args.robot == DEFAULT_ROBOT else {
         'robot': args.robot, 'push_distribution': PushDistribution.for_robot(profile)}
-    config = GenerationConfig(seed=args.seed, horizon_after_push_s=args.horizon,
-                              gait_variety=not (args.fixed_gait or standing) and profile.gait_variety,
-                              sensor_noise_scale=args.sensor_noise,
-                              sensor_timing=_sensor_timing(args), **extra)
+    return GenerationConfig(seed=args.seed, horizon_after_push_s=args.horizon,
+                            gait_variety=not (args.fixed_gait or standing) and profile.gait_variety,
+                            sensor_noise_scale=args.sensor_noise,
+                            sensor_timing=_sensor_timing(args), **extra)
+
+
+def cmd_generate(args) -> int:
+    from fall_predictor.data.dataset import DatasetError, read_manifest
+    from fall_predictor.data.generation import generate_dataset
+
+    config = generation_config(args)
     start = time.perf_counter()
     try:
         rows = generate_dataset(args.out, args.trajectories, args.seed, jobs=args.jobs, config=config,
