@@ -86,11 +86,6 @@ class NumericLegs(LegSolver):
         self._eye = np.eye(6)
         self.last_error = 0.0
 
-    def seed(self, side: str, q_leg: np.ndarray) -> None:
-        """Start the next solve of leg ``side`` from ``q_leg``."""
-        self._warm[side] = np.asarray(q_leg, dtype=float).copy()
-        self._previous[side] = None
-
     def solve(self, side, base_pos, base_rot, sole_pos, sole_rot):
         chain = self._chains[side]
         model, data, q, iq, frame = chain.model, chain.data, chain.q, chain.iq, chain.frame

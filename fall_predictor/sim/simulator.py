@@ -101,21 +101,7 @@ class Simulator:
         pb.setTimeStep(self.config.dt_s, physicsClientId=c)
         pb.setPhysicsEngineParameter(numSolverIterations=self.config.solver_iterations,
                                      deterministicOverlappingPairs=1, physicsClientId=c)
-        if self.profile.sim_ground == 'slab':
-            # A slab 200 m square whose top face is z = 0. An infinite plane's bounding box
-            # overlaps every link's, so PyBullet tested each of the G1's 24 mesh hulls against it
-            # every step (0.20 ms of a 0.69 ms step); the slab's lets it skip the links above it.
-            half = GROUND_HALF_EXTENT_M
-            slab = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[half, half, half],
-                                           collisionFramePosition=[0.0, 0.0, -half], physicsClientId=c)
-            hidden = pb.createVisualShape(pb.GEOM_SPHERE, radius=1e-3, visualFramePosition=[0.0, 0.0, -1.0],
-                                          physicsClientId=c)
-            self.plane = pb.createMultiBody(0, slab, hidden, physicsClientId=c)
-            if self.config.gui:
-                self.draw_ground()
-        else:
-            plane_shape = pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=c)
-            self.plane = pb.createMultiBody(0, plane_shape, physicsClientId=c)
+        self.plane = self._ground()
         pb.changeDynamics(self.plane, -1, lateralFriction=self.config.ground_friction, physicsClientId=c)
         orn = pb.getQuaternionFromEuler((0, 0, torso_yaw_rad))
         # The base link frame at torso_position (PyBullet's base pose is its inertial frame).
@@ -189,6 +175,26 @@ class Simulator:
         self._torques = np.zeros(self.n_joints)
         self._read_joints()
         return self.measure()
+
+    def _ground(self) -> int:
+        """The ground body: the profile's plane or slab, its top face at z = 0."""
+        c = self.client
+        if self.profile.sim_ground != 'slab':
+            return pb.createMultiBody(0, pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=c),
+                                      physicsClientId=c)
+        # A slab 200 m square. An infinite plane's bounding box overlaps every link's, so PyBullet
+        # tested each of the G1's 24 mesh hulls against it every step (0.20 ms of a 0.69 ms step);
+        # the slab's lets it skip the links above it. A body without a visual shape is drawn as
+        # its collision shape: the slab gets a speck below the ground instead (draw_ground).
+        half = GROUND_HALF_EXTENT_M
+        slab = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[half, half, half],
+                                       collisionFramePosition=[0.0, 0.0, -half], physicsClientId=c)
+        speck = pb.createVisualShape(pb.GEOM_SPHERE, radius=1e-3, visualFramePosition=[0.0, 0.0, -1.0],
+                                     physicsClientId=c)
+        body = pb.createMultiBody(0, slab, speck, physicsClientId=c)
+        if self.config.gui:
+            self.draw_ground()
+        return body
 
     def draw_ground(self) -> None:
         """Show a slab ground as the checkerboard plane a plane ground is drawn as (a plane that
