@@ -7,7 +7,7 @@ import pybullet as pb
 import pytest
 
 from fall_predictor.monitor.contact_modes import classify_contact_mode
-from fall_predictor.monitor.estimator import EstimatorConfig, StateEstimator, split_force_to_corners
+from fall_predictor.monitor.estimator import EstimatorConfig, StateEstimator
 from fall_predictor.monitor.robot_description import DescriptionError, RobotDescription
 from fall_predictor.monitor.sensor_records import SensorSample
 from fall_predictor.monitor.records import PushSpec
@@ -78,17 +78,6 @@ def test_batch_equals_stream(readings):
         if m is not None:
             assert np.array_equal(m.com, b.com) and np.array_equal(m.lin_mom, b.lin_mom)
             assert np.array_equal(m.left_contacts, b.left_contacts)
-
-
-def test_force_split_reproduces_the_cop():
-    corners = np.array([[0.1, 0.05], [0.1, -0.05], [-0.1, -0.05], [-0.1, 0.05]])
-    f = split_force_to_corners(corners, np.array([0.04, -0.01]), 300.0)
-    assert f.sum() == pytest.approx(300.0)
-    assert f @ corners / f.sum() == pytest.approx([0.04, -0.01])
-    edge = split_force_to_corners(corners[:2], np.array([0.1, 0.03]), 100.0)
-    assert edge == pytest.approx([80.0, 20.0])
-    # A CoP outside the sole is clipped to it.
-    assert split_force_to_corners(corners[:2], np.array([0.1, 0.5]), 10.0) == pytest.approx([10.0, 0.0])
 
 
 def _sample(r, **changes):

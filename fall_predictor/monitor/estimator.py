@@ -33,7 +33,7 @@ the sole frames) and one synchronised sample of joint encoders, IMU and foot for
   carried to the sole frame, where the CoP is (-ty / fz, tx / fz); the whole-body CoP is the
   force-weighted mean. The contacts handed to the feature code are the sole's corners that lie
   within ``tilt_tolerance_m`` of its lowest corner, with the normal force split between them so
-  that their weighted mean is the sole's CoP (bilinear on a flat sole, linear along an edge).
+  that their weighted mean is the sole's CoP (:mod:`~fall_predictor.monitor.sole_contact`).
 
 What the sensors cannot tell: ``non_foot_contact`` is always False (no skin sensors; a fall is
 then seen from the CoM height alone) and ``push_force`` is zero.
@@ -55,16 +55,20 @@ from typing import Optional, Sequence
 import numpy as np
 import pinocchio as pin
 
+from fall_predictor.monitor import rotations
 from fall_predictor.monitor.effort_wrench import EffortWrench
 from fall_predictor.monitor.geometry import cross3
 from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2, Measurement
 from fall_predictor.monitor.robot_description import SIDES, DescriptionError, RobotDescription
 from fall_predictor.monitor.sensor_records import SensorSample
+from fall_predictor.monitor.sole_contact import SoleContacts
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-_GRAVITY = np.array([0.0, 0.0, STANDARD_GRAVITY_M_S2])
 _NO_CONTACT = np.zeros((0, 3))
-_ZEROS6 = np.zeros(6)
+
+# Per sample the filter works on 3-vectors as float triples and on the attitude as a quaternion
+# (monitor.rotations): a numpy call on a 3-vector costs ~0.5 us, many times its arithmetic, and
+# the estimator runs at the sensors' rate (1 kHz).
 
 
 @dataclass(frozen=True)
@@ -89,62 +93,23 @@ class EstimatorConfig:
     initial_xy_m: tuple[float, float] = (0.0, 0.0)
 
 
-def _rot_z(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def _yaw(rot: np.ndarray) -> float:
-    return math.atan2(rot[1, 0], rot[0, 0])
-
-
-def split_force_to_corners(corners: np.ndarray, cop: np.ndarray, fz: float) -> np.ndarray:
-    """Normal force ``fz`` split over contact ``corners`` (k, 2) of one sole, in its frame,
-    so that the force-weighted mean is ``cop`` (clipped to the corners' hull); (k,) forces."""
-    k = len(corners)
-    if k == 1:
-        return np.array([fz])
-    if k == 2:
-        a, b = corners
-        d = b - a
-        s = float(np.clip((cop - a) @ d / max(d @ d, 1e-12), 0.0, 1.0))
-        return fz * np.array([1.0 - s, s])
-    if k == 4:
-        lo, hi = corners.min(axis=0), corners.max(axis=0)
-        u = np.clip((cop - lo) / np.maximum(hi - lo, 1e-12), 0.0, 1.0)
-        wx = np.where(corners[:, 0] > (lo[0] + hi[0]) / 2, u[0], 1.0 - u[0])
-        wy = np.where(corners[:, 1] > (lo[1] + hi[1]) / 2, u[1], 1.0 - u[1])
-        return fz * wx * wy
-    return np.full(k, fz / k)
-
-
-@dataclass(frozen=True)
-class _GroundPart:
-    """The corners of a sole on the ground (all four, an edge or one corner), sole frame."""
-
-    key: bytes                      #: which corners (the boolean mask's bytes)
-    centre: np.ndarray              #: their centre (3,)
-    corners: np.ndarray             #: (k, 3)
-    flat: bool                      #: all four: the sole lies flat
-
-
-@dataclass
+@dataclass(slots=True)
 class _Kinematics:
     """One sample's kinematics relative to the floating base's origin: the base at the origin with
     the estimated orientation, not translating, turning at the estimated rate; world axes."""
 
     q: np.ndarray                   #: full configuration (base at the origin, estimated attitude)
     v: np.ndarray                   #: full velocity (base: not translating, turning at omega_b)
-    rot: np.ndarray                 #: estimated base orientation in the world
-    omega_b: np.ndarray             #: base angular velocity, base frame [rad/s]
-    sole_pos: dict                  #: per side: sole origin relative to the base origin
-    sole_rot: dict                  #: per side: sole orientation in the world
-    sole_vel: dict                  #: per side: (linear velocity of the sole origin, angular velocity)
-    imu_pos: np.ndarray             #: IMU point relative to the base origin
-    imu_vel: np.ndarray             #: IMU point velocity relative to the base origin
+    attitude: tuple                 #: estimated base orientation in the world, quaternion x, y, z, w
+    #: Per side: the sole's pose, its origin relative to the base origin, world axes, as the rows
+    #: of its homogeneous transform (floats: r00, r01, r02, x in the first row, ...).
+    sole_pose: dict
+    sole_vel: dict                  #: per side: linear velocity of its origin, angular velocity (6)
+    imu_pos: list                   #: IMU point relative to the base origin
+    imu_vel: list                   #: IMU point velocity relative to the base origin
     imu_rot: np.ndarray             #: IMU frame orientation in the world
-    com: np.ndarray                 #: CoM relative to the base origin
-    lin_mom: np.ndarray             #: linear momentum of the base-fixed motion [kg m/s]
+    com: list                       #: CoM relative to the base origin
+    lin_mom: list                   #: linear momentum of the base-fixed motion [kg m/s]
     ang_mom: np.ndarray             #: angular momentum about the CoM [kg m^2/s]
 
 
@@ -164,24 +129,24 @@ class StateEstimator:
         #: The IMU frame of samples that do not name one (the robot profile's IMU link).
         self.imu_frame = imu_frame
         self.total_mass_kg = robot.total_mass_kg
-        self.sole_corners = {side: robot.soles[side].corners() for side in SIDES}
-        self._half_sole = {side: (robot.soles[side].length_m / 2, robot.soles[side].width_m / 2)
-                           for side in SIDES}
-        #: Per IMU frame id: (its rotation in the base frame, whether that is the identity) if
-        #: it is fixed to the floating base, else ().
-        self._imu_on_base: dict[int, tuple] = {}
-        #: Per (side, corners touching as bytes): that part of the sole.
-        self._ground_parts: dict[tuple[str, bytes], _GroundPart] = {}
+        self.soles = SoleContacts(robot.soles, config.tilt_tolerance_m)
+        self._sole_ids = tuple((side, robot.sole_ids[side]) for side in SIDES)
+        #: Per IMU frame name: (frame id, its rotation in the base frame as a matrix and as a
+        #: quaternion if it is fixed to the floating base else None, None; whether that rotation is
+        #: the identity).
+        self._imus: dict[str, tuple] = {}
         self._orders: dict[tuple[str, ...], Optional[np.ndarray]] = {}
+        self._zeros: dict[int, np.ndarray] = {}
         self.reset()
 
     def reset(self) -> None:
         """Forget the state: the next sample initialises it."""
         self.t: Optional[float] = None
-        self.rot: Optional[np.ndarray] = None
-        self.p = np.zeros(3)        # the IMU point, world [m]
-        self.v = np.zeros(3)        # its velocity, world [m/s]
-        self._yaw_correction = np.eye(3)
+        #: The base's attitude in the world, quaternion (x, y, z, w); None before the first sample.
+        self.attitude: Optional[tuple] = None
+        self.p = (0.0, 0.0, 0.0)    # the IMU point, world [m]
+        self.v = (0.0, 0.0, 0.0)    # its velocity, world [m/s]
+        self._yaw_correction = rotations.IDENTITY
         #: Per sole: (which corners touch, world position of their centre), or None.
         self.anchors: dict[str, Optional[tuple]] = {'l': None, 'r': None}
         self.last_issue: Optional[str] = None
@@ -204,19 +169,46 @@ class StateEstimator:
                 self._orders[key] = np.array([key.index(n) for n in self.robot.joint_names])
         return self._orders[key]
 
+    def _all_finite(self, values: np.ndarray) -> bool:
+        """Whether every value is finite: a product with zeros is NaN exactly when one is not
+        (one call; np.isfinite(...).all() is two)."""
+        zeros = self._zeros.get(len(values))
+        if zeros is None:
+            zeros = self._zeros[len(values)] = np.zeros(len(values))
+        return values @ zeros == 0.0
+
+    def _imu(self, name: str) -> tuple:
+        """(frame id, rotation in the base frame as a matrix and a quaternion or None, None,
+        identity?) of IMU frame ``name``."""
+        found = self._imus.get(name)
+        if found is None:
+            imu_id = self.robot.frame_id(name, 'IMU')
+            frame = self.model.frames[imu_id]
+            if frame.parentJoint == 1:      # fixed to the floating base: its place is a constant
+                rotation = frame.placement.rotation.copy()
+                found = (imu_id, rotation, tuple(pin.Quaternion(rotation).coeffs().tolist()),
+                         bool(np.array_equal(rotation, np.eye(3))))
+            else:
+                found = (imu_id, None, None, False)
+            self._imus[name] = found
+        return found
+
     def _reject(self, why: str) -> None:
         self.last_issue = why
         self.n_rejected += 1
 
     @staticmethod
-    def _wrench(w) -> Optional[np.ndarray]:
+    def _wrench(w) -> Optional[list]:
+        """A foot wrench reading as six floats, or None where it is missing or not finite."""
         if w is None:
             return None
         w = np.asarray(w, dtype=float)
-        # A product with zeros is NaN exactly when an element is not finite (one call, not three).
-        return w if w.shape == (6,) and w @ _ZEROS6 == 0.0 else None
+        if w.shape != (6,):
+            return None
+        values = w.tolist()
+        return values if all(map(math.isfinite, values)) else None
 
-    def _sole_wrench(self, side: str, w: np.ndarray, frame: str) -> np.ndarray:
+    def _sole_wrench(self, side: str, w: list, frame: str) -> list:
         """A wrench measured in ``frame`` (a sensor frame of the description; empty: the sole
         frame), carried to the sole frame (the ground reaction about the sole origin)."""
         if not frame:
@@ -227,30 +219,34 @@ class StateEstimator:
             return w
         sensor = pin.updateFramePlacement(self.model, self.data, fid)
         placement = self.data.oMf[sole_id].actInv(sensor)      # the sensor in the sole frame
-        f = placement.rotation @ w[:3]
-        tau = placement.rotation @ w[3:] + cross3(placement.translation, f)
-        return np.concatenate([f, tau])
+        f = placement.rotation @ np.array(w[:3])
+        tau = placement.rotation @ np.array(w[3:]) + cross3(placement.translation, f)
+        return f.tolist() + tau.tolist()
 
     def _wrenches_without_sensors(self, s: SensorSample, order: Optional[np.ndarray],
-                                  kin: _Kinematics) -> dict[str, Optional[np.ndarray]]:
+                                  kin: _Kinematics) -> dict[str, Optional[list]]:
         """The wrenches of the feet without a force sensor: from the joint efforts when the sample
         has them all, else from the kinematics and statics (monitor.effort_wrench)."""
         tau = np.asarray(s.tau, dtype=float)
-        if tau.shape == (len(s.joint_names),) and np.isfinite(tau).all():
+        if tau.shape == (len(s.joint_names),) and self._all_finite(tau):
             found = self._effort.wrenches(kin.q, kin.v, tau if order is None else tau[order])
-            lowest = min(kin.sole_pos[side][2] for side in SIDES)
+            heights = {side: kin.sole_pose[side][2][3] for side in SIDES}
+            lowest = min(heights.values())
             for side in SIDES:
-                if kin.sole_pos[side][2] > lowest + self.config.effort_contact_height_m:
+                if heights[side] > lowest + self.config.effort_contact_height_m:
                     found[side] = None
             self.wrench_source = 'efforts'
         else:
-            found = self._effort.kinematic(kin.com, kin.sole_pos, kin.sole_rot,
+            pose = {side: np.array(kin.sole_pose[side]) for side in SIDES}
+            found = self._effort.kinematic(np.array(kin.com), {side: pose[side][:3, 3] for side in SIDES},
+                                           {side: pose[side][:3, :3] for side in SIDES},
                                            self.config.kinematic_contact_height_m)
             self.wrench_source = 'statics'
-        return {side: found[side] for side in self.effort_feet}
+        return {side: None if found[side] is None else found[side].tolist()
+                for side in self.effort_feet}
 
-    def _kinematics(self, s: SensorSample, q_j: np.ndarray, dq_j: np.ndarray, dt: float,
-                    first: bool) -> _Kinematics:
+    def _kinematics(self, s: SensorSample, q_j: np.ndarray, dq_j: np.ndarray, quat: np.ndarray,
+                    gyro: np.ndarray, dt: float, first: bool) -> _Kinematics:
         """The IMU's place on the robot (a constant when it is fixed to the floating base, else from
         a pass of the joints' kinematics with a still, upright base) gives the base's attitude and
         rate; then one pass of the whole robot with that attitude and rate gives every frame, the
@@ -259,49 +255,47 @@ class StateEstimator:
         q = robot.configuration(q_j)
         v = np.zeros(model.nv)
         v[robot.idx_v] = dq_j
-        imu_id = robot.frame_id(s.imu_frame or self.imu_frame, 'IMU')
-        on_base = self._imu_on_base.get(imu_id)
-        if on_base is None:
-            frame = model.frames[imu_id]
-            rotation = frame.placement.rotation.copy()
-            on_base = self._imu_on_base[imu_id] = (rotation, np.array_equal(rotation, np.eye(3))) \
-                if frame.parentJoint == 1 else ()
-        if on_base:
-            # An IMU fixed to the floating base (the common case): its place is a constant.
-            r_bi, aligned = on_base
-            omega_b = r_bi @ np.asarray(s.gyro_rad_s, dtype=float)
+        imu_id, r_bi, q_bi, aligned = self._imu(s.imu_frame or self.imu_frame)
+        if r_bi is not None:
+            omega_b = gyro if aligned else r_bi @ gyro
         else:
             pin.forwardKinematics(model, data, q, v)
             r_bi = pin.updateFramePlacement(model, data, imu_id).rotation   # the IMU in the base
-            omega_b = r_bi @ np.asarray(s.gyro_rad_s, dtype=float) - \
-                pin.getFrameVelocity(model, data, imu_id, _LWA).angular
+            q_bi = pin.Quaternion(r_bi).coeffs().tolist()
+            omega_b = r_bi @ gyro - pin.getFrameVelocity(model, data, imu_id, _LWA).angular
         # The IMU's attitude carried to the base.
-        r_wi = pin.Quaternion(np.asarray(s.imu_quat_xyzw, dtype=float)).normalized().matrix()
-        r_wb = r_wi if on_base and aligned else r_wi @ r_bi.T
+        q_wi = rotations.normalized(quat.tolist())
+        q_wb = q_wi if aligned else rotations.multiply(q_wi, rotations.conjugate(q_bi))
         if first:
-            self._yaw_correction = _rot_z(cfg.initial_yaw_rad - _yaw(r_wb))
-        r_meas = self._yaw_correction @ r_wb
-        if first or self.rot is None:
-            rot = r_meas
+            self._yaw_correction = rotations.about_z(cfg.initial_yaw_rad - rotations.yaw(q_wb))
+        measured = rotations.multiply(self._yaw_correction, q_wb)
+        if first or self.attitude is None:
+            attitude = measured
         else:
-            rot = self.rot @ pin.exp3(omega_b * dt)
+            # The gyro integrated (a rotation in the base frame), then pulled towards the measured
+            # attitude by the share 1 - exp(-dt / tau) of the rotation between them (world frame).
+            wx, wy, wz = omega_b.tolist()
+            predicted = rotations.multiply(self.attitude,
+                                           rotations.from_rotation_vector(wx * dt, wy * dt, wz * dt))
             gain = 1.0 - math.exp(-dt / cfg.attitude_time_constant_s)
-            rot = pin.exp3(gain * pin.log3(r_meas @ rot.T)) @ rot
+            ex, ey, ez = rotations.rotation_vector(
+                rotations.multiply(measured, rotations.conjugate(predicted)))
+            attitude = rotations.normalized(rotations.multiply(
+                rotations.from_rotation_vector(gain * ex, gain * ey, gain * ez), predicted))
         # The whole robot: base at the origin with this attitude, turning at omega_b.
-        q[3:7] = pin.Quaternion(rot).coeffs()
+        q[3:7] = attitude
         v[3:6] = omega_b
         h = pin.computeCentroidalMomentum(model, data, q, v)      # also the kinematics and CoM
-        sole_pos, sole_rot, sole_vel = {}, {}, {}
-        for side in SIDES:
-            sole_id = robot.sole_ids[side]
-            placement = pin.updateFramePlacement(model, data, sole_id)
-            vel = pin.getFrameVelocity(model, data, sole_id, _LWA)
-            sole_pos[side], sole_rot[side] = placement.translation, placement.rotation
-            sole_vel[side] = (vel.linear, vel.angular)
+        sole_pose, sole_vel = {}, {}
+        for side, sole_id in self._sole_ids:
+            sole_pose[side] = pin.updateFramePlacement(model, data, sole_id).homogeneous.tolist()
+            sole_vel[side] = pin.getFrameVelocity(model, data, sole_id, _LWA).vector.tolist()
         imu = pin.updateFramePlacement(model, data, imu_id)
-        return _Kinematics(q, v, rot, omega_b, sole_pos, sole_rot, sole_vel, imu.translation,
-                           pin.getFrameVelocity(model, data, imu_id, _LWA).linear, imu.rotation,
-                           data.com[0].copy(), h.linear, h.angular)
+        momentum = h.vector.tolist()
+        return _Kinematics(q, v, attitude, sole_pose, sole_vel, imu.translation.tolist(),
+                           pin.getFrameVelocity(model, data, imu_id, _LWA).vector.tolist()[:3],
+                           imu.rotation, data.com[0].tolist(), momentum[:3],
+                           np.array(momentum[3:]))
 
     # -- the filter ------------------------------------------------------------------
     def update(self, s: SensorSample) -> Optional[Measurement]:
@@ -310,12 +304,15 @@ class StateEstimator:
         try:
             order = self._order(s.joint_names)
             q_j, dq_j = np.asarray(s.q, dtype=float), np.asarray(s.dq, dtype=float)
-            imu = [np.asarray(a, dtype=float) for a in (s.imu_quat_xyzw, s.gyro_rad_s, s.accel_m_s2)]
-            if (q_j.shape != (len(s.joint_names),) or dq_j.shape != q_j.shape
-                    or imu[0].shape != (4,) or imu[1].shape != (3,) or imu[2].shape != (3,)
-                    or not math.isfinite(s.t)
-                    or not (np.concatenate([q_j, dq_j, *imu]) * 0.0).sum() == 0.0   # NaN or inf
-                    or float(imu[0] @ imu[0]) < 1e-12):
+            quat = np.asarray(s.imu_quat_xyzw, dtype=float)
+            gyro = np.asarray(s.gyro_rad_s, dtype=float)
+            accel = np.asarray(s.accel_m_s2, dtype=float)
+            n = len(s.joint_names)
+            if (q_j.shape != (n,) or dq_j.shape != (n,) or quat.shape != (4,)
+                    or gyro.shape != (3,) or accel.shape != (3,) or not math.isfinite(s.t)
+                    or not (self._all_finite(q_j) and self._all_finite(dq_j))
+                    or not all(map(math.isfinite, quat.tolist() + gyro.tolist() + accel.tolist()))
+                    or float(quat @ quat) < 1e-12):
                 self._reject('non-finite or malformed joint or IMU data')
                 return None
             if order is not None:
@@ -323,9 +320,9 @@ class StateEstimator:
             if self.t is not None and s.t <= self.t:
                 self._reject(f'time {s.t:.6f} s not after the previous {self.t:.6f} s')
                 return None
-            first = self.t is None or self.rot is None
+            first = self.t is None or self.attitude is None
             dt = 0.0 if first else min(s.t - self.t, cfg.max_gap_s)
-            kin = self._kinematics(s, q_j, dq_j, dt, first)
+            kin = self._kinematics(s, q_j, dq_j, quat, gyro, dt, first)
             wrenches = {}
             for side, w, frame in (('l', s.left_wrench, s.wrench_frames[0]),
                                    ('r', s.right_wrench, s.wrench_frames[1])):
@@ -341,39 +338,46 @@ class StateEstimator:
             self.anchors = {'l': None, 'r': None}
         else:
             self.last_issue = None
-        self.rot = kin.rot
-        loaded = {}
+        self.attitude = kin.attitude
+        loaded = {}                 # per loaded sole: its wrench as floats (fx, fy, fz, tx, ty, tz)
         for side, w in wrenches.items():
             if w is not None and w[2] > cfg.contact_force_n:
                 loaded[side] = w
             else:
                 self.anchors[side] = None
-        # The part of each loaded sole on the ground: the corners within the tolerance of the
-        # lowest one (all four on a flat sole, an edge or a corner on a tilted one), its centre
-        # (sole frame), its position relative to the base origin and its velocity.
+        # The part of each loaded sole on the ground (monitor.sole_contact), its centre's position
+        # relative to the base origin and its velocity.
         touch, point_rel, point_vel = {}, {}, {}
         for side in loaded:
-            r_s = kin.sole_rot[side]
-            touch[side] = part = self._ground_part(side, r_s)
-            offset = r_s @ part.centre
-            point_rel[side] = kin.sole_pos[side] + offset
-            v_origin, w_sole = kin.sole_vel[side]
-            point_vel[side] = v_origin + cross3(w_sole, offset)
+            pose = kin.sole_pose[side]
+            touch[side] = part = self.soles.ground_part(side, pose)
+            (r00, r01, _, sx), (r10, r11, _, sy), (r20, r21, _, sz), _ = pose
+            cx, cy = part.centre                        # the sole's underside is at z = 0
+            dx, dy, dz = r00 * cx + r01 * cy, r10 * cx + r11 * cy, r20 * cx + r21 * cy
+            point_rel[side] = (sx + dx, sy + dy, sz + dz)
+            vx, vy, vz, wx, wy, wz = kin.sole_vel[side]
+            point_vel[side] = (vx + (wy * dz - wz * dy), vy + (wz * dx - wx * dz),
+                               vz + (wx * dy - wy * dx))
         first_fix = not self._have_fix and bool(loaded)
+        ix, iy, iz = kin.imu_pos
         if first_fix:
             # The world frame is placed at the first sample with a loaded sole: its origin on the
             # soles' centres (the sole frames' origins), not on the part judged on the ground,
             # which hangs on the first, unfiltered tilt (0.5 deg of IMU error makes an edge of a
             # flat sole: half a sole's shift).
-            mid = sum(kin.sole_pos[side] for side in loaded) / len(loaded)
-            ground = sum(point_rel[side][2] for side in loaded) / len(loaded)
-            base = np.array([cfg.initial_xy_m[0] - mid[0], cfg.initial_xy_m[1] - mid[1], -ground])
-            self.p = base + kin.imu_pos
-            self.v = np.zeros(3)
+            n_loaded = len(loaded)
+            mid_x = sum(kin.sole_pose[side][0][3] for side in loaded) / n_loaded
+            mid_y = sum(kin.sole_pose[side][1][3] for side in loaded) / n_loaded
+            ground = sum(point_rel[side][2] for side in loaded) / n_loaded
+            self.p = ((cfg.initial_xy_m[0] - mid_x) + ix, (cfg.initial_xy_m[1] - mid_y) + iy,
+                      -ground + iz)
+            self.v = (0.0, 0.0, 0.0)
         elif not first:
-            a_world = kin.imu_rot @ np.asarray(s.accel_m_s2, dtype=float) - _GRAVITY
-            self.v = self.v + a_world * dt
-            self.p = self.p + self.v * dt
+            ax, ay, az = (kin.imu_rot @ accel).tolist()
+            (px, py, pz), (vx, vy, vz) = self.p, self.v
+            vx, vy, vz = vx + ax * dt, vy + ay * dt, vz + (az - STANDARD_GRAVITY_M_S2) * dt
+            self.v = (vx, vy, vz)
+            self.p = (px + vx * dt, py + vy * dt, pz + vz * dt)
         if loaded:
             self._correct(kin, loaded, touch, point_rel, point_vel, first_fix, dt)
         self.t = s.t
@@ -382,45 +386,33 @@ class StateEstimator:
             return None
         return self._measurement(s.t, kin, loaded, touch)
 
-    def _ground_part(self, side: str, r_s: np.ndarray) -> _GroundPart:
-        """The part of sole ``side`` (orientation ``r_s``) on the ground: its corners within
-        ``tilt_tolerance_m`` of the lowest."""
-        corners = self.sole_corners[side]
-        heights = corners @ r_s[2]
-        touching = heights <= heights.min() + self.config.tilt_tolerance_m
-        key = (side, touching.tobytes())
-        part = self._ground_parts.get(key)
-        if part is None:
-            part = self._ground_parts[key] = _GroundPart(
-                key[1], corners[touching].mean(axis=0), corners[touching], bool(touching.all()))
-        return part
-
     def _correct(self, kin: _Kinematics, loaded: dict, touch: dict, point_rel: dict,
                  point_vel: dict, first_fix: bool, dt: float) -> None:
         """The kinematic correction of the IMU point from the soles on the ground (``dt``: the
         time since the previous sample [s]; ``first_fix``: the world frame was just placed)."""
         cfg = self.config
         per_side = {}
-        base_now = self.p - kin.imu_pos
+        (px, py, _), (ix, iy, iz), (ivx, ivy, ivz) = self.p, kin.imu_pos, kin.imu_vel
         for side, w in loaded.items():
             # A sole's ground contact stays where it touched down (z = 0); when the part on
             # the ground changes (flat -> edge on tilting), it is re-anchored there.
             key = touch[side].key
             anchor = self.anchors[side]
+            rx, ry, rz = point_rel[side]
             if anchor is None or anchor[0] != key:
-                anchor = base_now + point_rel[side]
-                anchor[2] = 0.0
-                anchor = self.anchors[side] = (key, anchor)
-            per_side[side] = (float(w[2]), anchor[1] - point_rel[side] + kin.imu_pos,
-                              kin.imu_vel - point_vel[side])
+                anchor = self.anchors[side] = (key, ((px - ix) + rx, (py - iy) + ry, 0.0))
+            ax, ay, az = anchor[1]
+            vx, vy, vz = point_vel[side]
+            per_side[side] = (w[2], ((ax - rx) + ix, (ay - ry) + iy, (az - rz) + iz),
+                              (ivx - vx, ivy - vy, ivz - vz))
         if not first_fix:
             # Slip: a sole whose kinematic velocity disagrees with the IMU prediction by more
             # than slip_velocity_m_s is sliding; it is left out and re-anchored. If every sole
             # slips for max_slip_s, the closest one is trusted.
             residual = {}
-            for side, (_, _, v) in per_side.items():
-                d = v - self.v
-                residual[side] = math.sqrt(float(d @ d))
+            ex, ey, ez = self.v
+            for side, (_, _, (vx, vy, vz)) in per_side.items():
+                residual[side] = math.sqrt((vx - ex) ** 2 + (vy - ey) ** 2 + (vz - ez) ** 2)
             keep = [side for side, r in residual.items() if r <= cfg.slip_velocity_m_s]
             self._slipping_s = 0.0 if keep else self._slipping_s + dt
             if not keep and self._slipping_s > cfg.max_slip_s:
@@ -437,47 +429,30 @@ class StateEstimator:
         else:
             (f_a, p_a, v_a), (f_b, p_b, v_b) = per_side.values()
             share = f_b / (f_a + f_b)
-            p_meas = p_a + share * (p_b - p_a)
-            v_meas = v_a + share * (v_b - v_a)
+            p_meas, v_meas = _towards(p_a, p_b, share), _towards(v_a, v_b, share)
         if first_fix:
             self.p, self.v = p_meas, v_meas
             self._have_fix = True
         else:
-            self.p = self.p + (1.0 - math.exp(-dt / cfg.position_time_constant_s)) * (p_meas - self.p)
-            self.v = self.v + (1.0 - math.exp(-dt / cfg.velocity_time_constant_s)) * (v_meas - self.v)
-
-    def _contact_forces(self, side: str, part: _GroundPart, cop_local: tuple[float, float],
-                        fz: float) -> np.ndarray:
-        """The sole's normal force split over its corners on the ground (split_force_to_corners;
-        the flat sole, the common case, in closed form: bilinear weights of the CoP)."""
-        if not part.flat:
-            return split_force_to_corners(part.corners[:, :2], np.array(cop_local), fz)
-        half_l, half_w = self._half_sole[side]
-        u = min(1.0, max(0.0, (cop_local[0] + half_l) / (2 * half_l)))
-        w = min(1.0, max(0.0, (cop_local[1] + half_w) / (2 * half_w)))
-        # Corners: front left, front right, back right, back left (SoleGeometry.corners).
-        return np.array([u * w * fz, u * (1.0 - w) * fz, (1.0 - u) * (1.0 - w) * fz,
-                         (1.0 - u) * w * fz])
+            self.p = _towards(self.p, p_meas, 1.0 - math.exp(-dt / cfg.position_time_constant_s))
+            self.v = _towards(self.v, v_meas, 1.0 - math.exp(-dt / cfg.velocity_time_constant_s))
 
     def _measurement(self, t: float, kin: _Kinematics, loaded: dict, touch: dict) -> Measurement:
-        rot = kin.rot
-        base = self.p - kin.imu_pos
+        (px, py, pz), (ix, iy, iz) = self.p, kin.imu_pos
+        bx, by, bz = px - ix, py - iy, pz - iz          # the base origin in the world
         contacts, feet = {}, {}
         cop_x = cop_y = force_sum = 0.0
         for side in SIDES:
-            r_s, o_s = kin.sole_rot[side], kin.sole_pos[side] + base
-            ox, oy, _ = o_s.tolist()
-            feet[side] = np.array([ox, oy, _yaw(r_s)])
+            pose = kin.sole_pose[side]
+            (r00, r01, _, sx), (r10, r11, _, sy) = pose[0], pose[1]
+            ox, oy = sx + bx, sy + by
+            feet[side] = np.array([ox, oy, math.atan2(r10, r00)])
             if side not in loaded:
                 contacts[side] = _NO_CONTACT
                 continue
-            _, _, fz, tx, ty, _ = loaded[side].tolist()
-            cx, cy = -ty / fz, tx / fz
-            part = touch[side]
-            world = part.corners @ r_s.T + o_s
-            world[:, 2] = self._contact_forces(side, part, (cx, cy), fz)
-            contacts[side] = world
-            (r00, r01, _), (r10, r11, _) = r_s[:2].tolist()
+            _, _, fz, tx, ty, _ = loaded[side]
+            cx, cy = -ty / fz, tx / fz                  # the sole's CoP, sole frame
+            contacts[side] = self.soles.contacts(side, touch[side], pose, (ox, oy), cx, cy, fz)
             cop_x += fz * (r00 * cx + r01 * cy + ox)
             cop_y += fz * (r10 * cx + r11 * cy + oy)
             force_sum += fz
@@ -486,13 +461,21 @@ class StateEstimator:
         else:
             cop = np.full(3, np.nan)
         # Momentum of the base-fixed motion plus the whole body translating with the base.
-        lin_mom = kin.lin_mom + self.total_mass_kg * (self.v - kin.imu_vel)
-        return Measurement(t=t, com=kin.com + base, lin_mom=lin_mom, ang_mom=kin.ang_mom.copy(),
-                           heading=_yaw(rot), cop=cop,
+        mass = self.total_mass_kg
+        (lx, ly, lz), (vx, vy, vz), (ivx, ivy, ivz) = kin.lin_mom, self.v, kin.imu_vel
+        lin_mom = np.array([lx + mass * (vx - ivx), ly + mass * (vy - ivy), lz + mass * (vz - ivz)])
+        cx, cy, cz = kin.com
+        return Measurement(t=t, com=np.array([cx + bx, cy + by, cz + bz]), lin_mom=lin_mom,
+                           ang_mom=kin.ang_mom, heading=rotations.yaw(kin.attitude), cop=cop,
                            left_contacts=contacts['l'], right_contacts=contacts['r'],
                            left_foot=feet['l'], right_foot=feet['r'], non_foot_contact=False,
-                           torso_rotation=rot.copy())
+                           torso_rotation=rotations.matrix(kin.attitude))
 
     def run(self, samples: Sequence[SensorSample]) -> list[Optional[Measurement]]:
         """A whole recording through :meth:`update` (the offline path: same code, same state)."""
         return [self.update(s) for s in samples]
+
+
+def _towards(a: tuple, b: tuple, share: float) -> tuple:
+    """The point ``share`` of the way from 3-vector ``a`` to ``b`` (float triples)."""
+    return (a[0] + share * (b[0] - a[0]), a[1] + share * (b[1] - a[1]), a[2] + share * (b[2] - a[2]))

@@ -99,6 +99,14 @@ class ImplausibleSample(ValueError):
     """A sample outside the physical bounds or continuity limits (the message says which)."""
 
 
+def _floats(values: Sequence[float]) -> list[float]:
+    """``values`` as a list of floats (a 1-D array's ``tolist``: iterating an array costs ten
+    times as much, as each element becomes a numpy scalar first)."""
+    if isinstance(values, np.ndarray) and values.ndim == 1:
+        return values.astype(float, copy=False).tolist()
+    return [float(v) for v in values]
+
+
 def _norm3(v: Sequence[float]) -> float:
     # math.hypot does not overflow for finite inputs up to the float range.
     return math.hypot(float(v[0]), float(v[1]), float(v[2]))
@@ -223,8 +231,7 @@ class ContinuityCheck:
         True when the sample was accepted by a resynchronisation (the caller should drop any
         history built on the samples before the discontinuity).
         """
-        values = (*(float(v) for v in com), *(float(v) for v in lin_mom),
-                  *(float(v) for v in ang_mom))
+        values = (*map(float, com), *map(float, lin_mom), *map(float, ang_mom))
         if self._last is not None:
             t0, last = self._last
             dt = float(t) - t0
@@ -253,12 +260,10 @@ class ContinuityCheck:
 def check_imu(orientation_xyzw: Sequence[float], angular_velocity: Sequence[float],
               linear_acceleration: Sequence[float]) -> Optional[str]:
     """Why an IMU reading is impossible (non-finite or beyond the sensor bounds), or None."""
-    q = [float(v) for v in orientation_xyzw]
-    w = [float(v) for v in angular_velocity]
-    a = [float(v) for v in linear_acceleration]
+    q, w, a = _floats(orientation_xyzw), _floats(angular_velocity), _floats(linear_acceleration)
     if len(q) != 4 or len(w) != 3 or len(a) != 3:
         return f'IMU reading has {len(q)}/{len(w)}/{len(a)} values instead of 4/3/3'
-    if not all(math.isfinite(v) for v in (*q, *w, *a)):
+    if not all(map(math.isfinite, q + w + a)):
         return 'IMU reading is not finite'
     norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
     if not abs(norm - 1.0) <= IMU_QUATERNION_NORM_TOLERANCE:
@@ -273,8 +278,8 @@ def check_imu(orientation_xyzw: Sequence[float], angular_velocity: Sequence[floa
 
 def check_wrench(wrench: Sequence[float], robot_weight_n: float) -> Optional[str]:
     """Why a foot force/torque reading is impossible for a robot of ``robot_weight_n``, or None."""
-    w = [float(v) for v in wrench]
-    if len(w) != 6 or not all(math.isfinite(v) for v in w):
+    w = _floats(wrench)
+    if len(w) != 6 or not all(map(math.isfinite, w)):
         return 'foot wrench is not 6 finite values'
     max_force = MAX_FOOT_FORCE_BODY_WEIGHTS * robot_weight_n
     if not _norm3(w[:3]) <= max_force:
@@ -307,9 +312,9 @@ class JointBounds:
     def violations(self, q: np.ndarray, dq: np.ndarray) -> list[str]:
         """Each joint whose position or velocity is impossible, in words (empty: all plausible)."""
         low, high, v_max = self._limits
-        with np.errstate(invalid='ignore'):
-            bad_q = ~((q >= low) & (q <= high))
-            bad_v = ~(np.abs(dq) <= v_max)
+        # Comparisons with NaN are False (no floating-point warning): NaN counts as bad.
+        bad_q = ~((q >= low) & (q <= high))
+        bad_v = ~(np.abs(dq) <= v_max)
         bad = bad_q | bad_v
         if not np.count_nonzero(bad):
             return []

@@ -129,10 +129,11 @@ class JointTable:
         self.unknown: set[str] = set()        #: names seen that the description does not have
         self.oldest_stamp_ns = 0               #: the stamp of the joint longest without news
         self.all_received = n == 0             #: every joint has been received
-        self._maps: dict[tuple[str, ...], tuple[np.ndarray, np.ndarray]] = {}
+        self._maps: dict[tuple[str, ...], tuple] = {}
 
-    def _map(self, names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
-        """(positions in the message, joint indices) of the known names of a message layout."""
+    def _map(self, names: tuple[str, ...]) -> tuple:
+        """Of a message layout: (positions in the message, joint indices) of its known names, and
+        its names the description lacks."""
         cached = self._maps.get(names)
         if cached is None:
             if len(set(names)) != len(names):
@@ -140,7 +141,8 @@ class JointTable:
             pairs = [(k, self._index[n]) for k, n in enumerate(names) if n in self._index]
             message = np.array([k for k, _ in pairs], dtype=np.int64)
             joints = np.array([j for _, j in pairs], dtype=np.int64)
-            cached = self._maps[names] = (message, joints)
+            cached = self._maps[names] = (message, joints,
+                                          [n for n in names if n not in self._index])
         return cached
 
     def update(self, reading: JointStateReading) -> list[str]:
@@ -154,9 +156,9 @@ class JointTable:
         if position.shape != (n,) or velocity.size not in (0, n) or effort.size not in (0, n):
             raise ValueError(f'joint state with {n} names has {position.size} positions, '
                              f'{velocity.size} velocities and {effort.size} efforts')
-        new_unknown = [name for name in names if name not in self._index and name not in self.unknown]
+        k, j, unknown = self._map(names)
+        new_unknown = [name for name in unknown if name not in self.unknown]
         self.unknown.update(new_unknown)
-        k, j = self._map(names)
         if not j.size:
             return new_unknown
         q_new = position[k]
@@ -175,16 +177,24 @@ class JointTable:
                 dq_new = np.where(self.received[j] & (dt > 0), (q_new - self.q[j]) / dt, 0.0)
             self.reports_velocity[j] = False
         moved = q_new != self.q[j]
-        self._frozen_since_ns[j] = np.where(moved | ~self.received[j], stamp, self._frozen_since_ns[j])
+        if not self.all_received:
+            moved |= ~self.received[j]          # a first reading starts the stuck clock too
+        self._frozen_since_ns[j[moved]] = stamp
         self.q[j] = q_new
         self.dq[j] = dq_new
         self.tau[j] = effort[k] if effort.size else np.nan
         self.stamp_ns[j] = stamp
-        self.received[j] = True
-        # Kept per message, read per sample and per reading (complete_at, faults).
-        self.oldest_stamp_ns = int(self.stamp_ns.min())
-        self.all_received = self.all_received or not np.count_nonzero(~self.received)
+        if not self.all_received:
+            self.received[j] = True
+            self.all_received = not np.count_nonzero(~self.received)
+        # Kept per message, read per sample and per reading (complete_at, faults); a message with
+        # every joint makes its stamp the oldest.
+        self.oldest_stamp_ns = stamp if len(j) == len(self.names) else int(self.stamp_ns.min())
         return new_unknown
+
+    def efforts(self) -> np.ndarray:
+        """A copy of every joint's effort, or an empty array where any is unknown."""
+        return self.tau.copy() if np.isfinite(self.tau).all() else np.zeros(0)
 
     def never_received(self) -> list[str]:
         return [self.names[i] for i in np.flatnonzero(~self.received)]
@@ -294,8 +304,9 @@ class SensorSync:
         """Whether every stream has a reading at or after ``stamp_ns`` (nothing more to wait for)."""
         if self.imu.newest_ns is None or self.imu.newest_ns < stamp_ns:
             return False
-        if any(b.newest_ns is None or b.newest_ns < stamp_ns for b in self.wrenches.values()):
-            return False
+        for buffer in self.wrenches.values():
+            if buffer.newest_ns is None or buffer.newest_ns < stamp_ns:
+                return False
         return self.joints.oldest_stamp_ns >= stamp_ns
 
     def _missing(self, stream: str, buffer: StreamBuffer, stamp_ns: int, driving: str) -> str:
@@ -328,7 +339,7 @@ class SensorSync:
         table = self.joints
         sample = SensorSample(
             t=t, joint_names=table.names, q=table.q.copy(), dq=table.dq.copy(),
-            tau=table.tau.copy() if np.isfinite(table.tau).all() else np.zeros(0),
+            tau=table.efforts(),
             imu_quat_xyzw=quat, gyro_rad_s=imu[4:7], accel_m_s2=imu[7:10],
             left_wrench=wrenches['l'], right_wrench=wrenches['r'], imu_frame=self.imu_frame,
             wrench_frames=(self.wrench_frames['l'], self.wrench_frames['r']))

@@ -42,6 +42,7 @@ from typing import Optional
 import numpy as np
 import pybullet as pb
 
+from fall_predictor.monitor import rotations
 from fall_predictor.monitor.geometry import cross3
 from fall_predictor.monitor.robot_description import SIDES
 from fall_predictor.monitor.sensor_records import SensorSample
@@ -209,31 +210,6 @@ def _quantise(x: np.ndarray, quantum: float) -> np.ndarray:
     return x if quantum <= 0 else np.round(x / quantum) * quantum
 
 
-def _quat_to_matrix(q: np.ndarray) -> np.ndarray:
-    x, y, z, w = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-
-
-def _small_rotation_quat(v: np.ndarray) -> np.ndarray:
-    """Quaternion (x, y, z, w) of the rotation vector ``v``."""
-    a = float(np.linalg.norm(v))
-    if a < 1e-12:
-        return np.array([0.0, 0.0, 0.0, 1.0])
-    s = math.sin(a / 2) / a
-    return np.array([v[0] * s, v[1] * s, v[2] * s, math.cos(a / 2)])
-
-
-def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    ax, ay, az, aw = a
-    bx, by, bz, bw = b
-    return np.array([aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw,
-                     aw * bw - ax * bx - ay * by - az * bz])
-
-
 class SensorSuite:
     """Applies :class:`SensorParams` to a stream of :class:`SensorTruth`, one step at a time.
 
@@ -280,7 +256,7 @@ class SensorSuite:
                       e.position_quantum_rad)
         dq = _quantise(truth.dq + k * e.velocity_noise_rad_s * rng.standard_normal(n), e.velocity_quantum_rad_s)
         tau = _quantise(truth.tau + k * e.effort_noise_nm * rng.standard_normal(n), e.effort_quantum_nm)
-        rot = _quat_to_matrix(truth.imu_quat_xyzw)
+        rot = rotations.matrix(truth.imu_quat_xyzw)
         # Specific force from the finite difference of the IMU point's velocity.
         acc_world = np.zeros(3) if self._prev_v is None else (truth.imu_velocity_world - self._prev_v) / self.dt_s
         self._prev_v = truth.imu_velocity_world.copy()
@@ -291,7 +267,8 @@ class SensorSuite:
         accel = _quantise(specific + self._accel_bias + sig_a * rng.standard_normal(3), i.accel_quantum_m_s2)
         # Attitude error: a world-frame rotation (bias + white) applied to the true attitude.
         err = self._att_bias + k * i.orientation_noise_rad * rng.standard_normal(3)
-        quat = _quat_mul(_small_rotation_quat(err), truth.imu_quat_xyzw)
+        quat = np.array(rotations.multiply(rotations.from_rotation_vector(*err.tolist()),
+                                           truth.imu_quat_xyzw))
         wrenches = {}
         for side, w in (('l', truth.left_wrench), ('r', truth.right_wrench)):
             if w is None:                       # no F/T sensor on this foot
