@@ -81,7 +81,7 @@ class PreviewController:
         zmp_now = self.c @ self.state
         self.error_sum += zmp_now - zmp_ref_ahead[0]
         u = -self.ks * self.error_sum - self.kx @ self.state - self.gd @ zmp_ref_ahead[1:self.n_preview + 1]
-        self.state = self.a @ self.state + np.outer(self.b, u)
+        self.state = self.a @ self.state + self.b[:, None] * u     # b u^T (np.outer's product)
         return self.state[0]
 
 

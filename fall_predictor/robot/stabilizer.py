@@ -160,7 +160,7 @@ class Stabilizer:
         self.dcm_integral += dt * (error - self.dcm_integral / cfg.dcm_integral_leak_s)
         p_d = zmp_ref + cfg.dcm_gain * error + cfg.dcm_integral_gain * self.dcm_integral
         support = [s for s in SIDES if s not in swinging] or list(SIDES)
-        p_d = self._inside(p_d, self._support_polygon(tuple((s, *map(float, planted[s])) for s in support)))
+        p_d = self._inside(p_d, self._support_polygon(tuple([(s, *planted[s].tolist()) for s in support])))
         self.desired_zmp = p_d
         # 2. Force distribution.
         if len(support) == 2:

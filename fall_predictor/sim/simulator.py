@@ -51,20 +51,31 @@ class SimulatorConfig:
             raise ValueError(f"actuation must be 'position' or 'pd_torque', got {self.actuation!r}")
 
 
+# Rotation matrix entries from quaternion products (x, y, z, w = q0..q3): entry k is
+# 2 (q_a q_b + s q_c q_d), and 1 minus that on the diagonal; the products' indices into the
+# flattened outer product q q^T, and the signs s.
+_R_A = np.array([5, 1, 2, 1, 0, 6, 2, 6, 0])       # yy, xy, xz, xy, xx, yz, xz, yz, xx
+_R_B = np.array([10, 11, 7, 11, 10, 3, 7, 3, 5])   # zz, zw, yw, zw, zz, xw, yw, xw, yy
+_R_SIGN = np.array([1.0, -1.0, 1.0, 1.0, 1.0, -1.0, -1.0, 1.0, 1.0])
+_R_DIAGONAL = np.array([0, 4, 8])
+
+
 def quaternions_to_matrices(q: np.ndarray) -> np.ndarray:
-    """Rotation matrices (n, 3, 3) from PyBullet quaternions (n, 4) in (x, y, z, w) order."""
-    x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    out = np.empty((len(q), 3, 3))
-    out[:, 0, 0] = 1 - 2 * (y * y + z * z)
-    out[:, 0, 1] = 2 * (x * y - z * w)
-    out[:, 0, 2] = 2 * (x * z + y * w)
-    out[:, 1, 0] = 2 * (x * y + z * w)
-    out[:, 1, 1] = 1 - 2 * (x * x + z * z)
-    out[:, 1, 2] = 2 * (y * z - x * w)
-    out[:, 2, 0] = 2 * (x * z - y * w)
-    out[:, 2, 1] = 2 * (y * z + x * w)
-    out[:, 2, 2] = 1 - 2 * (x * x + y * y)
-    return out
+    """Rotation matrices (n, 3, 3) from PyBullet quaternions (n, 4) in (x, y, z, w) order.
+
+    All nine entries at once from the outer products (a few array operations for all bodies, not
+    ~40); each entry is the same floating-point expression as written out, e.g. 1 - 2 (yy + zz),
+    2 (xy - zw) (a - b is a + (-b) exactly)."""
+    n = len(q)
+    products = (q[:, :, None] * q[:, None, :]).reshape(n, 16)
+    # Into a C-ordered array (a fancy-indexed result is column-major here, and the einsums of the
+    # angular momentum sum in another order on it: other last bits).
+    out = np.empty((n, 9))
+    np.multiply(products[:, _R_B], _R_SIGN, out=out)
+    out += products[:, _R_A]
+    out *= 2
+    out[:, _R_DIAGONAL] = 1 - out[:, _R_DIAGONAL]
+    return out.reshape(n, 3, 3)
 
 
 class Simulator:
@@ -233,7 +244,7 @@ class Simulator:
     def set_joint_targets(self, positions: Sequence[float]) -> None:
         """Position targets [rad] of the 26 joint servos (held until the next call)."""
         targets = np.asarray(positions, dtype=float)
-        if targets.shape != (self.n_joints,) or not np.all(np.isfinite(targets)):
+        if targets.shape != (self.n_joints,) or not np.isfinite(targets).all():
             raise ValueError(f'expected {self.n_joints} finite joint targets')
         self._targets = targets.copy()
         if self.config.actuation == 'position':
@@ -298,8 +309,9 @@ class Simulator:
 
     def _read_joints(self) -> None:
         states = pb.getJointStates(self.robot, self.joint_indices, physicsClientId=self.client)
-        self._q = np.array([s[0] for s in states])
-        self._dq = np.array([s[1] for s in states])
+        n = len(states)
+        self._q = np.fromiter((s[0] for s in states), float, n)
+        self._dq = np.fromiter((s[1] for s in states), float, n)
         if self.config.actuation == 'position' and self._torques.size:
             self._torques = np.array([s[3] for s in states])
 
@@ -331,10 +343,15 @@ class Simulator:
         base_lin, base_ang = pb.getBaseVelocity(self.robot, physicsClientId=c)
         links = pb.getLinkStates(self.robot, self.bodies[1:], computeLinkVelocity=1,
                                  computeForwardKinematics=1, physicsClientId=c)
-        # One array of (position, quaternion, linear velocity, angular velocity) per body.
-        rows = [(*base_pos, *base_orn, *base_lin, *base_ang)]
-        rows += [(*ls[0], *ls[1], *ls[6], *ls[7]) for ls in links]
-        state = np.array(rows)
+        # One row of (position, quaternion, linear velocity, angular velocity) per body (one flat
+        # list, then one array: cheaper than an array of row tuples).
+        flat = [*base_pos, *base_orn, *base_lin, *base_ang]
+        for ls in links:
+            flat += ls[0]
+            flat += ls[1]
+            flat += ls[6]
+            flat += ls[7]
+        state = np.array(flat).reshape(-1, 13)
         pos, quat, vel, omega = state[:, 0:3], state[:, 3:7], state[:, 7:10], state[:, 10:13]
         m = self.masses
         com = m @ pos / self.total_mass
