@@ -115,7 +115,7 @@ class NumericLegs(LegSolver):
             current = pin.updateFramePlacement(model, data, frame)
             relative = current.actInv(target)
             err = pin.log6(relative).vector
-            if max(map(abs, err.tolist())) < self.tolerance_m:
+            if float(np.abs(err).max()) < self.tolerance_m:     # NaN: not converged
                 break
             jac = pin.Jlog6(relative) @ pin.getFrameJacobian(model, data, frame, pin.ReferenceFrame.LOCAL)[:, chain.iv]
             # The damped normal equations are symmetric positive definite: LAPACK's Cholesky
@@ -124,7 +124,7 @@ class NumericLegs(LegSolver):
             if info != 0:                   # not finite: no step (the clip keeps the last q)
                 break
             q[iq] = _clip(q[iq] + step, chain.lower, chain.upper)
-        self.last_error = max(map(abs, err.tolist()))
+        self.last_error = float(np.abs(err).max())
         self._previous[side] = leg
         self._warm[side] = q[iq].copy()
         return q[iq].copy()
