@@ -22,7 +22,7 @@ from fall_predictor.ros.bringup import ros_environment
 from fall_predictor.contract.topics import FEATURES, STATE
 from fall_predictor.contract import messages
 from fall_predictor.msg import FallState, Features
-from fall_predictor.monitor.fall_monitor import STATUS_FALLEN, FallMonitor
+from fall_predictor.monitor.fall_monitor import STATUS_DEGRADED, STATUS_FALLEN, FallMonitor
 from fall_predictor.monitor.chain import base_tilt_rad
 from fall_predictor.ros.robots import fallen_config_for
 from fall_predictor.ros import conversions as ros_qos
@@ -285,8 +285,8 @@ def test_fall_monitor_without_other_subscribers_hands_decoded_samples_and_builds
     """With nobody of another process on ``fall_predictor/features``, the feature node hands the
     predictor the decoded features and builds no features message (building and decoding one
     cost more than the estimator); the states are still the library's offline ones, and a
-    measurement handed over in process passes the checks a decoded message passes: an
-    implausible one is refused and counted, and gets no state."""
+    fault handed over in process (the state estimator's words for an implausible estimate) gets
+    a DEGRADED state that says it."""
     model = write_momentum_model(tmp_path / 'model.json')
     measurements = run_trajectory(PushSpec(450.0, 0.0, 0.1, 0.3), 1.0,
                                   stop_when_fallen=False).measurements
@@ -295,7 +295,7 @@ def test_fall_monitor_without_other_subscribers_hands_decoded_samples_and_builds
     features_msg = messages.features_msg
     monkeypatch.setattr(messages, 'features_msg',
                         lambda *args: built.append(1) or features_msg(*args))
-    implausible = dataclasses.replace(measurements[-1], com=np.array([0.0, 0.0, -1.0]))
+    fault = 'implausible estimate: CoM height -1.0 m is outside [0.0, 2.0] m'
     # A domain of its own: the previous test's features probe may still be matched in DOMAIN
     # until DDS discovery notices it is gone.
     with ros_context(test_domain_id(71)) as context:
@@ -305,8 +305,9 @@ def test_fall_monitor_without_other_subscribers_hands_decoded_samples_and_builds
                                  Parameter('max_sample_age_s', value=0.0)])]
         probe = rclpy.node.Node('hand_off_probe', context=context)
         statuses: list[int] = []
-        create_subscription(probe, FallState, STATE, lambda msg: statuses.append(msg.status),
-                            lossless=True)
+        reasons: list[str] = []
+        create_subscription(probe, FallState, STATE, lambda msg: statuses.append(msg.status)
+                            or reasons.append(msg.reason), lossless=True)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(probe)
         try:
@@ -319,18 +320,19 @@ def test_fall_monitor_without_other_subscribers_hands_decoded_samples_and_builds
                 if k % 50 == 49:                # keep the reliable queue short
                     spin_until(executor, lambda: len(statuses) == k + 1, 10.0)
             feature._take_measurement(messages.StampedMeasurement(
-                ros_qos.sim_ns(measurements[-1].t) + 1_000_000, 'odom', '', implausible))
-            assert spin_until(executor, lambda: len(statuses) == len(measurements), 10.0)
-            spin_until(executor, lambda: False, 0.3)    # (a state for the refused one: none)
+                ros_qos.sim_ns(measurements[-1].t) + 1_000_000, 'odom', fault, None))
+            assert spin_until(executor, lambda: len(statuses) == len(measurements) + 1, 10.0)
         finally:
             executor.shutdown()
             for node in (probe, predictor, feature):
                 node.destroy_node()
-    assert statuses == expected
+    assert statuses == expected + [STATUS_DEGRADED]
+    assert reasons[-1] == fault
     assert built == []
     assert feature.counts['measurements'] == len(measurements) + 1
-    assert feature._bad_inputs.count == 1 and 'CoM height' in feature._bad_inputs.last
-    assert predictor.counts['features'] == len(measurements)
+    assert feature._bad_inputs.count == 0 and feature.counts['faults'] == 1
+    assert predictor.counts['features'] == len(measurements) + 1
+    assert predictor.counts['degraded_states'] == 1
 
 
 def test_simulated_robot_closes_the_lock_step_loop_in_process() -> None:

@@ -169,3 +169,36 @@ def test_a_sensor_fault_degrades_never_falls_never_crashes(messages, case: str) 
         assert rejected == 1
     refused = {'IMU burst of 3000 m/s^2 for 10 ms': 10, 'huge gyro reading': 1}.get(case, 0)
     assert c.pipeline.sync.counts['refused_readings'] == refused, case
+
+
+def test_a_position_dead_reckoned_below_the_ground_degrades_every_sample(messages) -> None:
+    """No sole loaded and the IMU in free fall (specific force 0) from FAULT_START: the estimator
+    can only integrate gravity, and its CoM sinks as a dropped stone's does. Once it is below the
+    ground the estimate is impossible: from then on every sample gets a DEGRADED state that says
+    so (none is dropped), where the CoM height of the ballistic path crosses zero."""
+    def free_fall(stream, r):
+        if not during(r, FAULT_START, 2_000 * MS):
+            return [(stream, r)]
+        if stream == 'imu':
+            return [(stream, replace(r, linear_acceleration=np.zeros(3)))]
+        if stream in ('l', 'r'):
+            return [(stream, replace(r, wrench=np.zeros(6)))]
+        return [(stream, r)]
+    c = chain()
+    outputs = [o for stream, reading in messages for s, r in free_fall(stream, reading)
+               for o in c.add(s, r)] + c.flush()
+    assert len(outputs) == c.pipeline.counts['estimates']          # a state for every estimate
+    last = max((o for o in outputs if o.stamp_ns - EPOCH_NS < FAULT_START), key=lambda o: o.stamp_ns)
+    z0, vz0 = float(last.measurement.com[2]), float(last.measurement.lin_mom[2]) / rm.TOTAL_MASS_KG
+    # z0 + vz0 t - g t^2 / 2 = 0 (the joints go on moving: the CoM's offset from the base changes
+    # by millimetres, a few milliseconds at the crossing speed of ~3.5 m/s).
+    t_cross_s = (vz0 + np.sqrt(vz0 ** 2 + 2 * 9.81 * z0)) / 9.81
+    below = [o for o in outputs if o.state.status == STATUS_DEGRADED
+             and o.stamp_ns - EPOCH_NS >= FAULT_START]
+    assert below and all('implausible estimate: CoM height' in o.state.reason for o in below)
+    first_s = (below[0].stamp_ns - last.stamp_ns) / 1e9
+    assert first_s == pytest.approx(t_cross_s, abs=0.005)
+    assert [o.stamp_ns for o in below] == [o.stamp_ns for o in outputs
+                                           if o.stamp_ns >= below[0].stamp_ns]
+    assert all(o.measurement is not None for o in outputs
+               if last.stamp_ns <= o.stamp_ns < below[0].stamp_ns)

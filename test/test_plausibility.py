@@ -12,8 +12,9 @@ import pytest
 from fall_predictor.contract.topics import WireFormatError
 from fall_predictor.contract.wire import pack_features, pack_measurement, unpack_features, unpack_measurement
 from fall_predictor.monitor.features import FeatureExtractor
-from fall_predictor.monitor.plausibility import (MAX_SAMPLE_TIME_S, ContinuityCheck,
-                                                 ImplausibleSample, check_time)
+from fall_predictor.monitor.plausibility import (MAX_HORIZONTAL_OFFSET_M, MAX_SAMPLE_TIME_S,
+                                                 ContinuityCheck, ImplausibleSample,
+                                                 check_measurement, check_time)
 from fall_predictor.monitor.records import Measurement
 
 LEFT = [(0.1, 0.15), (-0.1, 0.15), (-0.1, 0.05), (0.1, 0.05)]
@@ -51,6 +52,46 @@ def test_each_bound_rejects_at_the_wire(field, value, match):
     with pytest.raises(WireFormatError, match=match):
         data = pack_measurement(m)
     assert data.size == 0
+
+
+@pytest.mark.parametrize('field, value, match', [
+    ('com', (0.0, 0.0, -0.01), 'CoM height'),
+    ('com', (0.0, 0.0, 2.0000001), 'CoM height'),
+    ('com', (1e5, 0.0, 0.6), 'from the origin'),
+    ('cop', (0.0, 2.01, 0.0), 'CoP is'),
+    ('cop', (0.0, 0.0, -0.6), 'CoP z'),
+    ('lin_mom', (1e308, 0.0, 0.0), 'linear momentum'),
+    ('ang_mom', (0.0, 600.0, 0.0), 'angular momentum'),
+    ('push_force', (0.0, 0.0, 2e5), 'push force'),
+    ('left_foot', (2.01, 0.0, 0.0), 'left foot'),
+    ('right_foot', (0.0, -2.01, 0.0), 'right foot'),
+    ('heading', 1e9, 'heading'),
+    ('com', (0.0, math.nan, 0.6), 'non-finite'),
+    ('lin_mom', (0.0, 0.0, math.inf), 'non-finite'),
+    ('left_foot', (0.0, 0.1, math.nan), 'non-finite'),      # a yaw no bound would catch
+    ('heading', math.nan, 'non-finite'),
+    ('cop', (math.nan, 0.0, 0.0), 'all finite or all NaN'),  # a NaN x would skip the CoP bounds
+    ('torso_rotation', np.full((3, 3), math.nan), 'base orientation'),
+])
+def test_a_measurement_out_of_bounds_or_not_finite_is_named(field, value, match):
+    """The check every estimate and every measurement taken in process passes names the field."""
+    m = standing(0.5)
+    setattr(m, field, np.array(value, float) if isinstance(value, tuple) else value)
+    with pytest.raises(ImplausibleSample, match=match):
+        check_measurement(m)
+
+
+def test_the_measurement_bounds_are_inclusive():
+    m = standing(0.5, com=(0.0, 0.0, 2.0), cop=(MAX_HORIZONTAL_OFFSET_M, 0.0, -0.5))
+    m.left_foot = np.array([0.0, MAX_HORIZONTAL_OFFSET_M, 1e3])
+    m.lin_mom = np.array([0.0, 0.0, 2000.0])
+    m.torso_rotation = np.eye(3)
+    check_measurement(m)
+    m.cop = np.full(3, math.nan)        # no contact: no CoP
+    check_measurement(m)
+    m.left_contacts[0, 2] = math.inf
+    with pytest.raises(ImplausibleSample, match='contacts are not finite'):
+        check_measurement(m)
 
 
 def test_contact_rows_far_away_or_negative_force_are_rejected():

@@ -20,8 +20,8 @@ import numpy as np
 
 from fall_predictor.contract.topics import WireFormatError
 from fall_predictor.monitor.fall_monitor import STATUS_NAMES, MonitorState
-from fall_predictor.monitor.plausibility import (ImplausibleSample, check_feature_bounds,
-                                                 check_measurement_bounds)
+from fall_predictor.monitor import plausibility
+from fall_predictor.monitor.plausibility import ImplausibleSample, check_feature_bounds
 from fall_predictor.monitor.records import N_CONTACT_MODES, N_FEATURES, Measurement
 from fall_predictor.monitor.sensor_records import ImuReading, JointStateReading, WrenchReading
 from fall_predictor.monitor.timeline import NS_PER_S
@@ -207,27 +207,13 @@ def _contacts(sole: Any) -> np.ndarray:
 
 def check_measurement(m: Measurement) -> None:
     """The checks every measurement a node takes passes, decoded from a message or handed over
-    in process (WireFormatError): finite values where a measurement promises them, a CoP all
-    finite or all NaN, a finite base orientation, and the physical bounds of
-    :mod:`~fall_predictor.monitor.plausibility`."""
-    com, lin, ang = m.com.tolist(), m.lin_mom.tolist(), m.ang_mom.tolist()
-    cop, push = m.cop.tolist(), m.push_force.tolist()
-    feet = [m.left_foot.tolist(), m.right_foot.tolist()]
-    values = [*com, *lin, *ang, float(m.heading), *feet[0], *feet[1], *push]
-    if not all(math.isfinite(v) for v in values):
-        raise WireFormatError('measurement has non-finite values (and no fault)')
-    if not (all(math.isfinite(v) for v in cop) or all(math.isnan(v) for v in cop)):
-        raise WireFormatError(f'measurement.cop must be all finite or all NaN, got {cop}')
-    contacts = np.vstack([m.left_contacts, m.right_contacts])
-    if not np.isfinite(contacts).all():
-        raise WireFormatError('measurement contacts are not finite')
-    if m.torso_rotation is not None and not np.isfinite(m.torso_rotation).all():
-        raise WireFormatError('measurement base orientation is not finite')
+    in process (WireFormatError): :func:`fall_predictor.monitor.plausibility.check_measurement`."""
     try:
-        check_measurement_bounds(None, com, lin, ang, m.heading, cop, feet[0], feet[1], push,
-                                 contacts)
+        plausibility.check_measurement(m)
     except ImplausibleSample as error:
-        raise WireFormatError(f'measurement: {error}') from None
+        text = str(error)
+        raise WireFormatError(text if text.startswith('measurement') else f'measurement: {text}'
+                              ) from None
 
 
 def measurement_from_msg(msg: Any) -> StampedMeasurement:

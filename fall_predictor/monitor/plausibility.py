@@ -5,10 +5,12 @@ a sample time of 1e10 s, momentum of 1e308 kg m/s, a CoM that moves 0.6 m in one
 Such values overflow later arithmetic (squared distances, nanosecond stamps) or fool the
 predictor (a CoM at height 0 is "certainly fallen"). Every input is therefore checked twice:
 
-* **bounds, per sample** (:func:`check_measurement_bounds`, :func:`check_feature_bounds`): each
-  field within a stated range (table below). The wire layer (:mod:`fall_predictor.contract.wire`)
-  applies them to every decoded message, so the live nodes and the offline bag readers reject
-  the same samples.
+* **bounds, per sample** (:func:`check_measurement`, :func:`check_measurement_bounds`,
+  :func:`check_feature_bounds`): each field within a stated range (table below). The state
+  estimator's output is checked where it is made (an implausible estimate becomes a fault, so
+  the monitor says DEGRADED, live and offline alike), and the wire layer
+  (:mod:`fall_predictor.contract.wire`) applies them to every decoded message, so the live nodes
+  and the offline bag readers reject the same samples.
 * **continuity, between samples** (:class:`ContinuityCheck`): a sample that moved the CoM or
   changed a momentum faster than physics allows since the last accepted sample is rejected.
   The feature extractor applies it, so it is the same live and offline.
@@ -145,11 +147,18 @@ def check_measurement_bounds(t: Optional[float], com: Sequence[float], lin_mom: 
     """Raise :class:`ImplausibleSample` naming the first field outside the bounds table.
 
     ``cop`` may be all NaN (no contact); ``contacts`` is (k, 3) rows of (x, y, normal force)
-    of both feet. Values are assumed finite (the wire layer checks that first). ``t`` None: the
+    of both feet (an array, or a list of rows of floats). Values are assumed finite (the wire layer checks that first). ``t`` None: the
     time is checked elsewhere (by the time rule of :mod:`~fall_predictor.monitor.timeline`).
     """
     if t is not None:
         check_time(t)
+    flat = contacts if isinstance(contacts, list) else (
+        np.asarray(contacts, dtype=np.float64).ravel().tolist())
+    if _within_bounds(_floats(com), _floats(lin_mom), _floats(ang_mom), float(heading),
+                      _floats(cop), _floats(left_foot), _floats(right_foot), _floats(push_force)):
+        _check_contacts(flat, float(com[0]), float(com[1]))
+        return
+    # Outside: the checks one by one, to name the first field that is.
     if not (abs(float(com[0])) <= MAX_WORLD_COORDINATE_M
             and abs(float(com[1])) <= MAX_WORLD_COORDINATE_M):
         raise ImplausibleSample(f'CoM x, y = {float(com[0])!r}, {float(com[1])!r} m are more '
@@ -166,16 +175,78 @@ def check_measurement_bounds(t: Optional[float], com: Sequence[float], lin_mom: 
     _check_point(left_foot, com, 'left foot', check_z=False)
     _check_point(right_foot, com, 'right foot', check_z=False)
     _check_norm(push_force, MAX_PUSH_FORCE_N, 'push force', 'N')
-    rows = np.asarray(contacts, dtype=np.float64).reshape(-1, 3)
-    if rows.size:
-        offsets = np.hypot(rows[:, 0] - float(com[0]), rows[:, 1] - float(com[1]))
-        if not (offsets <= MAX_HORIZONTAL_OFFSET_M).all():
-            raise ImplausibleSample(f'a contact point is {float(np.max(offsets)):.6g} m from the '
-                                    f'CoM horizontally (at most {MAX_HORIZONTAL_OFFSET_M} m)')
-        forces = rows[:, 2]
-        if not ((forces >= 0.0) & (forces <= MAX_CONTACT_FORCE_N)).all():
+    _check_contacts(flat, float(com[0]), float(com[1]))
+
+
+def _within_bounds(com: list, lin_mom: list, ang_mom: list, heading: float, cop: list,
+                   left_foot: list, right_foot: list, push_force: list) -> bool:
+    """Whether every field but the contacts is within the bounds (floats; NaN fails each test,
+    as in :func:`check_measurement_bounds`): one expression, no call per field."""
+    hypot = math.hypot
+    cx, cy, cz = com
+    low, high = COM_HEIGHT_RANGE_M
+    z_low, z_high = CONTACT_HEIGHT_RANGE_M
+    return (abs(cx) <= MAX_WORLD_COORDINATE_M and abs(cy) <= MAX_WORLD_COORDINATE_M
+            and low <= cz <= high
+            and hypot(*lin_mom) <= MAX_LINEAR_MOMENTUM_KG_M_S
+            and hypot(*ang_mom) <= MAX_ANGULAR_MOMENTUM_KG_M2_S
+            and abs(heading) <= MAX_ABS_HEADING_RAD
+            and (math.isnan(cop[0]) or (hypot(cop[0] - cx, cop[1] - cy) <= MAX_HORIZONTAL_OFFSET_M
+                                        and z_low <= cop[2] <= z_high))
+            and hypot(left_foot[0] - cx, left_foot[1] - cy) <= MAX_HORIZONTAL_OFFSET_M
+            and hypot(right_foot[0] - cx, right_foot[1] - cy) <= MAX_HORIZONTAL_OFFSET_M
+            and hypot(*push_force) <= MAX_PUSH_FORCE_N)
+
+
+def _check_contacts(flat: list[float], com_x: float, com_y: float) -> None:
+    """Contact rows (x, y, normal force) as one flat list of floats, against the bounds."""
+    if len(flat) % 3:
+        raise ImplausibleSample(f'contacts must be rows of (x, y, normal force), got {len(flat)} values')
+    hypot = math.hypot
+    for k in range(0, len(flat), 3):
+        offset = hypot(flat[k] - com_x, flat[k + 1] - com_y)
+        if not offset <= MAX_HORIZONTAL_OFFSET_M:
+            raise ImplausibleSample(f'a contact point is {offset:.6g} m from the CoM horizontally '
+                                    f'(at most {MAX_HORIZONTAL_OFFSET_M} m)')
+        if not 0.0 <= flat[k + 2] <= MAX_CONTACT_FORCE_N:
             raise ImplausibleSample(f'contact normal forces must be in [0, {MAX_CONTACT_FORCE_N:g}]'
-                                    f' N, got {forces.min():.6g} .. {forces.max():.6g}')
+                                    f' N, got {flat[k + 2]:.6g}')
+
+
+def check_measurement(m) -> None:
+    """Raise :class:`ImplausibleSample` if a measurement (:class:`~fall_predictor.monitor.records.
+    Measurement`) is not one a humanoid can be in: a value that should be finite is not (a CoP all
+    finite or all NaN; contacts and the base orientation finite), or a field is outside the bounds
+    table. The one check of a measurement wherever it comes from: the state estimator's output
+    (:class:`~fall_predictor.monitor.sensor_pipeline.SensorPipeline`, live and offline alike), a
+    decoded message, a measurement handed over in process."""
+    # One list of floats for all fields: this check runs on every estimate, and numpy's cost
+    # per call (~0.5 us) would be most of it.
+    v = np.concatenate((m.com, m.lin_mom, m.ang_mom, m.left_foot, m.right_foot, m.push_force,
+                        m.cop, np.ravel(m.left_contacts), np.ravel(m.right_contacts)),
+                       dtype=np.float64).tolist()
+    heading = float(m.heading)
+    rotation = m.torso_rotation
+    finite = math.isfinite
+    # A sum is finite when every term is (or overflows for terms near the float range, which
+    # the exact test below then tells apart): one test instead of one per value.
+    if not finite(sum(v[:18]) + heading) and not all(map(finite, [*v[:18], heading])):
+        raise ImplausibleSample('measurement has non-finite values (and no fault)')
+    cop = v[18:21]
+    if not (finite(cop[0]) and finite(cop[1]) and finite(cop[2])
+            or math.isnan(cop[0]) and math.isnan(cop[1]) and math.isnan(cop[2])):
+        raise ImplausibleSample(f'measurement.cop must be all finite or all NaN, got {cop}')
+    contacts = v[21:]
+    if not finite(sum(contacts)) and not all(map(finite, contacts)):
+        raise ImplausibleSample('measurement contacts are not finite')
+    if rotation is not None and not finite(sum(rotation.ravel().tolist())):
+        if not np.isfinite(rotation).all():
+            raise ImplausibleSample('measurement base orientation is not finite')
+    com, lin, ang, left, right, push = v[0:3], v[3:6], v[6:9], v[9:12], v[12:15], v[15:18]
+    if _within_bounds(com, lin, ang, heading, cop, left, right, push):
+        _check_contacts(contacts, com[0], com[1])
+    else:
+        check_measurement_bounds(None, com, lin, ang, heading, cop, left, right, push, contacts)
 
 
 def check_feature_bounds(t: Optional[float], x: Sequence[float]) -> None:

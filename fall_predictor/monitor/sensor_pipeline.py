@@ -12,7 +12,9 @@ recording's messages (in the order they were received), so that both give the sa
    reading at or after it (the IMU stamped a fraction of a millisecond after the encoders arrives
    after them), or until the next driving message, whichever comes first; then it gets the
    synchronised sample at that stamp (readings interpolated where they bracket it) and the state
-   estimator's measurement, or the fault that prevented it (in words). Joint states split over several messages (legs and arms from different controllers)
+   estimator's measurement, or the fault that prevented it (in words); a measurement outside the
+   physical bounds (:func:`~fall_predictor.monitor.plausibility.check_measurement`) is such a
+   fault. Joint states split over several messages (legs and arms from different controllers)
    drive only when they carry a joint of ``driving_joints`` (default: any joint of the
    description), and only once per stamp: the rest are taken as the joints' newest values.
 
@@ -24,6 +26,7 @@ from dataclasses import dataclass, field
 from typing import Optional
 
 from fall_predictor.monitor.estimator import EstimatorConfig, StateEstimator
+from fall_predictor.monitor.plausibility import ImplausibleSample, check_measurement
 from fall_predictor.monitor.records import Measurement
 from fall_predictor.monitor.robot_description import SIDES, RobotDescription
 from fall_predictor.monitor.sensor_records import ImuReading, JointStateReading, WrenchReading
@@ -150,6 +153,14 @@ class SensorPipeline:
             measurement = self.estimator.update(sample)
             if measurement is None:
                 faults = [self.estimator.last_issue or 'the estimator refused the sample']
+            else:
+                # An estimate no humanoid can be in (a CoM below the ground after a fall, with no
+                # sole loaded to anchor the position) is a fault here, where it is made: every
+                # consumer, live or offline, then says DEGRADED for it.
+                try:
+                    check_measurement(measurement)
+                except ImplausibleSample as error:
+                    measurement, faults = None, [f'implausible estimate: {error}']
         if measurement is None:
             self.counts['faults'] += 1
             return Estimate(stamp_ns, t, None, '; '.join(faults), new_run)

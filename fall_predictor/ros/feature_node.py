@@ -130,11 +130,10 @@ class FeatureNode(MonitorLifecycleNode):
 
     @guarded('measurement')
     def _take_measurement(self, decoded: messages.StampedMeasurement) -> None:
-        """A measurement handed over in process (``fall_monitor --estimator``): the checks a
-        decoded message passes, then the same path."""
+        """A measurement handed over in process (``fall_monitor --estimator``): already checked
+        where it was made (the state estimator turns an implausible estimate into a fault,
+        :class:`~fall_predictor.monitor.sensor_pipeline.SensorPipeline`), then the same path."""
         if self._received():
-            if decoded.measurement is not None:
-                messages.check_measurement(decoded.measurement)
             self._process(decoded)
 
     def _received(self) -> bool:
