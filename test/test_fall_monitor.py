@@ -64,16 +64,23 @@ def test_the_trigger_latches_after_the_window_with_direction_and_time_to_fall():
     assert m.reset().kind == EVENT_RESET and not m.latched
 
 
-def test_unusable_samples_and_gaps_restart_the_window_but_keep_the_latch():
+def test_unusable_samples_are_holes_and_long_holes_restart_the_window_keeping_the_latch():
     m = monitor(tau_his_s=0.01)
     run(m, 0.0, 8, p_x=30.0)
-    degraded = m.unusable('no /imu/data within 5 ms of /joint_states')
+    degraded = m.unusable('no /imu/data within 5 ms of /joint_states')     # the sample at 8 ms
     assert (degraded.status, degraded.reason, degraded.falling) == (
         STATUS_DEGRADED, 'no /imu/data within 5 ms of /joint_states', False)
     out = run(m, 0.009, 11, p_x=30.0)
-    assert [s.falling for s, _ in out].index(True) == 10    # a fresh window after the fault
+    # A hole of one sample: the window that began at 0 s spans it and ends at 10 ms.
+    assert [s.falling for s, _ in out].index(True) == 1
     assert m.unusable('late', stale=True).status == STATUS_STALE
     assert m.unusable('late', stale=True).latched           # the latch stays
+    m.reset()
+    run(m, 1.0, 8, p_x=30.0)
+    for k in range(8, 110):                                 # degraded from 1.008 s to 1.109 s
+        assert not m.unusable('joint l_knee_pitch stuck').falling
+    out = run(m, 1.110, 11, p_x=30.0)                       # a hole of 0.103 s: a fresh window
+    assert [s.falling for s, _ in out].index(True) == 10
     m.reset()
     run(m, 1.0, 8, p_x=30.0)
     out = run(m, 1.5, 11, p_x=30.0)                         # 0.5 s later: a gap, not one run

@@ -20,8 +20,10 @@ and it runs the same offline. Per sample of features it gives a :class:`MonitorS
   nothing is predicted;
 * **disabled** (:meth:`FallMonitor.enable`): states say DISABLED and nothing triggers;
 * **degraded / stale** samples (:meth:`FallMonitor.unusable`): no prediction, the reason in words;
-  the history window restarts after them, and after a gap in the input longer than
-  ``max_gap_s`` (no window spans a hole in the data); the latch stays.
+  such a sample is a hole in the data, as a lost one is, not evidence that the robot is not
+  falling: the history window restarts after a hole longer than ``max_gap_s`` (no window spans
+  one), not after each unusable sample (a loaded computer's late IMU reading now and then would
+  otherwise hold the trigger back for good); the latch stays.
 """
 from __future__ import annotations
 
@@ -165,8 +167,9 @@ class FallMonitor:
                 self._latched = False
 
     def unusable(self, reason: str, stale: bool = False) -> MonitorState:
-        """The state of a sample that cannot be used (degraded sensors, or stale)."""
-        self.predictor.reset()
+        """The state of a sample that cannot be used (degraded sensors, or stale): a hole in the
+        data, which restarts the window only when it lasts longer than ``max_gap_s`` (the next
+        usable sample's :meth:`step` tells)."""
         self._standing_since = None
         return MonitorState(STATUS_STALE if stale else STATUS_DEGRADED, reason,
                             latched=self._latched, tau_his_s=self.predictor.tau_his_s)
