@@ -207,8 +207,8 @@ def test_a_position_dead_reckoned_below_the_ground_degrades_every_sample(message
 def test_sporadic_faults_are_holes_that_do_not_delay_the_alarm() -> None:
     """A loaded computer delivers the IMU late now and then: the samples without an IMU reading
     within 5 ms get DEGRADED states, but they are holes in the data, not evidence against the
-    fall (method §8): the alarm comes when the clean stream's does (within 10 ms), where restarting
-    the window after each one held it back until the CoM guard."""
+    fall (method §12): the alarm comes when the clean stream's does (within 10 ms), where restarting
+    the window after each one held it back past the fall."""
     run = run_trajectory(PushSpec(420.0, 0.0, 0.1, 1.0), 2.6, record_sensors=True)
     assert run.fallen
     messages = list(driver_messages(apply_sensors(run.sensor_truths, SensorParams(), seed=0), TIMING))
