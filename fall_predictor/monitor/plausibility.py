@@ -146,9 +146,10 @@ def check_measurement_bounds(t: Optional[float], com: Sequence[float], lin_mom: 
                              push_force: Sequence[float], contacts: np.ndarray) -> None:
     """Raise :class:`ImplausibleSample` naming the first field outside the bounds table.
 
-    ``cop`` may be all NaN (no contact); ``contacts`` is (k, 3) rows of (x, y, normal force)
-    of both feet (an array, or a list of rows of floats). Values are assumed finite (the wire layer checks that first). ``t`` None: the
-    time is checked elsewhere (by the time rule of :mod:`~fall_predictor.monitor.timeline`).
+    ``cop`` may be all NaN (no contact); ``contacts`` holds the (x, y, normal force) of each
+    contact point of both feet: a (k, 3) array, or one flat list of floats (x, y, force, x, ...).
+    Values are assumed finite (the wire layer checks that first). ``t`` None: the time is checked
+    elsewhere (by the time rule of :mod:`~fall_predictor.monitor.timeline`).
     """
     if t is not None:
         check_time(t)
