@@ -246,13 +246,17 @@ def test_params_file_sections_match_under_the_namespace(robot: Robot) -> None:
     assert future.result().values[2].bool_value is False
     # QoS by parameters (rclpy's QoSOverridingOptions): the override made the feature node
     # read the measurements reliably (best effort by default, REP 2003).
-    readers = {(topic, info.node_name): info.qos_profile.reliability
-               for topic in ('features', 'measurement')
-               for info in robot.node.get_subscriptions_info_by_topic(
-                   f'/robot1/fall_predictor/{topic}')}
-    assert readers[('measurement', 'feature_node')] == ReliabilityPolicy.RELIABLE
+    def readers() -> dict:
+        return {(topic, info.node_name): info.qos_profile.reliability
+                for topic in ('features', 'measurement')
+                for info in robot.node.get_subscriptions_info_by_topic(
+                    f'/robot1/fall_predictor/{topic}')}
+    # The graph names an endpoint's node only once that node's participant info has arrived
+    # (ros_discovery_info), which can come after the endpoint itself was matched.
+    assert robot.spin_until(lambda: ('measurement', 'feature_node') in readers(), 10.0), readers()
+    assert readers()[('measurement', 'feature_node')] == ReliabilityPolicy.RELIABLE
     # In fall_monitor the predictor takes the features in process: nobody reads them here.
-    assert [key for key in readers if key[0] == 'features'] == []
+    assert [key for key in readers() if key[0] == 'features'] == []
 
 
 def test_trigger_is_latched_for_late_subscribers_with_the_direction(robot: Robot) -> None:
