@@ -202,7 +202,8 @@ def _within_bounds(com: list, lin_mom: list, ang_mom: list, heading: float, cop:
 def _check_contacts(flat: list[float], com_x: float, com_y: float) -> None:
     """Contact rows (x, y, normal force) as one flat list of floats, against the bounds."""
     if len(flat) % 3:
-        raise ImplausibleSample(f'contacts must be rows of (x, y, normal force), got {len(flat)} values')
+        raise ImplausibleSample('contacts must be rows of (x, y, normal force), '
+                                f'got {len(flat)} values')
     hypot = math.hypot
     for k in range(0, len(flat), 3):
         offset = hypot(flat[k] - com_x, flat[k + 1] - com_y)
