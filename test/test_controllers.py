@@ -96,3 +96,38 @@ def test_an_hour_long_plan_moved_by_its_footholds_equals_the_plan_moved_at_once(
         ahead = tick + np.arange(0, 1600, 37)
         expected = plan.zmp_reference(ahead * controller.dt_s) + total
         assert np.allclose(controller._zmp_ref[ahead - controller._ref_base], expected, atol=1e-12)
+
+
+def test_the_reflex_step_waits_until_its_foot_is_unloaded_however_long_that_takes():
+    """The stepping foot stays down while it carries more than ``lift_load_fraction`` of the
+    weight, and lifts in the first tick it carries less: a sideways push in double support
+    (250 N, 0.1 s) keeps the right foot loaded for 0.36 s after the reflex fired."""
+    from fall_predictor.profiles import load_profile
+    from fall_predictor.robot.controllers import controller_configs
+    from fall_predictor.robot.gait import GRAVITY
+    from fall_predictor.sim.simulator import Simulator
+
+    profile = load_profile('asimo_like')
+    gait, reflex, stabilizer = controller_configs(profile)
+    with Simulator(profile=profile) as sim:
+        controller = BalanceController(gait, reflex, stabilizer=stabilizer, profile=profile)
+        q0, torso = controller.initial_posture()
+        m = sim.reset(q0, torso)
+        sim.schedule_push(PushSpec(250.0, 90.0, 0.1, 2.0))
+        loads, t_fired, t_lift_planned = [], None, None
+        while m.t < 3.0:
+            sim.set_joint_targets(controller.update(m))
+            if controller.reflex_event is not None and t_fired is None:
+                t_fired, t_lift_planned = m.t, controller._reflex_step.t_lift
+            if t_fired is not None:
+                contacts = m.right_contacts if controller.reflex_event.side == 'r' else m.left_contacts
+                loads.append((m.t, float(contacts[:, 2].sum()) if contacts.size else 0.0))
+            m = sim.step()
+    assert not m.fallen
+    step = controller._reflex_step
+    threshold = reflex.lift_load_fraction * controller.model_mass_kg * GRAVITY
+    first_unloaded = next(t for t, f in loads if f <= threshold)
+    # The swing starts with the first measurement that finds the foot unloaded (a tick's
+    # rounding either way), and no time limit cut the wait short.
+    assert abs(step.t_lift - first_unloaded) <= 2e-3
+    assert step.t_lift - t_lift_planned > 0.3
