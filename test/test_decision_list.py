@@ -122,3 +122,33 @@ def test_per_mode_lists_route_by_mode_and_mean_rule_size_counts_empty_modes():
     with pytest.raises(ValueError):
         PerModeDecisionLists(tuple(lists[:15]))
     assert PerModeDecisionLists.empty().mean_rule_size == 0.0
+
+
+@pytest.mark.parametrize('name', ['default_model.json', 'plain_model.json', 'g1_model.json'])
+def test_shipped_lists_compiled_predict_one_equals_predict_at_and_around_every_threshold(name):
+    """``predict_one`` runs the rules as generated Python code: it must compare exactly as the
+    vectorised path, at each threshold itself (a threshold written back wrongly by one ulp flips
+    it), one ulp either side, and with NaN; a pickled list (a sweep's worker result) too."""
+    import pickle
+    from pathlib import Path
+    from fall_predictor.monitor.model_file import load_model
+    lists, _ = load_model(Path(__file__).resolve().parents[1] / 'models' / name)
+    rng = np.random.default_rng(7)
+    checked = 0
+    for dl in lists.lists:
+        conditions = [c for rule in dl.rules for c in rule.conditions]
+        if not conditions:
+            continue
+        X = rng.normal(scale=2.0, size=(600, len(FEATURE_NAMES)))
+        # Every row sits exactly on (or next to) the thresholds of a few conditions.
+        for row in X:
+            for c in rng.choice(conditions, size=4):
+                row[c.feature] = np.nextafter(c.threshold, rng.choice([-np.inf, np.inf])) \
+                    if rng.random() < 0.5 else c.threshold
+        X[rng.random(X.shape) < 0.03] = np.nan
+        expected = dl.predict(X).tolist()
+        assert [dl.predict_one(row) for row in X.tolist()] == expected
+        again = pickle.loads(pickle.dumps(dl))
+        assert again == dl and [again.predict_one(row) for row in X.tolist()] == expected
+        checked += 1
+    assert checked >= 8

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Literal, Sequence
+from typing import Callable, Literal, Sequence
 
 import numpy as np
 
@@ -115,9 +115,9 @@ class DecisionList:
 
     rules: tuple[Rule, ...] = ()
     default: int = BALANCED
-    #: Rules flattened to plain tuples ``(((feature, is_le, threshold), ...), label)`` for the
-    #: scalar path; derived from ``rules``, not part of the value.
-    _compiled: tuple = field(init=False, repr=False, compare=False)
+    #: The scalar path, :meth:`predict_one`, as Python code made from ``rules`` (derived from
+    #: them, not part of the value; see :func:`_compile_predict_one`).
+    _predict_one: Callable[[Sequence[float]], int] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, 'rules', tuple(self.rules))
@@ -126,10 +126,11 @@ class DecisionList:
                 raise TypeError(f'decision list rules must be Rule, got {rule!r}')
         if self.default not in PREDICTED_CLASSES:
             raise ValueError(f'default class must be BALANCED or FALLING, got {self.default!r}')
-        compiled = tuple(
-            (tuple((c.feature, c.op == '<=', c.threshold) for c in rule.conditions), rule.label)
-            for rule in self.rules)
-        object.__setattr__(self, '_compiled', compiled)
+        object.__setattr__(self, '_predict_one', _compile_predict_one(self.rules, self.default))
+
+    def __reduce__(self):
+        # The compiled function is not picklable; it is made again from the rules.
+        return DecisionList, (self.rules, self.default)
 
     @property
     def rule_size(self) -> int:
@@ -143,17 +144,7 @@ class DecisionList:
 
     def predict_one(self, x: Sequence[float]) -> int:
         """Class of one feature vector ``x`` (15 values; a list of floats is fastest)."""
-        for conditions, label in self._compiled:
-            for feature, is_le, threshold in conditions:
-                value = x[feature]
-                if is_le:
-                    if not value <= threshold:
-                        break
-                elif not value > threshold:
-                    break
-            else:
-                return label
-        return self.default
+        return self._predict_one(x)
 
     def predict(self, X: np.ndarray) -> np.ndarray:
         """Classes of the rows of ``X`` (N, 15) as an int8 array (N,)."""
@@ -189,6 +180,32 @@ class DecisionList:
         else:
             lines.append(f'{indent}class <- {CLASS_NAMES[self.default]}.')
         return '\n'.join(lines)
+
+
+def _compile_predict_one(rules: Sequence[Rule], default: int) -> Callable[[Sequence[float]], int]:
+    """The list as one Python function, an ``if`` per rule on the features unpacked into locals:
+
+        def predict_one(x):
+            x0, x1, ..., x14 = x
+            if x2 <= 0.5123 and x9 > -1.25: return 1
+            ...
+            return 0
+
+    It runs 5x faster than a loop over the rules' conditions (0.35 against 1.85 us a sample for
+    the default model's lists on a pushed walk) and compares exactly as :meth:`DecisionList.predict`
+    does (NaN fails both operators). The source holds only numbers the rules validated (feature
+    indices, ``repr`` of finite floats, which reads back bit for bit, and the class labels).
+    """
+    tests = []
+    for rule in rules:
+        test = ' and '.join(f'x{c.feature} {c.op} {float(c.threshold)!r}' for c in rule.conditions)
+        tests.append(f'    if {test or "True"}: return {int(rule.label)}')
+    source = '\n'.join(['def predict_one(x):',
+                        '    ' + ', '.join(f'x{i}' for i in range(N_FEATURES)) + ' = x',
+                        *tests, f'    return {int(default)}'])
+    namespace: dict = {}
+    exec(compile(source, '<decision list>', 'exec'), namespace)     # noqa: S102 (numbers only)
+    return namespace['predict_one']
 
 
 @dataclass(frozen=True)
