@@ -18,8 +18,11 @@ trigger ``k``:
   larger learner could get, not a shippable model).
 
 **Direction** (the CoM's horizontal displacement from ``t_k`` to ``t_fallen``, heading frame),
-angular error of the momentum direction, the capture-point bearing and a naive constant (the
-development falls' circular-mean direction).
+angular error of the momentum direction, the capture-point bearing, a naive constant (the
+development falls' circular-mean direction) and ``boosting[all]``: the momentum direction turned
+by an angle that gradient boosting predicts from all 15 features at the trigger (two regressors,
+the cosine and sine of the training falls' turn from their momentum direction to the actual one:
+does the state know more about the direction than the momentum does?).
 
 The references (naive constants, trees, boosting) are fitted on the development data
 (``--dev``), or without it by ``--folds``-fold cross-validation over the test set's trajectories
@@ -86,6 +89,39 @@ def at_triggers(trajs, triggers):
     return np.array([r[0] for r in rows]), np.array([r[1] for r in rows])
 
 
+def _angle(v) -> float:
+    return math.atan2(float(v[1]), float(v[0]))
+
+
+def _turn_regressors(trajs, triggers, actual, mass_kg: float, regressor):
+    """Two regressors fitted at the training triggers: the cosine and the sine of the turn from
+    the momentum direction to the direction the CoM actually left in."""
+    xs, turns = [], []
+    for traj, k, a in zip(trajs, triggers, actual):
+        if k is None or a is None:
+            continue
+        m = momentum_direction(traj.X[k].tolist(), mass_kg)
+        if np.all(np.isfinite(m[:2])):
+            xs.append(traj.X[k])
+            turns.append(_angle(a) - _angle(m))
+    X, turns = np.array(xs), np.array(turns)
+    fitted = []
+    for y in (np.cos(turns), np.sin(turns)):
+        model = regressor(max_iter=200, learning_rate=0.05, min_samples_leaf=10, random_state=0)
+        fitted.append(model.fit(X, y))
+    return fitted
+
+
+def _turned(direction, turn, x) -> np.ndarray:
+    """``direction`` turned by the angle the regressors predict for features ``x``."""
+    if not np.all(np.isfinite(direction[:2])):
+        return direction
+    row = np.asarray(x, dtype=float).reshape(1, -1)
+    c, s = (float(model.predict(row)[0]) for model in turn)
+    angle = _angle(direction) + math.atan2(s, c)
+    return np.array([math.cos(angle), math.sin(angle), 0.0])
+
+
 def main(argv: list[str] | None = None) -> dict:
     from sklearn.ensemble import HistGradientBoostingRegressor
     from sklearn.tree import DecisionTreeRegressor
@@ -125,7 +161,7 @@ def main(argv: list[str] | None = None) -> dict:
                            [test_actual[i] for i in train], [i for i in range(len(test)) if fold_of[i] == f]))
     names = ['naive'] + [f'trigger_tree[{g}]' for g in GROUPS] + ['trigger_boosting[all]']
     ttf_errors: dict[str, list] = {name: [] for name in names}
-    dir_errors: dict[str, list] = {'momentum': [], 'capture_point': [], 'naive': []}
+    dir_errors: dict[str, list] = {'momentum': [], 'capture_point': [], 'naive': [], 'boosting[all]': []}
     y_all, window_samples_n, importances = [], 0, np.zeros(len(FEATURE_NAMES))
     for train, train_triggers, train_actual, held in splits:
         held = [i for i in held if test_triggers[i] is not None]
@@ -152,6 +188,7 @@ def main(argv: list[str] | None = None) -> dict:
         known = [a for a in train_actual if a is not None]
         mean_angle = math.atan2(sum(a[1] for a in known), sum(a[0] for a in known))
         naive = np.array([math.cos(mean_angle), math.sin(mean_angle)])
+        turn = _turn_regressors(train, train_triggers, train_actual, mass_kg, HistGradientBoostingRegressor)
         for i in held:
             actual = test_actual[i]
             if actual is None:
@@ -159,7 +196,8 @@ def main(argv: list[str] | None = None) -> dict:
             x = test[i].X[test_triggers[i]].tolist()
             for name, predicted in (('momentum', momentum_direction(x, mass_kg)),
                                     ('capture_point', capture_point_direction(x, mass_kg)),
-                                    ('naive', naive)):
+                                    ('naive', naive),
+                                    ('boosting[all]', _turned(momentum_direction(x, mass_kg), turn, x))):
                 if np.all(np.isfinite(predicted[:2])):
                     dir_errors[name].append(math.degrees(angular_error_rad(predicted, actual)))
     y_test = np.array(y_all)
