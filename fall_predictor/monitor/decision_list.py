@@ -204,7 +204,7 @@ def _compile_predict_one(rules: Sequence[Rule], default: int) -> Callable[[Seque
                         '    ' + ', '.join(f'x{i}' for i in range(N_FEATURES)) + ' = x',
                         *tests, f'    return {int(default)}'])
     namespace: dict = {}
-    exec(compile(source, '<decision list>', 'exec'), namespace)     # noqa: S102 (numbers only)
+    exec(compile(source, '<decision list>', 'exec'), namespace)     # numbers only: see above
     return namespace['predict_one']
 
 
