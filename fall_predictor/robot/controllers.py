@@ -83,10 +83,13 @@ class ReflexConfig:
     #: weight moves onto it in ``weight_shift_s`` before the other foot steps.
     set_down_s: float = 0.08
     weight_shift_s: float = 0.08
-    #: The stepping foot lifts only once it carries less than this fraction of the weight:
-    #: the whole step waits for that, however long it takes (0-0.6 s after the ASIMO-like
-    #: robot's sideways and backward pushes), since lifting a loaded leg throws the body up.
+    #: The stepping foot lifts only once it carries less than this fraction of the weight: the
+    #: step waits for that as long as it takes (0-0.6 s after the ASIMO-like robot's sideways and
+    #: backward pushes), since lifting a loaded leg throws the body up ...
     lift_load_fraction: float = 0.3
+    #: ... and once its swing has run this long [s], a foot that meets the ground and takes load
+    #: again is not held back (it would be pulled back to where the swing began).
+    max_lift_delay_s: float = 0.1
 
 
 @dataclass
@@ -218,7 +221,7 @@ class BalanceController:
             step = self._active_step(side, t)
             if step is None:
                 soles[side] = (self.feet[side][0], self.feet[side][1], 0.0)
-            elif step is self._reflex_step and self._still_loaded(m, side):
+            elif step is self._reflex_step and self._still_loaded(m, side, step, t):
                 # The stepping foot still carries the robot: lifting it now would straighten a
                 # loaded leg and throw the body up. Hold it down and start the swing later.
                 held = replace(step, t_lift=step.t_lift + self.dt_s, t_land=step.t_land + self.dt_s,
@@ -246,7 +249,9 @@ class BalanceController:
             self.target[leg[_ANKLE_ROLL]] += corrections[side].roll_rad
         return self.target.copy()
 
-    def _still_loaded(self, m: Measurement, side: str) -> bool:
+    def _still_loaded(self, m: Measurement, side: str, step: Footstep, t: float) -> bool:
+        if t - step.t_lift > self.reflex.max_lift_delay_s:
+            return False
         contacts = m.left_contacts if side == 'l' else m.right_contacts
         force = float(contacts[:, 2].sum()) if contacts.size else 0.0
         return force > self.reflex.lift_load_fraction * self.model_mass_kg * GRAVITY
