@@ -2,8 +2,12 @@
 import numpy as np
 import pytest
 
-from fall_predictor.robot.controllers import BalanceController, ControllerSwitch, GaitConfig
 from fall_predictor.monitor.records import PushSpec
+from fall_predictor.profiles import load_profile
+from fall_predictor.robot.controllers import (BalanceController, ControllerSwitch, GaitConfig,
+                                              controller_configs)
+from fall_predictor.robot.gait import GRAVITY
+from fall_predictor.sim.simulator import Simulator
 from fall_predictor.sim.trajectory import run_trajectory
 
 
@@ -103,11 +107,6 @@ def test_the_reflex_step_waits_until_its_foot_is_unloaded_however_long_that_take
     weight, and lifts in the first tick it carries less: a sideways push in double support
     (250 N, 0.1 s) keeps the right foot loaded for 0.36 s after the reflex fired
     (``max_lift_delay_s`` bounds only re-holding a swing already under way, not this wait)."""
-    from fall_predictor.profiles import load_profile
-    from fall_predictor.robot.controllers import controller_configs
-    from fall_predictor.robot.gait import GRAVITY
-    from fall_predictor.sim.simulator import Simulator
-
     profile = load_profile('asimo_like')
     gait, reflex, stabilizer = controller_configs(profile)
     with Simulator(profile=profile) as sim:

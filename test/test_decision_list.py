@@ -1,10 +1,13 @@
 import math
+import pickle
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from fall_predictor.monitor.decision_list import (Condition, DecisionList, PerModeDecisionLists, Rule,
                                           simplify_conditions)
+from fall_predictor.monitor.model_file import load_model
 from fall_predictor.monitor.records import BALANCED, CONTACT_MODE_NAMES, FALLING, FEATURE_NAMES, N_CONTACT_MODES
 
 COM_Z = FEATURE_NAMES.index('com_z')
@@ -129,9 +132,6 @@ def test_shipped_lists_compiled_predict_one_equals_predict_at_and_around_every_t
     """``predict_one`` runs the rules as generated Python code: it must compare exactly as the
     vectorised path, at each threshold itself (a threshold written back wrongly by one ulp flips
     it), one ulp either side, and with NaN; a pickled list (a sweep's worker result) too."""
-    import pickle
-    from pathlib import Path
-    from fall_predictor.monitor.model_file import load_model
     lists, _ = load_model(Path(__file__).resolve().parents[1] / 'models' / name)
     rng = np.random.default_rng(7)
     checked = 0
