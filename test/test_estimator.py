@@ -103,6 +103,11 @@ def test_bad_input_is_rejected_or_degrades_never_crashes(readings):
     assert "joints ['l_hip_yaw'] of the robot description are missing" in est.last_issue
     assert est.update(_sample(readings[102], t=readings[102].t + 1.0, imu_frame='imu_link')) is None
     assert "IMU frame 'imu_link' is not a frame of the robot description" in est.last_issue
+    # A wrench frame the description lacks is refused each time a sample names it.
+    for k in (103, 104):
+        sample = _sample(readings[k], t=readings[k].t + 1.0, wrench_frames=('l_sole', 'l_ankle_imu'))
+        assert est.update(sample) is None
+        assert "right foot force sensor frame 'l_ankle_imu' is not a frame" in est.last_issue
 
 
 @pytest.mark.parametrize('axis', ['x', 'y'])
@@ -222,6 +227,13 @@ def test_continuous_joints_and_joints_in_any_order(readings):
                                 q=s.q[order], dq=s.dq[order]) for s in readings[:300]]
     direct = asimo_estimator().run(readings[:300])
     other = asimo_estimator(urdf).run(reversed_samples)
+    # Two message layouts alternating sample by sample: each sample read in its own order.
+    mixed = asimo_estimator().run([r if k % 2 else s for k, (s, r)
+                                   in enumerate(zip(readings[:300], reversed_samples))])
+    for a, b in zip(direct, mixed):
+        assert (a is None) == (b is None)
+        if a is not None:
+            np.testing.assert_allclose(a.lin_mom, b.lin_mom, atol=1e-9)
     for a, b in zip(direct, other):
         assert (a is None) == (b is None)
         if a is not None:

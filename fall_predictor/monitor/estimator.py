@@ -107,7 +107,7 @@ class _Kinematics:
     sole_vel: dict                  #: per side: linear velocity of its origin, angular velocity (6)
     imu_pos: list                   #: IMU point relative to the base origin
     imu_vel: list                   #: IMU point velocity relative to the base origin
-    imu_rot: np.ndarray             #: IMU frame orientation in the world
+    imu_rot: list                   #: IMU frame pose (world axes) as the rows of its homogeneous transform
     com: list                       #: CoM relative to the base origin
     lin_mom: list                   #: linear momentum of the base-fixed motion [kg m/s]
     ang_mom: np.ndarray             #: angular momentum about the CoM [kg m^2/s]
@@ -136,6 +136,12 @@ class StateEstimator:
         #: the identity).
         self._imus: dict[str, tuple] = {}
         self._orders: dict[tuple[str, ...], Optional[np.ndarray]] = {}
+        # The last joint-name tuple seen and its order: the sensor input hands the same tuple
+        # object with every sample of a message layout (hashing 30 names costs more than this).
+        self._last_names: Optional[tuple] = None
+        self._last_order: Optional[np.ndarray] = None
+        #: Per (side, wrench frame) the frame id to carry the wrench from; None: the sole frame.
+        self._wrench_frames: dict[tuple[str, str], Optional[int]] = {}
         self._zeros: dict[int, np.ndarray] = {}
         self.reset()
 
@@ -157,6 +163,8 @@ class StateEstimator:
     # -- helpers ---------------------------------------------------------------------
     def _order(self, names: Sequence[str]) -> Optional[np.ndarray]:
         """Indices mapping a sample's joints onto the description's order (None: the same order)."""
+        if names is self._last_names:
+            return self._last_order
         key = tuple(names)
         if key not in self._orders:
             if key == self.robot.joint_names:
@@ -167,6 +175,8 @@ class StateEstimator:
                     raise DescriptionError(f'joints {sorted(missing)} of the robot description are '
                                            'missing from the sample')
                 self._orders[key] = np.array([key.index(n) for n in self.robot.joint_names])
+        if type(names) is tuple:       # immutable: its identity stands for its contents
+            self._last_names, self._last_order = names, self._orders[key]
         return self._orders[key]
 
     def _all_finite(self, values: np.ndarray) -> bool:
@@ -175,7 +185,7 @@ class StateEstimator:
         zeros = self._zeros.get(len(values))
         if zeros is None:
             zeros = self._zeros[len(values)] = np.zeros(len(values))
-        return values @ zeros == 0.0
+        return values.dot(zeros) == 0.0              # half the cost of the @ operator here
 
     def _imu(self, name: str) -> tuple:
         """(frame id, rotation in the base frame as a matrix and a quaternion or None, None,
@@ -214,8 +224,13 @@ class StateEstimator:
         if not frame:
             return w
         sole_id = self.robot.sole_ids[side]
-        fid = self.robot.frame_id(frame, f'{"left" if side == "l" else "right"} foot force sensor')
-        if fid == sole_id:
+        try:
+            fid = self._wrench_frames[side, frame]
+        except KeyError:                # an unknown frame raises here, every time it is named
+            fid = self.robot.frame_id(frame,
+                                      f'{"left" if side == "l" else "right"} foot force sensor')
+            fid = self._wrench_frames[side, frame] = None if fid == sole_id else fid
+        if fid is None:
             return w
         sensor = pin.updateFramePlacement(self.model, self.data, fid)
         placement = self.data.oMf[sole_id].actInv(sensor)      # the sensor in the sole frame
@@ -245,7 +260,7 @@ class StateEstimator:
         return {side: None if found[side] is None else found[side].tolist()
                 for side in self.effort_feet}
 
-    def _kinematics(self, s: SensorSample, q_j: np.ndarray, dq_j: np.ndarray, quat: np.ndarray,
+    def _kinematics(self, s: SensorSample, q_j: np.ndarray, dq_j: np.ndarray, quat: list,
                     gyro: np.ndarray, dt: float, first: bool) -> _Kinematics:
         """The IMU's place on the robot (a constant when it is fixed to the floating base, else from
         a pass of the joints' kinematics with a still, upright base) gives the base's attitude and
@@ -253,8 +268,7 @@ class StateEstimator:
         CoM and the momentum in world axes, relative to the base origin."""
         robot, model, data, cfg = self.robot, self.model, self.data, self.config
         q = robot.configuration(q_j)
-        v = np.zeros(model.nv)
-        v[robot.idx_v] = dq_j
+        v = robot.velocity(dq_j)
         imu_id, r_bi, q_bi, aligned = self._imu(s.imu_frame or self.imu_frame)
         if r_bi is not None:
             omega_b = gyro if aligned else r_bi @ gyro
@@ -264,7 +278,7 @@ class StateEstimator:
             q_bi = pin.Quaternion(r_bi).coeffs().tolist()
             omega_b = r_bi @ gyro - pin.getFrameVelocity(model, data, imu_id, _LWA).angular
         # The IMU's attitude carried to the base.
-        q_wi = rotations.normalized(quat.tolist())
+        q_wi = rotations.normalized(quat)
         q_wb = q_wi if aligned else rotations.multiply(q_wi, rotations.conjugate(q_bi))
         if first:
             self._yaw_correction = rotations.about_z(cfg.initial_yaw_rad - rotations.yaw(q_wb))
@@ -290,11 +304,12 @@ class StateEstimator:
         for side, sole_id in self._sole_ids:
             sole_pose[side] = pin.updateFramePlacement(model, data, sole_id).homogeneous.tolist()
             sole_vel[side] = pin.getFrameVelocity(model, data, sole_id, _LWA).vector.tolist()
-        imu = pin.updateFramePlacement(model, data, imu_id)
+        imu = pin.updateFramePlacement(model, data, imu_id).homogeneous.tolist()
         momentum = h.vector.tolist()
-        return _Kinematics(q, v, attitude, sole_pose, sole_vel, imu.translation.tolist(),
+        return _Kinematics(q, v, attitude, sole_pose, sole_vel,
+                           [imu[0][3], imu[1][3], imu[2][3]],
                            pin.getFrameVelocity(model, data, imu_id, _LWA).vector.tolist()[:3],
-                           imu.rotation, data.com[0].tolist(), momentum[:3],
+                           imu, data.com[0].tolist(), momentum[:3],
                            np.array(momentum[3:]))
 
     # -- the filter ------------------------------------------------------------------
@@ -311,8 +326,9 @@ class StateEstimator:
             if (q_j.shape != (n,) or dq_j.shape != (n,) or quat.shape != (4,)
                     or gyro.shape != (3,) or accel.shape != (3,) or not math.isfinite(s.t)
                     or not (self._all_finite(q_j) and self._all_finite(dq_j))
-                    or not all(map(math.isfinite, quat.tolist() + gyro.tolist() + accel.tolist()))
-                    or float(quat @ quat) < 1e-12):
+                    or not all(map(math.isfinite,
+                                   imu_values := quat.tolist() + gyro.tolist() + accel.tolist()))
+                    or _squared_norm(imu_values[:4]) < 1e-12):
                 self._reject('non-finite or malformed joint or IMU data')
                 return None
             if order is not None:
@@ -322,7 +338,7 @@ class StateEstimator:
                 return None
             first = self.t is None or self.attitude is None
             dt = 0.0 if first else min(s.t - self.t, cfg.max_gap_s)
-            kin = self._kinematics(s, q_j, dq_j, quat, gyro, dt, first)
+            kin = self._kinematics(s, q_j, dq_j, imu_values[:4], gyro, dt, first)
             wrenches = {}
             for side, w, frame in (('l', s.left_wrench, s.wrench_frames[0]),
                                    ('r', s.right_wrench, s.wrench_frames[1])):
@@ -373,7 +389,10 @@ class StateEstimator:
                       -ground + iz)
             self.v = (0.0, 0.0, 0.0)
         elif not first:
-            ax, ay, az = (kin.imu_rot @ accel).tolist()
+            (r00, r01, r02, _), (r10, r11, r12, _), (r20, r21, r22, _), _ = kin.imu_rot
+            fx, fy, fz = imu_values[7:]                 # the specific force, IMU frame
+            ax, ay, az = (r00 * fx + r01 * fy + r02 * fz, r10 * fx + r11 * fy + r12 * fz,
+                          r20 * fx + r21 * fy + r22 * fz)
             (px, py, pz), (vx, vy, vz) = self.p, self.v
             vx, vy, vz = vx + ax * dt, vy + ay * dt, vz + (az - STANDARD_GRAVITY_M_S2) * dt
             self.v = (vx, vy, vz)
@@ -474,6 +493,12 @@ class StateEstimator:
     def run(self, samples: Sequence[SensorSample]) -> list[Optional[Measurement]]:
         """A whole recording through :meth:`update` (the offline path: same code, same state)."""
         return [self.update(s) for s in samples]
+
+
+def _squared_norm(q: Sequence[float]) -> float:
+    """The squared norm of a quaternion given as four floats."""
+    x, y, z, w = q
+    return x * x + y * y + z * z + w * w
 
 
 def _towards(a: tuple, b: tuple, share: float) -> tuple:

@@ -84,6 +84,10 @@ class RobotDescription:
         self._frame_cache: dict[str, int] = {}
         self._neutral = pin.neutral(self.model)
         self._any_continuous = bool(self.continuous.any())
+        # Where the joints fill the configuration (velocity) in order, a slice: assigning through
+        # it costs a third of assigning through an index array, once per sample.
+        self._q_index = _slice_if_consecutive(self.idx_q)
+        self._v_index = _slice_if_consecutive(self.idx_v)
 
     def _ensure_sole_frame(self, side: str) -> None:
         sole = self.soles[side]
@@ -117,12 +121,19 @@ class RobotDescription:
             raise DescriptionError(f'joints {unknown} are not in the robot description')
         return np.array([index[n] for n in names], dtype=np.int64)
 
+    def velocity(self, dq_joints: np.ndarray) -> np.ndarray:
+        """The full velocity (the base not moving) for joint velocities in :attr:`joint_names`
+        order."""
+        v = np.zeros(self.model.nv)
+        v[self._v_index] = dq_joints
+        return v
+
     def configuration(self, q_joints: np.ndarray) -> np.ndarray:
         """The full configuration (base at the origin, identity orientation) for joint positions in
         :attr:`joint_names` order (continuous joints as cos, sin)."""
         q = self._neutral.copy()
         if not self._any_continuous:
-            q[self.idx_q] = q_joints
+            q[self._q_index] = q_joints
             return q
         regular = ~self.continuous
         q[self.idx_q[regular]] = q_joints[regular]
@@ -130,3 +141,10 @@ class RobotDescription:
         q[self.idx_q[self.continuous]] = np.cos(angles)
         q[self.idx_q[self.continuous] + 1] = np.sin(angles)
         return q
+
+
+def _slice_if_consecutive(index: np.ndarray):
+    """``index`` as a slice when it counts up by one, else ``index`` itself."""
+    if len(index) and np.array_equal(index, np.arange(index[0], index[0] + len(index))):
+        return slice(int(index[0]), int(index[0]) + len(index))
+    return index
