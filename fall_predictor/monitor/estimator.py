@@ -28,10 +28,10 @@ the sole frames) and one synchronised sample of joint encoders, IMU and foot for
   angular momentum about the CoM);
 * **contacts and CoP**: a sole with normal force above ``contact_force_n`` is loaded (a foot without
   a force sensor, one of ``effort_feet``: its wrench from the leg's joint efforts, or with no
-  efforts from statics, :mod:`~fall_predictor.monitor.effort_wrench`); each foot's
-  wrench is taken in its sensor's frame (the sample's ``wrench_frames``; empty: the sole frame) and
-  carried to the sole frame, where the CoP is (-ty / fz, tx / fz); the whole-body CoP is the
-  force-weighted mean. The contacts handed to the feature code are the sole's corners that lie
+  efforts from statics); each foot's wrench is taken in its sensor's frame (the sample's
+  ``wrench_frames``; empty: the sole frame) and carried to the sole frame
+  (:mod:`~fall_predictor.monitor.foot_wrenches`), where the CoP is (-ty / fz, tx / fz); the
+  whole-body CoP is the force-weighted mean. The contacts handed to the feature code are the sole's corners that lie
   within ``tilt_tolerance_m`` of its lowest corner, with the normal force split between them so
   that their weighted mean is the sole's CoP (:mod:`~fall_predictor.monitor.sole_contact`).
 
@@ -56,8 +56,7 @@ import numpy as np
 import pinocchio as pin
 
 from fall_predictor.monitor import rotations
-from fall_predictor.monitor.effort_wrench import EffortWrench
-from fall_predictor.monitor.geometry import cross3
+from fall_predictor.monitor.foot_wrenches import FootWrenches, all_finite
 from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2, Measurement
 from fall_predictor.monitor.robot_description import SIDES, DescriptionError, RobotDescription
 from fall_predictor.monitor.sensor_records import SensorSample
@@ -119,12 +118,11 @@ class StateEstimator:
     def __init__(self, robot: RobotDescription, config: EstimatorConfig = EstimatorConfig(),
                  imu_frame: str = '', effort_feet: tuple[str, ...] = ()) -> None:
         self.robot = robot
-        #: Feet without a force sensor: their wrench from the joint efforts (monitor.effort_wrench).
-        self.effort_feet = tuple(effort_feet)
-        self._effort = EffortWrench(robot) if self.effort_feet else None
-        #: Where the last sample's effort-less feet took their wrench from: 'efforts', 'statics'.
-        self.wrench_source = 'sensors'
         self.config = config
+        #: Both soles' wrenches; feet without a force sensor (``effort_feet``) from the joint
+        #: efforts or statics (monitor.foot_wrenches).
+        self.foot_wrenches = FootWrenches(robot, effort_feet, config.effort_contact_height_m,
+                                          config.kinematic_contact_height_m)
         self.model, self.data = robot.model, robot.data
         #: The IMU frame of samples that do not name one (the robot profile's IMU link).
         self.imu_frame = imu_frame
@@ -140,10 +138,18 @@ class StateEstimator:
         # object with every sample of a message layout (hashing 30 names costs more than this).
         self._last_names: Optional[tuple] = None
         self._last_order: Optional[np.ndarray] = None
-        #: Per (side, wrench frame) the frame id to carry the wrench from; None: the sole frame.
-        self._wrench_frames: dict[tuple[str, str], Optional[int]] = {}
-        self._zeros: dict[int, np.ndarray] = {}
         self.reset()
+
+    @property
+    def effort_feet(self) -> tuple[str, ...]:
+        """The feet without a force sensor."""
+        return self.foot_wrenches.effort_feet
+
+    @property
+    def wrench_source(self) -> str:
+        """Where the last sample's sensor-less feet took their wrench from: 'sensors' (every foot
+        has one), 'efforts' or 'statics'."""
+        return self.foot_wrenches.source
 
     def reset(self) -> None:
         """Forget the state: the next sample initialises it."""
@@ -179,14 +185,6 @@ class StateEstimator:
             self._last_names, self._last_order = names, self._orders[key]
         return self._orders[key]
 
-    def _all_finite(self, values: np.ndarray) -> bool:
-        """Whether every value is finite: a product with zeros is NaN exactly when one is not
-        (one call; np.isfinite(...).all() is two)."""
-        zeros = self._zeros.get(len(values))
-        if zeros is None:
-            zeros = self._zeros[len(values)] = np.zeros(len(values))
-        return values.dot(zeros) == 0.0              # half the cost of the @ operator here
-
     def _imu(self, name: str) -> tuple:
         """(frame id, rotation in the base frame as a matrix and a quaternion or None, None,
         identity?) of IMU frame ``name``."""
@@ -206,59 +204,6 @@ class StateEstimator:
     def _reject(self, why: str) -> None:
         self.last_issue = why
         self.n_rejected += 1
-
-    @staticmethod
-    def _wrench(w) -> Optional[list]:
-        """A foot wrench reading as six floats, or None where it is missing or not finite."""
-        if w is None:
-            return None
-        w = np.asarray(w, dtype=float)
-        if w.shape != (6,):
-            return None
-        values = w.tolist()
-        return values if all(map(math.isfinite, values)) else None
-
-    def _sole_wrench(self, side: str, w: list, frame: str) -> list:
-        """A wrench measured in ``frame`` (a sensor frame of the description; empty: the sole
-        frame), carried to the sole frame (the ground reaction about the sole origin)."""
-        if not frame:
-            return w
-        sole_id = self.robot.sole_ids[side]
-        try:
-            fid = self._wrench_frames[side, frame]
-        except KeyError:                # an unknown frame raises here, every time it is named
-            fid = self.robot.frame_id(frame,
-                                      f'{"left" if side == "l" else "right"} foot force sensor')
-            fid = self._wrench_frames[side, frame] = None if fid == sole_id else fid
-        if fid is None:
-            return w
-        sensor = pin.updateFramePlacement(self.model, self.data, fid)
-        placement = self.data.oMf[sole_id].actInv(sensor)      # the sensor in the sole frame
-        f = placement.rotation @ np.array(w[:3])
-        tau = placement.rotation @ np.array(w[3:]) + cross3(placement.translation, f)
-        return f.tolist() + tau.tolist()
-
-    def _wrenches_without_sensors(self, s: SensorSample, order: Optional[np.ndarray],
-                                  kin: _Kinematics) -> dict[str, Optional[list]]:
-        """The wrenches of the feet without a force sensor: from the joint efforts when the sample
-        has them all, else from the kinematics and statics (monitor.effort_wrench)."""
-        tau = np.asarray(s.tau, dtype=float)
-        if tau.shape == (len(s.joint_names),) and self._all_finite(tau):
-            found = self._effort.wrenches(kin.q, kin.v, tau if order is None else tau[order])
-            heights = {side: kin.sole_pose[side][2][3] for side in SIDES}
-            lowest = min(heights.values())
-            for side in SIDES:
-                if heights[side] > lowest + self.config.effort_contact_height_m:
-                    found[side] = None
-            self.wrench_source = 'efforts'
-        else:
-            pose = {side: np.array(kin.sole_pose[side]) for side in SIDES}
-            found = self._effort.kinematic(np.array(kin.com), {side: pose[side][:3, 3] for side in SIDES},
-                                           {side: pose[side][:3, :3] for side in SIDES},
-                                           self.config.kinematic_contact_height_m)
-            self.wrench_source = 'statics'
-        return {side: None if found[side] is None else found[side].tolist()
-                for side in self.effort_feet}
 
     def _kinematics(self, s: SensorSample, q_j: np.ndarray, dq_j: np.ndarray, quat: list,
                     gyro: np.ndarray, dt: float, first: bool) -> _Kinematics:
@@ -325,7 +270,7 @@ class StateEstimator:
             n = len(s.joint_names)
             if (q_j.shape != (n,) or dq_j.shape != (n,) or quat.shape != (4,)
                     or gyro.shape != (3,) or accel.shape != (3,) or not math.isfinite(s.t)
-                    or not (self._all_finite(q_j) and self._all_finite(dq_j))
+                    or not (all_finite(q_j) and all_finite(dq_j))
                     or not all(map(math.isfinite,
                                    imu_values := quat.tolist() + gyro.tolist() + accel.tolist()))
                     or _squared_norm(imu_values[:4]) < 1e-12):
@@ -339,13 +284,7 @@ class StateEstimator:
             first = self.t is None or self.attitude is None
             dt = 0.0 if first else min(s.t - self.t, cfg.max_gap_s)
             kin = self._kinematics(s, q_j, dq_j, imu_values[:4], gyro, dt, first)
-            wrenches = {}
-            for side, w, frame in (('l', s.left_wrench, s.wrench_frames[0]),
-                                   ('r', s.right_wrench, s.wrench_frames[1])):
-                w = self._wrench(w)
-                wrenches[side] = None if w is None else self._sole_wrench(side, w, frame)
-            if self._effort is not None:
-                wrenches.update(self._wrenches_without_sensors(s, order, kin))
+            wrenches = self.foot_wrenches.read(s, order, kin.q, kin.v, kin.sole_pose, kin.com)
         except DescriptionError as error:
             self._reject(str(error))
             return None
