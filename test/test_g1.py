@@ -12,7 +12,7 @@ import pytest
 from fall_predictor.monitor.estimator import StateEstimator
 from fall_predictor.monitor.records import PushSpec
 from fall_predictor.profiles import load_profile
-from fall_predictor.robot.controllers import controller_configs
+from fall_predictor.robot.controllers import BalanceController, controller_configs
 from fall_predictor.sim.sensors import SensorParams, apply_sensors
 from fall_predictor.sim.simulator import GRAVITY, Simulator
 from fall_predictor.sim.trajectory import run_trajectory
@@ -102,3 +102,35 @@ def test_g1_sensors_give_the_estimator_its_state():
     print(f'G1 CoM p99 {np.percentile(com, 99) * 1000:.1f} mm, CoP median {np.median(cop) * 1000:.1f} mm, '
           f'p90 {np.percentile(cop, 90) * 1000:.1f} mm')
     assert np.percentile(com, 99) <= 0.02 and np.median(cop) <= 0.01
+
+
+def test_a_reflex_step_held_on_a_just_landed_foot_is_balanced_where_that_foot_stands(sim):
+    """An 8 N s forward push as the left foot touches down: the reflex steps with that foot, which
+    must first unload; while it waits, the stabilizer's support polygon has the foot where it
+    landed, 15 cm ahead of its previous foothold (it had kept the old foothold, pinning the
+    desired ZMP to the other toe), and the walk recovers."""
+    gait, reflex, stabilizer = controller_configs(G1)
+    controller = BalanceController(gait, reflex, stabilizer=stabilizer, profile=G1)
+    q0, torso = controller.initial_posture()
+    m = sim.reset(q0, torso)
+    sim.schedule_push(PushSpec(80.0, 0.0, 0.1, 3.35))
+    previous, held_ticks, lift = None, [], None
+    while m.t < 4.85 and not m.fallen:
+        feet_before = {side: controller.feet[side].copy() for side in controller.feet}
+        sim.set_joint_targets(controller.update(m))
+        event = controller.reflex_event
+        if event is not None:
+            previous = feet_before[event.side] if previous is None else previous
+            step = controller._reflex_step
+            if lift is not None and step.t_lift > lift + 1e-9:        # held down this tick
+                stands = (m.left_foot if event.side == 'l' else m.right_foot)[:2]
+                held_ticks.append((controller.feet[event.side].copy(), np.array(step.start), stands))
+            lift = step.t_lift
+        m = sim.step()
+    assert event is not None and event.side == 'l'
+    assert len(held_ticks) > 100                             # waited > 0.1 s for the foot to unload
+    for believed, start, stands in held_ticks:
+        assert np.linalg.norm(start - previous) > 0.1        # the foot had stepped on
+        np.testing.assert_array_equal(believed, start)
+        assert np.linalg.norm(believed - stands) < 0.025
+    assert not m.fallen

@@ -229,6 +229,9 @@ class BalanceController:
                 self._steps[self._steps.index(step)] = held
                 self._reflex_step = held
                 soles[side] = (held.start[0], held.start[1], 0.0)
+                # Planted there until it lifts: a foot whose walking step had just landed is
+                # balanced on where it stands, not on the foothold it left.
+                self.feet[side] = np.array(held.start)
             else:
                 lift = self.reflex.lift_height_m if step is self._reflex_step else self.gait.lift_height_m
                 soles[side] = swing_position(step, t, lift)
