@@ -31,9 +31,10 @@ the sole frames) and one synchronised sample of joint encoders, IMU and foot for
   efforts from statics); each foot's wrench is taken in its sensor's frame (the sample's
   ``wrench_frames``; empty: the sole frame) and carried to the sole frame
   (:mod:`~fall_predictor.monitor.foot_wrenches`), where the CoP is (-ty / fz, tx / fz); the
-  whole-body CoP is the force-weighted mean. The contacts handed to the feature code are the sole's corners that lie
-  within ``tilt_tolerance_m`` of its lowest corner, with the normal force split between them so
-  that their weighted mean is the sole's CoP (:mod:`~fall_predictor.monitor.sole_contact`).
+  whole-body CoP is the force-weighted mean. The contacts handed to the feature code are the
+  sole's corners that lie within ``tilt_tolerance_m`` of its lowest corner, with the normal force
+  split between them so that their weighted mean is the sole's CoP
+  (:mod:`~fall_predictor.monitor.sole_contact`).
 
 What the sensors cannot tell: ``non_foot_contact`` is always False (no skin sensors; a fall is
 then seen from the CoM height alone) and ``push_force`` is zero.
@@ -106,7 +107,7 @@ class _Kinematics:
     sole_vel: dict                  #: per side: linear velocity of its origin, angular velocity (6)
     imu_pos: list                   #: IMU point relative to the base origin
     imu_vel: list                   #: IMU point velocity relative to the base origin
-    imu_rot: list                   #: IMU frame pose (world axes) as the rows of its homogeneous transform
+    imu_pose: list                  #: IMU frame pose, world axes: rows of its homogeneous transform
     com: list                       #: CoM relative to the base origin
     lin_mom: list                   #: linear momentum of the base-fixed motion [kg m/s]
     ang_mom: np.ndarray             #: angular momentum about the CoM [kg m^2/s]
@@ -328,7 +329,7 @@ class StateEstimator:
                       -ground + iz)
             self.v = (0.0, 0.0, 0.0)
         elif not first:
-            (r00, r01, r02, _), (r10, r11, r12, _), (r20, r21, r22, _), _ = kin.imu_rot
+            (r00, r01, r02, _), (r10, r11, r12, _), (r20, r21, r22, _), _ = kin.imu_pose
             fx, fy, fz = imu_values[7:]                 # the specific force, IMU frame
             ax, ay, az = (r00 * fx + r01 * fy + r02 * fz, r10 * fx + r11 * fy + r12 * fz,
                           r20 * fx + r21 * fy + r22 * fz)
