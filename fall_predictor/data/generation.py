@@ -124,7 +124,8 @@ _WORKER = PerThread()
 
 def _walk_prefix(config: GenerationConfig):
     """The unpushed default walk up to the latest possible push onset, simulated once per
-    worker thread (trajectories then start from its snapshots, bit-identically)."""
+    worker thread (trajectories then start from its snapshots; each depends only on its own push,
+    not on the worker's earlier ones: :meth:`~fall_predictor.sim.simulator.Simulator.restore`)."""
     from fall_predictor.sim.simulator import Simulator
     from fall_predictor.sim.trajectory import WalkPrefix
 

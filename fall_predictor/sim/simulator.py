@@ -25,6 +25,9 @@ DT_S = 0.001
 GROUND_HALF_EXTENT_M = 100.0
 #: Contacts reported with less normal force than this carry no load (solver slop) [N].
 MIN_CONTACT_FORCE_N = 1e-6
+#: How far [m] the robot is lifted before a snapshot is restored (:meth:`Simulator.restore`):
+#: far above any link's reach of the ground, so no contact survives.
+LIFT_BEFORE_RESTORE_M = 50.0
 
 
 @dataclass(frozen=True)
@@ -216,6 +219,27 @@ class Simulator:
         drawn = pb.createMultiBody(0, pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=c),
                                    physicsClientId=c)
         pb.setCollisionFilterGroupMask(drawn, -1, 0, 0, physicsClientId=c)
+
+    def restore(self, state: int, tick: int, measurement: Measurement) -> None:
+        """Return to a ``pybullet.saveState`` snapshot taken at ``tick`` (its sample
+        ``measurement``), whatever was simulated since.
+
+        ``restoreState`` writes the saved contact points into the contact manifolds that exist
+        when it is called, matched by body pair. A link with several collision shapes (the G1's
+        four sole spheres: one manifold per sphere, all of one pair) is given one of them, and
+        which one depends on the order the manifolds were made in since the snapshot: the
+        continuation then depended on the trajectories simulated before it. So the robot is
+        first lifted clear of the ground and the contacts recomputed, which drops every
+        manifold: the restore then meets the same fresh ones each time. A robot with one
+        shape per link (the ASIMO-like one) continues bit for bit as if never interrupted.
+        """
+        c = self.client
+        position, orientation = pb.getBasePositionAndOrientation(self.robot, physicsClientId=c)
+        clear = [position[0], position[1], position[2] + LIFT_BEFORE_RESTORE_M]
+        pb.resetBasePositionAndOrientation(self.robot, clear, orientation, physicsClientId=c)
+        pb.performCollisionDetection(physicsClientId=c)
+        pb.restoreState(state, physicsClientId=c)
+        self.restore_clock(tick, measurement)
 
     def restore_clock(self, tick: int, measurement: Measurement) -> None:
         """After ``pybullet.restoreState``: set the clock and last sample to the snapshot's,
