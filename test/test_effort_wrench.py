@@ -12,6 +12,7 @@ from fall_predictor.monitor.contact_modes import classify_contact_mode
 from fall_predictor.monitor.effort_wrench import EffortWrench, leg_joint_ids
 from fall_predictor.monitor.estimator import StateEstimator
 from fall_predictor.monitor.records import PushSpec
+from fall_predictor.monitor.robot_description import slice_if_consecutive
 from fall_predictor.profiles import load_profile
 from fall_predictor.sim.sensors import SensorParams, apply_sensors
 from fall_predictor.sim.trajectory import run_trajectory
@@ -20,6 +21,19 @@ from fall_predictor.sim.trajectory import run_trajectory
 def _g1():
     profile = load_profile('g1')
     return profile, profile.sensor_layout().description(profile.urdf_xml())
+
+
+def test_index_arrays_become_slices_only_when_they_count_up_by_one():
+    assert slice_if_consecutive(np.array([6, 7, 8])) == slice(6, 9)
+    for index in (np.array([6, 8, 9]), np.array([8, 7, 6]), np.array([], dtype=int)):
+        assert slice_if_consecutive(index) is index
+    # The G1's legs: each a run of velocity columns, taken as a slice of the same columns.
+    _, robot = _g1()
+    wrench = EffortWrench(robot)
+    for side in ('l', 'r'):
+        columns = np.arange(robot.model.nv)
+        assert isinstance(wrench._leg_cols[side], slice)
+        np.testing.assert_array_equal(columns[wrench._leg_cols[side]], wrench.leg_v[side])
 
 
 def test_the_legs_are_the_joints_of_each_foot_alone():

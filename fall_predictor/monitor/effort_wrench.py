@@ -29,7 +29,8 @@ from typing import Optional
 import numpy as np
 import pinocchio as pin
 
-from fall_predictor.monitor.robot_description import SIDES, DescriptionError, RobotDescription
+from fall_predictor.monitor.robot_description import (SIDES, DescriptionError, RobotDescription,
+                                                     slice_if_consecutive)
 
 _LOCAL = pin.ReferenceFrame.LOCAL
 
@@ -64,9 +65,7 @@ class EffortWrench:
         self._zero_a = np.zeros(robot.model.nv)
         self._square = all(len(self.leg_v[side]) == 6 for side in SIDES)
         # The legs' columns: a slice when they are consecutive (cheaper than an index array).
-        self._leg_cols = {side: slice(int(cols[0]), int(cols[-1]) + 1)
-                          if np.array_equal(cols, np.arange(cols[0], cols[-1] + 1)) else cols
-                          for side, cols in self.leg_v.items()}
+        self._leg_cols = {side: slice_if_consecutive(cols) for side, cols in self.leg_v.items()}
         self._a = np.zeros((len(SIDES), 6, 6))
         self._rhs = np.zeros((len(SIDES), 6, 1))
         # A directly solved wrench beyond this (a hundred body weights, squared) comes from a

@@ -86,8 +86,8 @@ class RobotDescription:
         self._any_continuous = bool(self.continuous.any())
         # Where the joints fill the configuration (velocity) in order, a slice: assigning through
         # it costs a third of assigning through an index array, once per sample.
-        self._q_index = _slice_if_consecutive(self.idx_q)
-        self._v_index = _slice_if_consecutive(self.idx_v)
+        self._q_index = slice_if_consecutive(self.idx_q)
+        self._v_index = slice_if_consecutive(self.idx_v)
 
     def _ensure_sole_frame(self, side: str) -> None:
         sole = self.soles[side]
@@ -143,7 +143,7 @@ class RobotDescription:
         return q
 
 
-def _slice_if_consecutive(index: np.ndarray):
+def slice_if_consecutive(index: np.ndarray):
     """``index`` as a slice when it counts up by one, else ``index`` itself."""
     if len(index) and np.array_equal(index, np.arange(index[0], index[0] + len(index))):
         return slice(int(index[0]), int(index[0]) + len(index))
