@@ -69,6 +69,7 @@ def test_bringup_pushes_reports_json_and_leaves_no_process(tmp_path: Path) -> No
             assert result['lead_time_s'] is None and result['stopped_by'] == 'horizon'
             assert result['t_end'] >= push.t_force_end + HORIZON_S - 1e-9
         assert not result['false_alarm_before_push']
+        assert sum(result['degraded_reasons'].values()) == result['degraded_states']
     bags = sorted((tmp_path / 'bags').glob('run_*'))
     assert [b.name for b in bags] == ['run_000', 'run_001']
     for index, bag in enumerate(bags):

@@ -92,6 +92,26 @@ def test_empty_frame_means_heading_frame() -> None:
 
 # -- runs and parameters -----------------------------------------------------------------------
 
+def test_a_run_report_keeps_why_its_states_were_unusable() -> None:
+    """The bring-up's per-run report: unusable states after the run's first sample are counted
+    with their reasons, the first few distinct reasons by name, the rest together."""
+    from fall_predictor.monitor.fall_monitor import STATUS_OK, STATUS_STALE, MonitorState
+    from fall_predictor.ros.observer import MAX_REASONS, OTHER_REASONS, ObservedState, RunObservation
+    run = RunObservation(PushSpec(100.0, 0.0, 0.1, 2.5))
+    run.add_state(ObservedState(0.0, MonitorState(STATUS_STALE, 'no input yet')))   # not started
+    run.add_measurement(run_trajectory(None, 0.001).measurements[0])
+    states = [(STATUS_STALE, 'sample 0.080 s late'), (STATUS_OK, ''),
+              (STATUS_DEGRADED, 'IMU reading is not finite'), (STATUS_STALE, 'sample 0.080 s late')]
+    states += [(STATUS_DEGRADED, f'joint {k} stuck') for k in range(MAX_REASONS)]
+    for k, (status, reason) in enumerate(states):
+        run.add_state(ObservedState(0.001 * (k + 1), MonitorState(status, reason)))
+    report = run.result(0, 4.0, 'balance')
+    assert report['degraded_states'] == len(states) - 1
+    assert report['degraded_reasons'] == {
+        'sample 0.080 s late': 2, 'IMU reading is not finite': 1,
+        **{f'joint {k} stuck': 1 for k in range(MAX_REASONS - 2)}, OTHER_REASONS: 2}
+
+
 def test_param_spec_checks_type_finiteness_and_range() -> None:
     spec = ParamSpec('tau_his_s', 0.05, 'window [s]', 0.0, 2.0)
     assert spec.check(0.5) is None

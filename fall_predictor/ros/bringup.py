@@ -21,7 +21,9 @@ After a predicted fall C_fall freezes the robot, which may then stay up: ``fell`
 ``t_fallen`` null, and ``outcome`` says ``predicted_no_fall``. Outcomes: ``fall_predicted``
 (fallen, first falling state at or after the push and no later than fallen), ``fall_missed``
 (fallen without such a prediction), ``predicted_no_fall``, ``no_fall`` (no prediction, not
-fallen). ``stopped_by`` is ``fallen`` or ``horizon``.
+fallen). ``stopped_by`` is ``fallen`` or ``horizon``. ``degraded_states`` counts the run's
+states without a prediction (degraded or stale) and ``degraded_reasons`` says why, each reason
+in the state's own words with its count.
 
 Shutdown is ordered (simulator first, the recorder last so that it can drain) by SIGINT, then
 SIGTERM, then SIGKILL after timeouts; the node processes also get SIGTERM if this process dies

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, NamedTuple, Optional
 
 import rclpy
@@ -108,6 +108,12 @@ def _status_name(node_name: str) -> str:
     return node_name if node_name.startswith('/') else f'/{node_name}'
 
 
+#: Distinct reasons a run's report keeps for its unusable states (RunObservation), and the key
+#: that counts the rest.
+MAX_REASONS = 5
+OTHER_REASONS = '(other reasons)'
+
+
 @dataclass
 class RunObservation:
     """What the bring-up saw of one push run (times in simulation seconds)."""
@@ -119,6 +125,9 @@ class RunObservation:
     t_predict: Optional[float] = None       #: first falling state at or after the push
     false_alarm_before_push: bool = False
     degraded_states: int = 0
+    #: Why those states were unusable: each reason (the state's own words) with its count, the
+    #: first MAX_REASONS distinct ones; later distinct reasons are counted under OTHER_REASONS.
+    degraded_reasons: dict[str, int] = field(default_factory=dict)
     push_applied_n: Optional[list[float]] = None
     measurements_started: bool = False
 
@@ -136,7 +145,13 @@ class RunObservation:
         self.t_last_state = max(self.t_last_state, state.t)
         if state.unusable:
             # Degraded states before the run's first sample only say it had not started.
-            self.degraded_states += self.measurements_started
+            if self.measurements_started:
+                self.degraded_states += 1
+                reasons = self.degraded_reasons
+                reason = state.reason or f'status {state.status}, no reason given'
+                if reason not in reasons and len(reasons) >= MAX_REASONS:
+                    reason = OTHER_REASONS
+                reasons[reason] = reasons.get(reason, 0) + 1
         elif state.falling:
             if state.t < self.push.t_push:
                 self.false_alarm_before_push = True
@@ -173,6 +188,7 @@ class RunObservation:
             'controller_mode': controller_mode,
             'false_alarm_before_push': self.false_alarm_before_push,
             'degraded_states': self.degraded_states,
+            'degraded_reasons': dict(self.degraded_reasons),
         }
 
 
