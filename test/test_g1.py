@@ -159,3 +159,28 @@ def test_a_trajectory_from_a_walk_prefix_does_not_depend_on_the_ones_run_before_
         np.testing.assert_array_equal(other.joint_positions, alone.joint_positions)
     walk = prefix.run.measurements
     np.testing.assert_array_equal(alone.com[:2701], np.array([m.com for m in walk[:2701]]))
+
+
+def test_a_backward_push_that_fells_the_g1_does_not_launch_it(sim):
+    """A 19 N s push backwards: the reflex steps back and the G1 falls over its stance foot. The
+    swing leg, solved both upright and for the measured tilt each tick, once took its warm start
+    from the other solve; the solver ended on another branch (hip at its limits, targets 3 rad
+    away in one tick) and the flailing leg threw the robot 4 cm up, both feet off the ground,
+    into a somersault."""
+    gait, reflex, stabilizer = controller_configs(G1)
+    controller = BalanceController(gait, reflex, stabilizer=stabilizer, profile=G1)
+    q0, torso = controller.initial_posture()
+    m = sim.reset(q0, torso)
+    push = PushSpec(force_n=186.0, angle_deg=-161.0, height_m=0.01, t_push=2.599)
+    sim.schedule_push(push)
+    z_push, rise, airborne_upright = None, 0.0, 0
+    while m.t < push.t_push + 1.2 and not m.fallen:
+        sim.set_joint_targets(controller.update(m))
+        m = sim.step()
+        if m.t >= push.t_push:
+            z_push = m.com[2] if z_push is None else z_push
+            rise = max(rise, m.com[2] - z_push)
+            airborne_upright += (len(m.left_contacts) + len(m.right_contacts) == 0
+                                 and m.com[2] > 0.6)
+    assert controller.reflex_event is not None and m.fallen
+    assert rise < 0.005 and airborne_upright == 0

@@ -65,3 +65,26 @@ def test_numeric_legs_track_a_smooth_swing_and_a_jump():
     target.translation = sole0.translation + [0.0, 0.05, 0.0]
     leg = legs.solve('l', base.translation, base.rotation, target.translation, target.rotation)
     assert _reached(robot, profile, 'l', leg, target) < 2e-5
+
+
+def test_a_leg_solved_for_two_base_attitudes_each_tick_follows_each_from_its_own_solutions():
+    """The reflex step's swing leg is solved twice a tick: for the upright base and for the
+    measured tilt. Each stream is warm-started from its own last solutions: solved interleaved,
+    the upright stream gives exactly what it gives alone, the tilted one reaches its targets on
+    the walking branch (warm-started from the other stream's
+    solution, the previous solver missed these targets by up to 0.58 and moved the leg by up to
+    2.9 rad in one tick, onto another branch with the hip at its limits)."""
+    profile = load_profile('g1')
+    robot = leg_solver(profile).robot
+    base, sole0 = _sole_pose(robot, profile, 'r', np.array([-0.2, 0.0, 0.0, 0.4, -0.2, 0.0]))
+    tilted = base.rotation @ pin.utils.rpyToMatrix(0.0, 0.45, 0.0)      # 26 deg of pitch
+    interleaved, alone_upright = leg_solver(profile), leg_solver(profile)
+    for k in range(400):       # the sole reaches 10 cm back and returns
+        target = sole0.translation + [-0.10 * np.sin(np.pi * k / 399), 0.0, 0.0]
+        up = interleaved.solve('r', base.translation, base.rotation, target, sole0.rotation)
+        tilt = interleaved.solve('r', base.translation, tilted, target, sole0.rotation, stream='tilted')
+        assert interleaved.last_error < 2e-5
+        np.testing.assert_array_equal(
+            up, alone_upright.solve('r', base.translation, base.rotation, target, sole0.rotation))
+        for leg in (up, tilt):          # the walking branch: knee bent forward, hip not twisted
+            assert leg[3] > 0.0 and abs(leg[1]) < 0.2 and abs(leg[2]) < 0.2

@@ -353,7 +353,8 @@ class BalanceController:
             body = kin.rot_y(pitch * w) @ kin.rot_x(roll * w)
             x, y, z = soles[side]
             self.target[self.legs.leg_indices[side]] = self.legs.solve(
-                side, np.asarray(torso, dtype=float), body, np.array([x, y, z]), np.eye(3))
+                side, np.asarray(torso, dtype=float), body, np.array([x, y, z]), np.eye(3),
+                stream='tilted')
 
     def _momentum_departed(self, m: Measurement) -> bool:
         mass = self.model_mass_kg

@@ -8,7 +8,11 @@ Two solvers behind one interface (:class:`LegSolver`):
   robot): the closed form of robot/kinematics.py, its geometry read from the URDF;
 - :class:`NumericLegs`, for any 6-joint leg (the G1's hip pitch-roll-yaw with offset axes):
   damped least squares on Pinocchio's sole-frame Jacobian, warm-started from the last two
-  solutions of the same leg (extrapolated), so that at 1 kHz one or two iterations suffice.
+  solutions of the same leg and the same ``stream`` (extrapolated), so that at 1 kHz one or two
+  iterations suffice. A controller that solves one leg twice a tick for different base
+  attitudes (the reflex step's swing leg: upright, and for the measured tilt) names each a
+  stream: extrapolating from the other one's solution started the solver 0.4 rad off, and near
+  the leg's reach it ended on another branch, the hip at its limits (a G1 launched into the air).
 
 Both take the base (the URDF's root link) pose and each sole's target pose in the world, and
 return the six leg angles in the profile's leg order (``joint_groups.<side>_leg``).
@@ -40,7 +44,10 @@ class LegSolver:
                             for side in SIDES}
 
     def solve(self, side: str, base_pos: np.ndarray, base_rot: np.ndarray, sole_pos: np.ndarray,
-              sole_rot: np.ndarray) -> np.ndarray:
+              sole_rot: np.ndarray, stream: str = 'upright') -> np.ndarray:
+        """The six leg angles [rad] of ``side`` that put its sole at ``sole_pos``, ``sole_rot``
+        (world) with the base at ``base_pos``, ``base_rot``; ``stream`` names a sequence of
+        solves that moves smoothly from tick to tick (module docs)."""
         raise NotImplementedError
 
 
@@ -63,11 +70,14 @@ class ClosedFormLegs(LegSolver):
             self.ankle_in_sole[side] = model.frames[robot.sole_ids[side]].placement.inverse().translation.copy()
         self.thigh_m, self.shank_m = lengths[0]
 
-    def solve(self, side, base_pos, base_rot, sole_pos, sole_rot):
+    def solve(self, side, base_pos, base_rot, sole_pos, sole_rot, stream='upright'):
         hip = base_pos + base_rot @ self.hip_in_base[side]
         ankle = sole_pos + sole_rot @ self.ankle_in_sole[side]
         return kin.leg_ik(hip, base_rot, ankle, sole_rot, self.thigh_m, self.shank_m)
 
+
+#: The streams a controller may solve each leg in per tick (:meth:`LegSolver.solve`).
+STREAMS = ('upright', 'tilted')
 
 #: The error of a solve that made no iteration (read only).
 _UNSOLVED = np.full(6, np.inf)
@@ -91,24 +101,45 @@ class NumericLegs(LegSolver):
         self.damping = damping
         self._chains = {side: _LegChain.of(robot, profile.leg_joints(side), robot.sole_ids[side])
                         for side in SIDES}
-        self._warm: dict[str, Optional[np.ndarray]] = {side: None for side in SIDES}
-        self._previous: dict[str, Optional[np.ndarray]] = {side: None for side in SIDES}
+        #: Per (side, stream): the last two solutions and the side's solve count at the last.
+        self._streams: dict[tuple[str, str], tuple[np.ndarray, Optional[np.ndarray], int]] = {}
+        self._latest: dict[str, Optional[np.ndarray]] = {side: None for side in SIDES}
+        self._count = {side: 0 for side in SIDES}
         self._eye = np.eye(6)
         self.last_error = 0.0
 
-    def solve(self, side, base_pos, base_rot, sole_pos, sole_rot):
+    def solve(self, side, base_pos, base_rot, sole_pos, sole_rot, stream='upright'):
         chain = self._chains[side]
-        model, data, q, iq, frame = chain.model, chain.data, chain.q, chain.iq, chain.frame
         target = pin.SE3(base_rot, base_pos).actInv(pin.SE3(sole_rot, sole_pos))   # in the base
-        leg, previous = self._warm[side], self._previous[side]
+        self._count[side] = count = self._count[side] + 1
+        leg, previous, last_count = self._streams.get((side, stream), (None, None, 0))
+        if leg is not None and count - last_count > len(STREAMS):
+            leg = previous = None           # not solved on the last tick: its motion is stale
         if leg is None:
-            q[iq] = np.clip(0.0, chain.lower, chain.upper)
+            latest = self._latest[side]     # another stream's solution, else the neutral pose
+            start = np.clip(0.0, chain.lower, chain.upper) if latest is None else latest
         elif previous is None:
-            q[iq] = leg
+            start = leg
         else:
             # Targets move smoothly at 1 kHz: the last step's motion, repeated, is most often
             # within tolerance already (one forward kinematics, no Jacobian).
-            q[iq] = _clip(2.0 * leg - previous, chain.lower, chain.upper)
+            start = _clip(2.0 * leg - previous, chain.lower, chain.upper)
+        solution, err = self._iterate(chain, target, start)
+        if not err < self.tolerance_m and leg is not None and start is not leg:
+            # Not converged from the extrapolation: from the last solution itself, if better.
+            again, err_again = self._iterate(chain, target, leg)
+            if err_again < err:
+                solution, err = again, err_again
+        self.last_error = err
+        self._streams[(side, stream)] = (solution, leg, count)
+        self._latest[side] = solution
+        return solution.copy()
+
+    def _iterate(self, chain: '_LegChain', target: pin.SE3, start: np.ndarray
+                 ) -> tuple[np.ndarray, float]:
+        """Damped least squares from ``start``: the leg angles and their pose error (inf: none)."""
+        model, data, q, iq, frame = chain.model, chain.data, chain.q, chain.iq, chain.frame
+        q[iq] = start
         err = _UNSOLVED
         for _ in range(self.max_iterations):
             pin.computeJointJacobians(model, data, q)       # and the joints' placements
@@ -124,10 +155,8 @@ class NumericLegs(LegSolver):
             if info != 0:                   # not finite: no step (the clip keeps the last q)
                 break
             q[iq] = _clip(q[iq] + step, chain.lower, chain.upper)
-        self.last_error = float(np.abs(err).max())
-        self._previous[side] = leg
-        self._warm[side] = q[iq].copy()
-        return q[iq].copy()
+        error = float(np.abs(err).max())
+        return q[iq].copy(), (error if error == error else math.inf)      # NaN: no solution
 
 
 class _LegChain:
