@@ -103,7 +103,6 @@ class NumericLegs(LegSolver):
                         for side in SIDES}
         #: Per (side, stream): the last two solutions and the side's solve count at the last.
         self._streams: dict[tuple[str, str], tuple[np.ndarray, Optional[np.ndarray], int]] = {}
-        self._latest: dict[str, Optional[np.ndarray]] = {side: None for side in SIDES}
         self._count = {side: 0 for side in SIDES}
         self._eye = np.eye(6)
         self.last_error = 0.0
@@ -116,8 +115,10 @@ class NumericLegs(LegSolver):
         if leg is not None and count - last_count > len(STREAMS):
             leg = previous = None           # not solved on the last tick: its motion is stale
         if leg is None:
-            latest = self._latest[side]     # another stream's solution, else the neutral pose
-            start = np.clip(0.0, chain.lower, chain.upper) if latest is None else latest
+            # The side's latest solution in any stream, else the neutral pose.
+            latest = max((entry for key, entry in self._streams.items() if key[0] == side),
+                         key=lambda entry: entry[2], default=None)
+            start = np.clip(0.0, chain.lower, chain.upper) if latest is None else latest[0]
         elif previous is None:
             start = leg
         else:
@@ -125,14 +126,13 @@ class NumericLegs(LegSolver):
             # within tolerance already (one forward kinematics, no Jacobian).
             start = _clip(2.0 * leg - previous, chain.lower, chain.upper)
         solution, err = self._iterate(chain, target, start)
-        if not err < self.tolerance_m and leg is not None and start is not leg:
+        if not err < self.tolerance_m and previous is not None:
             # Not converged from the extrapolation: from the last solution itself, if better.
             again, err_again = self._iterate(chain, target, leg)
             if err_again < err:
                 solution, err = again, err_again
         self.last_error = err
         self._streams[(side, stream)] = (solution, leg, count)
-        self._latest[side] = solution
         return solution.copy()
 
     def _iterate(self, chain: '_LegChain', target: pin.SE3, start: np.ndarray

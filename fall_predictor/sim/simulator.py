@@ -239,11 +239,7 @@ class Simulator:
         pb.resetBasePositionAndOrientation(self.robot, clear, orientation, physicsClientId=c)
         pb.performCollisionDetection(physicsClientId=c)
         pb.restoreState(state, physicsClientId=c)
-        self.restore_clock(tick, measurement)
-
-    def restore_clock(self, tick: int, measurement: Measurement) -> None:
-        """After ``pybullet.restoreState``: set the clock and last sample to the snapshot's,
-        with no push pending."""
+        # The clock and the last sample are the snapshot's, with no push pending.
         self.tick = tick
         self._measured = None      # this step's PyBullet reads (measure)
         self.t = tick * self.config.dt_s
