@@ -94,22 +94,29 @@ def test_empty_frame_means_heading_frame() -> None:
 
 def test_a_run_report_keeps_why_its_states_were_unusable() -> None:
     """The bring-up's per-run report: unusable states after the run's first sample are counted
-    with their reasons, the first few distinct reasons by name, the rest together."""
+    by kind of reason (the same fault with other measured values is one kind), the first few
+    kinds by name with an example each, the rest together."""
     from fall_predictor.monitor.fall_monitor import STATUS_OK, STATUS_STALE, MonitorState
     from fall_predictor.ros.observer import MAX_REASONS, OTHER_REASONS, ObservedState, RunObservation
     run = RunObservation(PushSpec(100.0, 0.0, 0.1, 2.5))
     run.add_state(ObservedState(0.0, MonitorState(STATUS_STALE, 'no input yet')))   # not started
     run.add_measurement(run_trajectory(None, 0.001).measurements[0])
-    states = [(STATUS_STALE, 'sample 0.080 s late'), (STATUS_OK, ''),
-              (STATUS_DEGRADED, 'IMU reading is not finite'), (STATUS_STALE, 'sample 0.080 s late')]
-    states += [(STATUS_DEGRADED, f'joint {k} stuck') for k in range(MAX_REASONS)]
+    late = 'sample arrived {:.3f} s after its stamp (max_sample_age_s 0.05)'
+    states = [(STATUS_STALE, late.format(0.08)), (STATUS_OK, ''),
+              (STATUS_DEGRADED, 'IMU reading is not finite'), (STATUS_STALE, late.format(0.123)),
+              (STATUS_STALE, late.format(1.5))]
+    states += [(STATUS_DEGRADED, f'joint j{k} stuck') for k in range(MAX_REASONS)]
     for k, (status, reason) in enumerate(states):
         run.add_state(ObservedState(0.001 * (k + 1), MonitorState(status, reason)))
     report = run.result(0, 4.0, 'balance')
     assert report['degraded_states'] == len(states) - 1
+    late_kind = 'sample arrived # s after its stamp (max_sample_age_s #)'
     assert report['degraded_reasons'] == {
-        'sample 0.080 s late': 2, 'IMU reading is not finite': 1,
-        **{f'joint {k} stuck': 1 for k in range(MAX_REASONS - 2)}, OTHER_REASONS: 2}
+        late_kind: 3, 'IMU reading is not finite': 1,
+        **{f'joint j{k} stuck': 1 for k in range(MAX_REASONS - 2)}, OTHER_REASONS: 2}
+    assert report['degraded_reason_examples'] == {
+        late_kind: late.format(0.08), 'IMU reading is not finite': 'IMU reading is not finite',
+        **{f'joint j{k} stuck': f'joint j{k} stuck' for k in range(MAX_REASONS - 2)}}
 
 
 def test_param_spec_checks_type_finiteness_and_range() -> None:

@@ -22,8 +22,10 @@ After a predicted fall C_fall freezes the robot, which may then stay up: ``fell`
 (fallen, first falling state at or after the push and no later than fallen), ``fall_missed``
 (fallen without such a prediction), ``predicted_no_fall``, ``no_fall`` (no prediction, not
 fallen). ``stopped_by`` is ``fallen`` or ``horizon``. ``degraded_states`` counts the run's
-states without a prediction (degraded or stale) and ``degraded_reasons`` says why, each reason
-in the state's own words with its count.
+states without a prediction (degraded or stale) and ``degraded_reasons`` says why: each kind of
+reason in the state's own words, its measured values as ``#`` (a sample arriving 0.057 s and one
+0.081 s late are one kind), with its count; ``degraded_reason_examples`` gives the first reason of
+each kind in full.
 
 Shutdown is ordered (simulator first, the recorder last so that it can drain) by SIGINT, then
 SIGTERM, then SIGKILL after timeouts; the node processes also get SIGTERM if this process dies

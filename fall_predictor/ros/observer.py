@@ -10,6 +10,7 @@ importing the bring-up, e.g. to build the command line, stays light.
 from __future__ import annotations
 
 import math
+import re
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
@@ -112,6 +113,15 @@ def _status_name(node_name: str) -> str:
 #: that counts the rest.
 MAX_REASONS = 5
 OTHER_REASONS = '(other reasons)'
+#: A measured value in a reason ("arrived 0.057 s after its stamp", "1e-05"): a decimal or an
+#: exponent, which joint and sensor names do not contain.
+_MEASURED_VALUE = re.compile(r'[-+]?\d+(?:\.\d+(?:e[-+]?\d+)?|e[-+]?\d+)')
+
+
+def reason_kind(reason: str) -> str:
+    """A reason with its measured values as ``#``: the reasons of one fault, whatever the values
+    (``'sample arrived # s after its stamp (max_sample_age_s #)'``)."""
+    return _MEASURED_VALUE.sub('#', reason)
 
 
 @dataclass
@@ -125,9 +135,12 @@ class RunObservation:
     t_predict: Optional[float] = None       #: first falling state at or after the push
     false_alarm_before_push: bool = False
     degraded_states: int = 0
-    #: Why those states were unusable: each reason (the state's own words) with its count, the
-    #: first MAX_REASONS distinct ones; later distinct reasons are counted under OTHER_REASONS.
+    #: Why those states were unusable: each kind of reason (the state's own words, measured
+    #: values as ``#``: :func:`reason_kind`) with its count, the first MAX_REASONS kinds; later
+    #: kinds are counted under OTHER_REASONS.
     degraded_reasons: dict[str, int] = field(default_factory=dict)
+    #: Per kind of reason, the first reason of that kind in full (its values).
+    degraded_reason_examples: dict[str, str] = field(default_factory=dict)
     push_applied_n: Optional[list[float]] = None
     measurements_started: bool = False
 
@@ -149,9 +162,12 @@ class RunObservation:
                 self.degraded_states += 1
                 reasons = self.degraded_reasons
                 reason = state.reason or f'status {state.status}, no reason given'
-                if reason not in reasons and len(reasons) >= MAX_REASONS:
-                    reason = OTHER_REASONS
-                reasons[reason] = reasons.get(reason, 0) + 1
+                kind = reason_kind(reason)
+                if kind not in reasons and len(reasons) >= MAX_REASONS:
+                    kind = OTHER_REASONS
+                elif kind not in reasons:
+                    self.degraded_reason_examples[kind] = reason
+                reasons[kind] = reasons.get(kind, 0) + 1
         elif state.falling:
             if state.t < self.push.t_push:
                 self.false_alarm_before_push = True
@@ -189,6 +205,7 @@ class RunObservation:
             'false_alarm_before_push': self.false_alarm_before_push,
             'degraded_states': self.degraded_states,
             'degraded_reasons': dict(self.degraded_reasons),
+            'degraded_reason_examples': dict(self.degraded_reason_examples),
         }
 
 
