@@ -12,7 +12,7 @@ operating point (tau_plus, tau_his) and evaluated on the test dataset, with
   0.48 / 0.589 of L (the ASIMO-like robot's ratio). Contact modes are dimensionless already.
 
     .venv/bin/python benchmarks/bench_cross_robot.py \\
-        --dataset asimo=data/asimo_test100 --dataset g1=data/g1_dev240 --dataset g1_test=data/g1_test150 \\
+        --dataset asimo=data/asimo_test100 --dataset g1=data/g1_dev1000 --dataset g1_test=data/g1_test400 \\
         --pair asimo:g1_test --pair g1:asimo --pair g1:g1_test --pair asimo+g1:g1_test \\
         --out docs/cross_robot.json
 """

@@ -6,8 +6,8 @@ Beside them, model files evaluated on the same test set (``--model FILE`` at its
 tau_his, ``--model FILE@TAU_HIS`` at another). The baselines run with the CoM guard of each
 dataset's robot, a model with the guard it records (as ``fall-predictor evaluate``).
 
-    .venv/bin/python benchmarks/bench_heldout_baselines.py --dev data/g1_dev240 \\
-        --test data/g1_test150 --model models/g1_model.json --out docs/g1_heldout.json
+    .venv/bin/python benchmarks/bench_heldout_baselines.py --dev data/g1_dev1000 \\
+        --test data/g1_test400 --model models/g1_model.json --out docs/g1_heldout.json
 """
 from __future__ import annotations
 

@@ -6,7 +6,7 @@ contact lands a foot in one impulse) and averaged over 10 ms (as a rubber sole s
 "upright" is a CoM above 0.76 of its standing CoM height (the ASIMO-like robot's 0.45 m of
 0.589 m, the threshold `fall-predictor stats` uses for it).
 
-    .venv/bin/python benchmarks/bench_robot_profile_credibility.py --data data/g1_dev240 \\
+    .venv/bin/python benchmarks/bench_robot_profile_credibility.py --data data/g1_dev1000 \\
         --out docs/g1_credibility.json
 """
 from __future__ import annotations
