@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from fall_predictor.data.outcomes import first_fallen_time, height_drop_time
+from fall_predictor.data.outcomes import first_fallen_time, height_drop_time, unsettled_at_horizon
 from fall_predictor.learning.labels import label_states, training_mask_and_weights
 from fall_predictor.monitor.records import BALANCED, FALLEN, FALLING, TrajectoryFeatures
 
@@ -136,3 +136,31 @@ class TestTrainingMaskAndWeights:
         traj.t_height_drop = None
         with pytest.raises(ValueError, match='t_height_drop'):
             training_mask_and_weights(traj, 0.0)
+
+
+# -- settled at the horizon (method §4) -----------------------------------------------------
+def _walk_then(after_push: np.ndarray, walking_kg_mps: float = 10.0) -> tuple:
+    """1 s of walking (momentum magnitude oscillating up to ``walking_kg_mps``), then
+    ``after_push`` [kg m/s] per 1 ms sample along x."""
+    before = walking_kg_mps * np.abs(np.sin(np.arange(1000) * 0.01))
+    magnitude = np.concatenate([before, after_push])
+    t = np.arange(magnitude.size) * 0.001
+    return t, np.column_stack([magnitude, np.zeros_like(magnitude)]), 1.0
+
+
+def test_a_recording_that_ends_mid_fall_is_unsettled_and_says_why():
+    # Back to walking, then accelerating away in the last 0.3 s (CoM tipping over).
+    after = np.concatenate([np.full(3700, 8.0), np.linspace(8.0, 40.0, 300)])
+    why = unsettled_at_horizon(*_walk_then(after), mass_kg=33.0)
+    assert why is not None and '40.0 kg m/s' in why and 'above 15.0' in why
+    # The same robot back at its walking level: settled.
+    assert unsettled_at_horizon(*_walk_then(np.full(4000, 9.0)), mass_kg=33.0) is None
+    # Just under the bound (1.5 x the walking level, 10 x the 99th percentile of |sin|) and over it.
+    assert unsettled_at_horizon(*_walk_then(np.full(4000, 14.9)), mass_kg=33.0) is None
+    assert unsettled_at_horizon(*_walk_then(np.full(4000, 15.1)), mass_kg=33.0) is not None
+
+
+def test_a_robot_that_stood_still_is_judged_against_the_mass_floor():
+    # Walking level 0.2 kg m/s of sensor noise; a 2 kg m/s sway at the end is below 0.1 m/s x 42 kg.
+    assert unsettled_at_horizon(*_walk_then(np.full(4000, 2.0), walking_kg_mps=0.2), mass_kg=42.0) is None
+    assert unsettled_at_horizon(*_walk_then(np.full(4000, 5.0), walking_kg_mps=0.2), mass_kg=42.0) is not None

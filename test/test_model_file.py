@@ -183,3 +183,29 @@ def test_only_regular_files_within_the_size_limit_are_read(tmp_path):
     assert read_regular_file(small, 10) == b'x' * 10
     with pytest.raises(UnsafeFileError, match='10 bytes, more than the limit of 9'):
         read_regular_file(small, 9)
+
+
+def test_boosted_trees_round_trip_beside_lists(tmp_path):
+    from fall_predictor.monitor.boosted_trees import BoostedTrees
+    from fall_predictor.monitor.time_to_fall import RegressionTree
+    tree = RegressionTree((10, -1, -1), (20.0, 0.0, 0.0), (1, -1, -1), (2, -1, -1), (0.0, -0.5, 2.5))
+    lists = list(example_lists().lists)
+    lists[3] = BoostedTrees((tree, tree), bias=-1.0, decision_threshold=1.0)
+    lists = PerModeDecisionLists(tuple(lists))
+    path = tmp_path / 'boosted.json'
+    save_model(path, lists, example_metadata())
+    loaded, _ = load_model(path)
+    assert loaded == lists and loaded.boosted and not example_lists().boosted
+    document = json.loads(path.read_text())
+    assert document['schema_version'] == 4
+    assert document['lists'][3] == {'mode': document['contact_mode_names'][3],
+                                    'boosted_trees': lists.lists[3].to_json()}
+    document['lists'][3]['boosted_trees']['trees'][1]['threshold'][0] = 'x'
+    path.write_text(json.dumps(document))
+    with pytest.raises(ModelFileError, match=r'lists\[3\]\.boosted_trees: trees\[1\]'):
+        load_model(path)
+    # A version-3 file has no boosted entries.
+    document['schema_version'] = 3
+    path.write_text(json.dumps(document))
+    with pytest.raises(ModelFileError, match=r'lists\[3\]'):
+        load_model(path)

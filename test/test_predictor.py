@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from fall_predictor.monitor.decision_list import Condition, DecisionList, PerModeDecisionLists, Rule
+from fall_predictor.learning.boosting import BoostedTreesLearner
 from fall_predictor.learning.learners import TreeListLearner
 from fall_predictor.monitor.predictor import OnlinePredictor, predict_trajectory
 from fall_predictor.monitor.records import FALLING, FEATURE_NAMES, N_CONTACT_MODES, N_FEATURES
@@ -131,15 +132,18 @@ def test_numpy_and_list_inputs_agree():
     assert predictor_a.step(0.0, np.array(x), np.int64(3)) == predictor_b.step(0.0, x, 3)
 
 
-@pytest.fixture(scope='module')
-def noisy_lists() -> PerModeDecisionLists:
-    """A different learned list per mode whose outputs flip often on smooth random input."""
+@pytest.fixture(scope='module', params=['lists', 'boosted trees'])
+def noisy_lists(request) -> PerModeDecisionLists:
+    """A different learned classifier per mode (decision lists, or boosted trees) whose outputs
+    flip often on smooth random input."""
     rng = np.random.default_rng(21)
     lists = []
     for _ in range(N_CONTACT_MODES):
         X = rng.normal(size=(2000, N_FEATURES))
         y = (X[:, 0] + X[:, 1] + rng.normal(size=2000) > 1.0).astype(np.int8)
-        lists.append(TreeListLearner(max_depth=5, min_samples_leaf=1).fit(X, y).decision_list_)
+        learner = (TreeListLearner(max_depth=5, min_samples_leaf=1) if request.param == 'lists'
+                   else BoostedTreesLearner(max_iter=10, decision_threshold=-1.0))
+        lists.append(learner.fit(X, y).classifier_)
     return PerModeDecisionLists(tuple(lists))
 
 

@@ -117,6 +117,27 @@ def test_cli_train_and_rules(fixture_dataset, tmp_path, capsys):
     assert code == 0 and 'if footContactMode = OUTSIDE then' in out and 'mean rule size' in out
 
 
+def test_cli_trains_boosted_trees_that_evaluate_from_their_file_as_in_memory(fixture_dataset, tmp_path, capsys):
+    model = tmp_path / 'boosted.json'
+    code, out, err = run_cli(capsys, 'train', '--data', str(fixture_dataset), '--tau-plus', '-0.25',
+                             '--learner', 'boosting', '--param', 'max_iter=20',
+                             '--param', 'decision_threshold=0.5', '--out', str(model), '--json')
+    assert code == 0, err
+    lists, metadata = load_model(model)
+    assert lists.boosted and metadata.learner_name == 'BoostedTreesLearner'
+    assert metadata.learner_params['decision_threshold'] == 0.5
+    in_memory, _ = train_model(fixture_dataset, -0.25, 'boosting',
+                               {'max_iter': 20, 'decision_threshold': 0.5}, sample_stride=10,
+                               state='estimated')
+    assert lists == in_memory
+    trajectories = load_dataset(fixture_dataset, state='estimated').trajectories
+    from_file = evaluate_lists(trajectories, lists, (0.0, 0.03))
+    assert from_file == evaluate_lists(trajectories, in_memory, (0.0, 0.03))
+    assert from_file[0.0].n_fallen > 0 and from_file[0.0].n_missed < from_file[0.0].n_fallen
+    code, out, _ = run_cli(capsys, 'rules', str(model))
+    assert code == 0 and 'the sum of 20 trees' in out
+
+
 def test_cli_rejects_unusable_models_and_datasets(fixture_dataset, tmp_path, capsys):
     malformed = tmp_path / 'malformed.json'
     malformed.write_text('{"schema": "fall_predictor.decision_lists", "schema_version": 1, "lists": [')
@@ -156,3 +177,18 @@ def test_a_model_records_the_guard_of_its_datasets_robot(tmp_path, capsys, robot
     assert json.loads(out)['guard_com_height_m'] == guard_m
     assert json.loads(model.read_text())['features']['guard_com_height_m'] == guard_m
     assert load_model(model)[1].feature_settings.guard_com_height_m == guard_m
+
+
+def test_trajectories_not_settled_at_their_horizon_are_left_out_with_a_warning(fixture_dataset, monkeypatch):
+    import fall_predictor.data.outcomes as outcomes
+    from fall_predictor.learning.training import UnsettledTrajectories
+    everything = load_dataset(fixture_dataset).trajectories
+    assert not load_dataset(fixture_dataset).unsettled          # the fixture's runs settle
+    # With no margin over a zero walking level, every balanced run is "still moving".
+    monkeypatch.setattr(outcomes, 'SETTLE_MOMENTUM_FACTOR', 0.0)
+    monkeypatch.setattr(outcomes, 'SETTLE_MOMENTUM_FLOOR_MPS', 0.0)
+    with pytest.warns(UnsettledTrajectories, match='left out, not settled'):
+        report = load_dataset(fixture_dataset)
+    balanced = {t.trajectory_id for t in everything if not t.fallen}
+    assert balanced and set(report.unsettled) == balanced
+    assert [t.trajectory_id for t in report.trajectories] == [t.trajectory_id for t in everything if t.fallen]

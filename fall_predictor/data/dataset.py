@@ -25,7 +25,7 @@ import csv
 import hashlib
 import json
 import os
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Optional
 
@@ -33,9 +33,10 @@ import numpy as np
 
 from fall_predictor.data.bagio import BagError, read_trajectory
 from fall_predictor.data.cache import bag_fingerprint, cached_arrays
+from fall_predictor.data.outcomes import unsettled_at_horizon
 from fall_predictor.monitor.features import FeatureSettings, extract_features
 from fall_predictor.monitor.fileio import atomic_output
-from fall_predictor.monitor.records import PushSpec, TrajectoryFeatures
+from fall_predictor.monitor.records import FEATURE_NAMES, PushSpec, TrajectoryFeatures
 
 FORMAT = 'fall_predictor/dataset/v1'
 CACHE_FORMAT = 'fall_predictor/features-cache/v4'  # v3: LR lateral edges fold FRONT/BACK; v4: + cp
@@ -168,6 +169,9 @@ class LoadReport:
     settings: FeatureSettings        #: how the features were computed
     state: str = 'true'              #: 'true' or 'estimated' (module docs)
     note: Optional[str] = None       #: why ``state`` differs from the one asked for
+    #: trajectory id -> why it is left out: not fallen, but not settled when its recording
+    #: ended (:func:`~fall_predictor.data.outcomes.unsettled_at_horizon`; method §4)
+    unsettled: dict[str, str] = field(default_factory=dict)
 
 
 def _measurements(bag: Path, state: str) -> list:
@@ -292,13 +296,32 @@ def load_features(data_dir: str | os.PathLike, jobs: int = 1, progress: bool = T
     desc = 'features' if state == 'true' else 'estimation + features'
     results = local_parallel(jobs)(delayed(_load_or_build)(out, row, settings, state)
                                    for row in tqdm(rows, desc=desc, unit='traj', disable=not progress))
-    trajectories, errors, rebuilt = [], {}, 0
+    trajectories, errors, rebuilt, unsettled = [], {}, 0, {}
+    mass_kg = _mass_or_none(out)
     h = hashlib.sha256()
     for row, (traj, error, built) in zip(rows, results):
         if traj is None:
             errors[row.trajectory_id] = error
             continue
-        trajectories.append(traj)
         rebuilt += int(built)
         h.update(f'{row.trajectory_id}:{bag_fingerprint(out / row.bag)};'.encode())
-    return LoadReport(trajectories, errors, rebuilt, h.hexdigest()[:16], settings, state, note)
+        why = None if traj.fallen or mass_kg is None else unsettled_at_horizon(
+            traj.t, traj.X[:, [LIN_MOM_X, LIN_MOM_Y]], traj.t_push, mass_kg)
+        if why is not None:
+            unsettled[row.trajectory_id] = why
+            continue
+        trajectories.append(traj)
+    return LoadReport(trajectories, errors, rebuilt, h.hexdigest()[:16], settings, state, note,
+                      unsettled)
+
+
+LIN_MOM_X, LIN_MOM_Y = FEATURE_NAMES.index('lin_mom_x'), FEATURE_NAMES.index('lin_mom_y')
+
+
+def _mass_or_none(out: Path) -> Optional[float]:
+    """The robot's mass, or None for a dataset whose manifest does not give it (then no
+    trajectory is checked for settling)."""
+    try:
+        return robot_total_mass_kg(out)
+    except DatasetError:
+        return None

@@ -1,5 +1,5 @@
 """Learning and evaluation: hindsight labels and training weights (``labels``), the
-decision-list learners (``learners``), metrics such as FPR and tau_lead (``metrics``),
+decision-list learners (``learners``) and the boosted trees' (``boosting``), metrics such as FPR and tau_lead (``metrics``),
 hand-coded baselines (``baselines``), training on a dataset (``training``), evaluating a model
 on one (``evaluation``), cross-validation (``crossval``), choosing among predictors
 (``selection``), the tau_plus x tau_his sweep (``sweep`` computes it, ``sweep_results`` holds

@@ -92,6 +92,13 @@ class RuleListLearner(ClassifierMixin, BaseEstimator):
                         None if groups is None else np.asarray(groups)[keep])
         return self
 
+    @property
+    def classifier_(self) -> DecisionList:
+        """The fitted mode classifier :func:`fit_predictor` collects (here: the list)."""
+        if not hasattr(self, 'decision_list_'):
+            raise RuntimeError(f'{type(self).__name__} is not fitted')
+        return self.decision_list_
+
     def predict(self, X: np.ndarray) -> np.ndarray:
         """Classes (int8, (N,)) of the rows of ``X`` (N, 15) by the learned list."""
         if not hasattr(self, 'decision_list_'):
@@ -447,5 +454,5 @@ def fit_predictor(trajectories: Sequence[TrajectoryFeatures], tau_plus_s: float,
             lists.append(DecisionList())
             continue
         mode_learner = clone(learner).fit(X[rows], y[rows], w[rows], groups=groups[rows])
-        lists.append(mode_learner.decision_list_)
+        lists.append(mode_learner.classifier_)
     return PerModeDecisionLists(tuple(lists))

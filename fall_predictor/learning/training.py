@@ -19,11 +19,13 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import warnings
 from typing import Any, Mapping, Optional, Sequence
 
 import numpy as np
 
 from fall_predictor.data.dataset import DatasetError, LoadReport, load_features
+from fall_predictor.learning.boosting import BoostedTreesLearner
 from fall_predictor.learning.learners import (CoveringListLearner, RuleListLearner, TreeListLearner,
                                               fit_predictor)
 from fall_predictor.monitor.decision_list import PerModeDecisionLists
@@ -34,7 +36,8 @@ PathLike = str | os.PathLike
 
 # -- learners -------------------------------------------------------------------------------------
 LEARNER_CLASSES: dict[str, type[RuleListLearner]] = {'tree': TreeListLearner,
-                                                     'covering': CoveringListLearner}
+                                                     'covering': CoveringListLearner,
+                                                     'boosting': BoostedTreesLearner}
 
 #: Hyper-parameters the experiments use unless told otherwise (on top of each learner's own
 #: defaults), for training at :data:`DEFAULT_SAMPLE_STRIDE`. Chosen by 10-fold cross-validation
@@ -48,6 +51,7 @@ LEARNER_CLASSES: dict[str, type[RuleListLearner]] = {'tree': TreeListLearner,
 DEFAULT_LEARNER_PARAMS: dict[str, dict[str, Any]] = {
     'tree': {'max_depth': 8, 'min_samples_leaf': 5},
     'covering': {},
+    'boosting': {},
 }
 
 #: Default training stride: every 10th 1 kHz sample, weights x10 (see the module docs).
@@ -124,15 +128,26 @@ def load_dataset(data_dir: PathLike, jobs: int = 1, skip_unreadable: bool = Fals
     Raises :class:`~fall_predictor.data.dataset.DatasetError` if the directory is not a usable
     dataset, or if some bags are unreadable and ``skip_unreadable`` is False (the message names
     them); with ``skip_unreadable`` they are left out (``LoadReport.errors`` lists them).
+    Trajectories that had not settled when their recording ended are left out with a warning
+    (:class:`UnsettledTrajectories`; ``LoadReport.unsettled`` lists them and why).
     """
     report = load_features(data_dir, jobs=jobs, progress=progress, state=state)
     if report.errors and not skip_unreadable:
         listed = '; '.join(f'{tid}: {error}' for tid, error in list(report.errors.items())[:5])
         more = f' (and {len(report.errors) - 5} more)' if len(report.errors) > 5 else ''
         raise DatasetError(f'{data_dir}: {len(report.errors)} unreadable bag(s): {listed}{more}')
+    if report.unsettled:
+        listed = '; '.join(f'{tid}: {why}' for tid, why in list(report.unsettled.items())[:3])
+        warnings.warn(f'{data_dir}: {len(report.unsettled)} trajectory(ies) left out, not settled when '
+                      f'their recording ended (method §4): {listed}', UnsettledTrajectories, stacklevel=2)
     if not report.trajectories:
         raise DatasetError(f'{data_dir}: no readable trajectory')
     return report
+
+
+class UnsettledTrajectories(UserWarning):
+    """Trajectories left out of a dataset as loaded: neither fallen nor settled at their
+    horizon (:attr:`~fall_predictor.data.dataset.LoadReport.unsettled` names them)."""
 
 
 def require_outcomes(trajectories: Sequence[TrajectoryFeatures], where: PathLike,

@@ -19,6 +19,7 @@ from typing import Callable, Literal, Sequence
 
 import numpy as np
 
+from fall_predictor.monitor.boosted_trees import BoostedTrees
 from fall_predictor.monitor.records import (BALANCED, CLASS_NAMES, CONTACT_MODE_NAMES, FALLING,
                                     FEATURE_NAMES, N_CONTACT_MODES, N_FEATURES)
 
@@ -210,21 +211,28 @@ def _compile_predict_one(rules: Sequence[Rule], default: int) -> Callable[[Seque
 
 @dataclass(frozen=True)
 class PerModeDecisionLists:
-    """One decision list per foot contact mode, indexed like :data:`CONTACT_MODE_NAMES`.
+    """One classifier per foot contact mode, indexed like :data:`CONTACT_MODE_NAMES`: a
+    decision list, or boosted trees (:class:`~fall_predictor.monitor.boosted_trees.BoostedTrees`,
+    which answer the same calls: ``predict_one``, ``predict``, ``rule_size``, ``depth``, ``format``).
 
     A mode without training data (or without falling training samples) holds an empty list,
     which says balanced everywhere.
     """
 
-    lists: tuple[DecisionList, ...]
+    lists: tuple[DecisionList | BoostedTrees, ...]
 
     def __post_init__(self) -> None:
         object.__setattr__(self, 'lists', tuple(self.lists))
         if len(self.lists) != N_CONTACT_MODES:
             raise ValueError(f'need {N_CONTACT_MODES} decision lists (one per contact mode), got {len(self.lists)}')
         for decision_list in self.lists:
-            if not isinstance(decision_list, DecisionList):
-                raise TypeError(f'expected DecisionList, got {decision_list!r}')
+            if not isinstance(decision_list, (DecisionList, BoostedTrees)):
+                raise TypeError(f'expected DecisionList or BoostedTrees, got {decision_list!r}')
+
+    @property
+    def boosted(self) -> bool:
+        """Whether any mode's classifier is boosted trees."""
+        return any(isinstance(c, BoostedTrees) for c in self.lists)
 
     @classmethod
     def empty(cls) -> PerModeDecisionLists:

@@ -4,7 +4,7 @@ Layout (schema ``fall_predictor.decision_lists``, version 3)::
 
     {
       "schema": "fall_predictor.decision_lists",
-      "schema_version": 3,
+      "schema_version": 4,
       "feature_names": ["com_x", ..., "d_ang_mom_z"],          # must equal FEATURE_NAMES
       "contact_mode_names": ["LR-INSIDE", ..., "OUTSIDE"],    # must equal CONTACT_MODE_NAMES
       "lists": [                                              # one per contact mode, in order
@@ -25,6 +25,10 @@ Layout (schema ``fall_predictor.decision_lists``, version 3)::
       "time_to_fall": {"trees": [...16, tree or null], "fallback": tree}   # or null (version 3)
     }
 
+Version 4 lets a mode's entry be boosted trees instead of a list (method §8a;
+:mod:`fall_predictor.monitor.boosted_trees`): ``{"mode": "LR-INSIDE", "boosted_trees":
+{"bias": -2.3, "decision_threshold": 1.0, "trees": [{"feature": [...], "threshold": [...],
+"left": [...], "right": [...], "value": [...]}, ...]}}``; version 2 and 3 files still load.
 Version 3 added ``robot_mass_kg`` (for the capture-point fall direction,
 :mod:`fall_predictor.monitor.fall_direction`) and ``time_to_fall`` (the per-mode regression
 trees of :mod:`fall_predictor.monitor.time_to_fall`); version 2 files still load, with both
@@ -53,14 +57,16 @@ from fall_predictor.monitor.features import FeatureSettings
 from fall_predictor.monitor.fileio import atomic_output, read_regular_file
 from fall_predictor.monitor.decision_list import (COMPARISON_OPS, Condition, DecisionList,
                                           PerModeDecisionLists, Rule)
+from fall_predictor.monitor.boosted_trees import BoostedTrees, BoostedTreesError
 from fall_predictor.monitor.time_to_fall import TimeToFallError, TimeToFallRegressor
 from fall_predictor.monitor.records import (BALANCED, CLASS_NAMES, CONTACT_MODE_NAMES, FALLING,
                                     FEATURE_NAMES, N_CONTACT_MODES, N_FEATURES)
 
 SCHEMA_NAME = 'fall_predictor.decision_lists'
-SCHEMA_VERSION = 3
-#: Older versions this reader still accepts (version 2: no robot mass, no time to fall).
-SUPPORTED_SCHEMA_VERSIONS = (2, 3)
+SCHEMA_VERSION = 4
+#: Older versions this reader still accepts (version 2: no robot mass, no time to fall;
+#: version 3: decision lists only).
+SUPPORTED_SCHEMA_VERSIONS = (2, 3, 4)
 #: Values of ``training.state`` (optional; absent = 'true').
 TRAINING_STATES = ('true', 'estimated')
 _CLASS_BY_NAME = {CLASS_NAMES[BALANCED]: BALANCED, CLASS_NAMES[FALLING]: FALLING}
@@ -109,19 +115,24 @@ class ModelMetadata:
     mirror: bool = False
 
 
+def _classifier_document(mode_name: str, classifier: DecisionList | BoostedTrees) -> dict[str, Any]:
+    if isinstance(classifier, BoostedTrees):
+        return {'mode': mode_name, 'boosted_trees': classifier.to_json()}
+    return {'mode': mode_name, 'default': CLASS_NAMES[classifier.default],
+            'rules': [{'label': CLASS_NAMES[rule.label],
+                       'conditions': [{'feature': c.feature, 'op': c.op, 'threshold': c.threshold}
+                                      for c in rule.conditions]}
+                      for rule in classifier.rules]}
+
+
 def _model_document(lists: PerModeDecisionLists, metadata: ModelMetadata) -> dict[str, Any]:
     return {
         'schema': SCHEMA_NAME,
         'schema_version': SCHEMA_VERSION,
         'feature_names': list(FEATURE_NAMES),
         'contact_mode_names': list(CONTACT_MODE_NAMES),
-        'lists': [
-            {'mode': mode_name, 'default': CLASS_NAMES[decision_list.default],
-             'rules': [{'label': CLASS_NAMES[rule.label],
-                        'conditions': [{'feature': c.feature, 'op': c.op, 'threshold': c.threshold}
-                                       for c in rule.conditions]}
-                       for rule in decision_list.rules]}
-            for mode_name, decision_list in zip(CONTACT_MODE_NAMES, lists.lists)],
+        'lists': [_classifier_document(mode_name, classifier)
+                  for mode_name, classifier in zip(CONTACT_MODE_NAMES, lists.lists)],
         'features': asdict(metadata.feature_settings),
         'training': {
             'tau_plus_s': metadata.tau_plus_s,
@@ -267,9 +278,17 @@ def _parse_model(text: str, path: Path) -> tuple[PerModeDecisionLists, ModelMeta
     lists = []
     for mode, raw_list in enumerate(raw_lists):
         where = f'lists[{mode}]'
-        raw_list = read.object(raw_list, where, ('mode', 'default', 'rules'))
+        boosted = version >= 4 and isinstance(raw_list, dict) and 'boosted_trees' in raw_list
+        raw_list = read.object(raw_list, where, ('mode', 'boosted_trees') if boosted
+                               else ('mode', 'default', 'rules'))
         if raw_list['mode'] != CONTACT_MODE_NAMES[mode]:
             raise read.fail(f'{where}.mode', f'expected {CONTACT_MODE_NAMES[mode]!r}, got {raw_list["mode"]!r}')
+        if boosted:
+            try:
+                lists.append(BoostedTrees.from_json(raw_list['boosted_trees']))
+            except BoostedTreesError as error:
+                raise read.fail(f'{where}.boosted_trees', str(error)) from error
+            continue
         default = read.class_name(raw_list['default'], f'{where}.default')
         rules = []
         for r, raw_rule in enumerate(read.array(raw_list['rules'], f'{where}.rules')):

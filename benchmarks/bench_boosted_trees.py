@@ -1,0 +1,156 @@
+"""Boosted trees against the decision lists (method §8a), selected by nested CV, then held out.
+
+On the development data (``--data``), k-fold CV by trajectory (the sweep's folds): each fold
+trains the decision lists (``tree``) and the boosted trees (``boosting``, ``--param`` for its
+hyper-parameters) at the same tau_plus, on the same weighted samples (``--mirror``: with the
+left-right mirror images, both). The boosted trees are trained once per fold and their score
+thresholded at every ``--thresholds`` value (log-odds); the lists' setting is tau_his, the
+boosted trees' is (decision threshold, tau_his). For each FPR budget the operating point is
+chosen as :func:`~fall_predictor.learning.nested.nested_operating_point` does (on the other
+folds, reported on each), with Wilson / bootstrap intervals.
+
+With ``--test``: both learners trained on all the development data, each budget's setting
+chosen on all the development folds, evaluated once on the test set; and each final model's
+cost per 1 kHz decision (``predict_one``, one sample at a time as the monitor calls it, over
+the test set's samples). Writes JSON (``--out``).
+
+    .venv/bin/python benchmarks/bench_boosted_trees.py --data data/g1_dev1000 \\
+        --test data/g1_test400 --folds 5 --out docs/boosted_trees/g1.json
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from fall_predictor.cli.args import learner_param
+from fall_predictor.data.dataset import dataset_guard_com_height_m
+from fall_predictor.learning.crossval import FoldFit, stratified_trajectory_folds
+from fall_predictor.learning.evaluation import evaluation_result_json
+from fall_predictor.learning.metrics import evaluate_atomic
+from fall_predictor.learning.nested import nested_operating_point
+from fall_predictor.learning.training import fit_strided, load_dataset, make_learner
+from fall_predictor.monitor.boosted_trees import BoostedTrees
+from fall_predictor.monitor.records import FALLING
+
+TAU_HIS_S = (0.0, 0.016, 0.03, 0.044, 0.06, 0.08, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4)
+THRESHOLDS = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0)
+BUDGETS = (0.0, 0.01, 0.06)
+KEEP = ('n_balanced', 'n_false_positives', 'fpr', 'fpr_ci95', 'n_fallen', 'tau_lead_s',
+        'tau_lead_ci95', 'n_missed', 'lead_fraction')
+
+
+def scores(lists, traj) -> np.ndarray:
+    """Per sample the boosted score of its mode (a mode held by a constant list: +-inf)."""
+    out = np.empty(len(traj.mode))
+    for mode in np.unique(traj.mode):
+        rows = traj.mode == mode
+        classifier = lists.lists[mode]
+        if isinstance(classifier, BoostedTrees):
+            out[rows] = classifier.score(traj.X[rows])
+        else:
+            out[rows] = np.where(classifier.predict(traj.X[rows]) == FALLING, np.inf, -np.inf)
+    return out
+
+
+def fold_results(lists, trajs, kind: str, thresholds, guard_m: float) -> dict:
+    """{threshold: {tau_his: EvaluationResult}} (the lists: threshold 0 only)."""
+    if kind == 'tree':
+        atomic = [lists.predict(t.X, t.mode) == FALLING for t in trajs]
+        return {0.0: evaluate_atomic(trajs, atomic, TAU_HIS_S, 0.001, guard_m)}
+    per_traj = [scores(lists, t) for t in trajs]
+    return {thr: evaluate_atomic(trajs, [s > thr for s in per_traj], TAU_HIS_S, 0.001, guard_m)
+            for thr in thresholds}
+
+
+def figures(pooled) -> dict:
+    return {'n_balanced': pooled.n_balanced, 'n_false_positives': pooled.n_false_positives,
+            'fpr': round(pooled.fpr, 4), 'fpr_ci95': [round(c, 4) for c in pooled.fpr_ci95],
+            'n_fallen': pooled.n_fallen, 'tau_lead_s': round(pooled.tau_lead_s, 3),
+            'tau_lead_ci95': [round(c, 3) for c in pooled.tau_lead_ci95], 'n_missed': pooled.n_missed}
+
+
+def cost_us(lists, trajs, n: int = 20000) -> dict:
+    """CPU per ``predict_one`` [us] over up to ``n`` test samples, best of three passes."""
+    samples = [(list(map(float, x)), int(m)) for t in trajs for x, m in zip(t.X[::25], t.mode[::25])][:n]
+    best = np.inf
+    for _ in range(3):
+        start = time.process_time()
+        for x, m in samples:
+            lists.predict_one(x, m)
+        best = min(best, (time.process_time() - start) / len(samples) * 1e6)
+    return {'per_decision_us': round(best, 2), 'samples': len(samples)}
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--data', type=Path, required=True, help='development data')
+    parser.add_argument('--test', type=Path, default=None, help='held-out data (optional)')
+    parser.add_argument('--folds', type=int, default=5)
+    parser.add_argument('--seed', type=int, default=0, help='fold seed (the sweep uses 0)')
+    parser.add_argument('--tau-plus', type=float, default=-0.25)
+    parser.add_argument('--mirror', action='store_true', help='train both with mirror images')
+    parser.add_argument('--thresholds', type=lambda s: tuple(float(v) for v in s.split(',')),
+                        default=THRESHOLDS)
+    parser.add_argument('--param', type=learner_param, action='append', default=[], metavar='KEY=VALUE',
+                        help='boosting hyper-parameter, repeatable (decision_threshold is swept)')
+    parser.add_argument('--jobs', type=int, default=2)
+    parser.add_argument('--out', type=Path, default=None)
+    args = parser.parse_args(argv)
+    guard_m = dataset_guard_com_height_m(args.data)
+    trajs = load_dataset(args.data, jobs=args.jobs, state='estimated').trajectories
+    learners = {'tree': make_learner('tree'), 'boosting': make_learner('boosting', dict(args.param))}
+    folds = stratified_trajectory_folds(trajs, args.folds, args.seed)
+    fits = {name: [] for name in learners}
+    fit_s = {name: 0.0 for name in learners}
+    for k, test_index in enumerate(folds):
+        train = [trajs[i] for j, f in enumerate(folds) if j != k for i in f]
+        test = [trajs[i] for i in test_index]
+        for name, learner in learners.items():
+            start = time.perf_counter()
+            lists = fit_strided(train, args.tau_plus, learner, mirror=args.mirror)
+            fit_s[name] += time.perf_counter() - start
+            for thr, results in fold_results(lists, test, name, args.thresholds, guard_m).items():
+                fits[name].append(FoldFit(k, thr, None, len(train), lists.rule_sizes, lists.depths, 0.0, results))
+        print(f'fold {k} done', flush=True)
+    out = {'data': str(args.data), 'folds': args.folds, 'seed': args.seed, 'tau_plus_s': args.tau_plus,
+           'mirror': args.mirror, 'boosting_params': learners['boosting'].get_params(),
+           'setting': '(decision_threshold [log-odds], tau_his [s]); the lists: (0, tau_his)',
+           'fit_s_per_fold': {n: round(s / args.folds, 1) for n, s in fit_s.items()},
+           'nested': {}, 'test': None}
+    chosen_on_dev = {}
+    for name in learners:
+        out['nested'][name] = {}
+        for budget in BUDGETS:
+            point = nested_operating_point(fits[name], budget)
+            out['nested'][name][str(budget)] = {'chosen_per_fold': point.chosen, **figures(point.outer),
+                                                'chosen_on_all_folds': point.selected_in_hindsight}
+            chosen_on_dev[(name, budget)] = point.selected_in_hindsight
+            print(name, budget, out['nested'][name][str(budget)], flush=True)
+    if args.test is not None:
+        test = load_dataset(args.test, jobs=args.jobs, state='estimated').trajectories
+        test_guard_m = dataset_guard_com_height_m(args.test)
+        out['test'] = {'data': str(args.test), 'learners': {}}
+        for name, learner in learners.items():
+            lists = fit_strided(trajs, args.tau_plus, learner, mirror=args.mirror)
+            results = fold_results(lists, test, name, args.thresholds, test_guard_m)
+            row = {'mean_rule_size': lists.mean_rule_size, 'cost': cost_us(lists, test)}
+            for budget in BUDGETS:
+                thr, tau_his = chosen_on_dev[(name, budget)]
+                payload = evaluation_result_json(results[thr][tau_his])
+                row[str(budget)] = {'decision_threshold': thr, 'tau_his_s': tau_his,
+                                    **{k: payload[k] for k in KEEP if k in payload}}
+                print(name, budget, row[str(budget)], flush=True)
+            out['test']['learners'][name] = row
+    text = json.dumps(out, indent=1, default=float)
+    if args.out:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(text + '\n')
+    return out
+
+
+if __name__ == '__main__':
+    main()

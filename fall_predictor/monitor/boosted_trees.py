@@ -1,0 +1,171 @@
+"""Boosted regression trees: a contact mode's classifier as a sum of small trees (method §8a).
+
+A decision list answers falling or balanced; boosted trees give a *score*, the log-odds of
+falling, ``bias + sum(tree(x))``, and say falling when the score exceeds
+``decision_threshold``. Raising the threshold trades lead for fewer false alarms more finely
+than the history window ``tau_his`` alone, which is where the lists' low-FPR end fell short.
+
+Each tree is a :class:`~fall_predictor.monitor.time_to_fall.RegressionTree` (parallel arrays,
+node 0 the root, children after their parent; the walk goes left when ``x[feature] <=
+threshold``): the time-to-fall trees' layout and validation, reused. A NaN feature goes right
+(``NaN <= t`` is false), on both paths.
+
+At 1 kHz the monitor calls :meth:`BoostedTrees.predict_one`: the trees as one generated Python
+function of nested ``if``s on the features unpacked into locals (as the decision lists are run,
+:func:`~fall_predictor.monitor.decision_list._compile_predict_one`); offline,
+:meth:`BoostedTrees.score` walks all rows through each tree with numpy. Both add the leaves in
+tree order, so they agree bit for bit. Plain Python and numpy: no scikit-learn at run time.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from fall_predictor.monitor.records import BALANCED, FALLING, FEATURE_NAMES, N_FEATURES
+from fall_predictor.monitor.time_to_fall import RegressionTree, TimeToFallError
+
+
+class BoostedTreesError(ValueError):
+    """Boosted trees that are malformed (the message names the field)."""
+
+
+def _tree_source(tree: RegressionTree, node: int, indent: str, lines: list[str]) -> None:
+    feature = tree.feature[node]
+    if feature == -1:
+        lines.append(f'{indent}s += {float(tree.value[node])!r}')
+        return
+    lines.append(f'{indent}if x{feature} <= {float(tree.threshold[node])!r}:')
+    _tree_source(tree, tree.left[node], indent + '    ', lines)
+    lines.append(f'{indent}else:')
+    _tree_source(tree, tree.right[node], indent + '    ', lines)
+
+
+def _compile_score_one(trees: Sequence[RegressionTree], bias: float
+                       ) -> Callable[[Sequence[float]], float]:
+    """The score as one Python function (validated numbers only: feature indices and ``repr`` of
+    finite floats, which read back bit for bit)::
+
+        def score_one(x):
+            x0, x1, ..., x14 = x
+            s = -2.31
+            if x3 <= 0.12:
+                s += 0.08
+            else:
+                ...
+            return s
+    """
+    lines = ['def score_one(x):',
+             '    ' + ', '.join(f'x{i}' for i in range(N_FEATURES)) + ' = x',
+             f'    s = {float(bias)!r}']
+    for tree in trees:
+        _tree_source(tree, 0, '    ', lines)
+    lines.append('    return s')
+    namespace: dict = {}
+    exec(compile('\n'.join(lines), '<boosted trees>', 'exec'), namespace)   # numbers only
+    return namespace['score_one']
+
+
+@dataclass(frozen=True)
+class BoostedTrees:
+    """One contact mode's boosted trees: falling when ``bias + sum(trees(x)) > decision_threshold``.
+
+    ``rule_size`` counts comparisons (internal nodes), as a list's does; ``depth`` counts trees.
+    """
+
+    trees: tuple[RegressionTree, ...]
+    bias: float                          #: the score before any tree [log-odds]
+    decision_threshold: float = 0.0      #: falling when the score exceeds it [log-odds]
+    _score_one: Callable[[Sequence[float]], float] = field(init=False, repr=False, compare=False)
+    _arrays: tuple = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, 'trees', tuple(self.trees))
+        for tree in self.trees:
+            if not isinstance(tree, RegressionTree):
+                raise TypeError(f'boosted trees must be RegressionTree, got {tree!r}')
+        for name in ('bias', 'decision_threshold'):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise BoostedTreesError(f'{name} must be a finite number, got {value!r}')
+            object.__setattr__(self, name, float(value))
+        object.__setattr__(self, '_score_one', _compile_score_one(self.trees, self.bias))
+        object.__setattr__(self, '_arrays', tuple(
+            tuple(np.asarray(getattr(tree, k)) for k in ('feature', 'threshold', 'left', 'right', 'value'))
+            for tree in self.trees))
+
+    def __reduce__(self):
+        # The compiled function is not picklable; it is made again from the trees.
+        return BoostedTrees, (self.trees, self.bias, self.decision_threshold)
+
+    @property
+    def rule_size(self) -> int:
+        """Number of comparisons over all trees (internal nodes)."""
+        return sum(sum(1 for f in tree.feature if f != -1) for tree in self.trees)
+
+    @property
+    def depth(self) -> int:
+        """Number of trees."""
+        return len(self.trees)
+
+    def score_one(self, x: Sequence[float]) -> float:
+        """The log-odds of falling for one feature vector (15 values)."""
+        return self._score_one(x)
+
+    def predict_one(self, x: Sequence[float]) -> int:
+        """FALLING when :meth:`score_one` exceeds the decision threshold, else BALANCED."""
+        return FALLING if self._score_one(x) > self.decision_threshold else BALANCED
+
+    def score(self, X: np.ndarray) -> np.ndarray:
+        """The log-odds of the rows of ``X`` (N, 15), (N,) floats."""
+        X = np.asarray(X, dtype=float)
+        if X.ndim != 2 or X.shape[1] != N_FEATURES:
+            raise ValueError(f'X must have shape (N, {N_FEATURES}), got {X.shape}')
+        rows = np.arange(X.shape[0])
+        total = np.full(X.shape[0], self.bias)
+        for feature, threshold, left, right, value in self._arrays:
+            node = np.zeros(X.shape[0], dtype=np.intp)
+            inner = feature[node] != -1
+            while inner.any():
+                f = feature[node]
+                go_left = X[rows, np.where(inner, f, 0)] <= threshold[node]
+                node = np.where(inner, np.where(go_left, left[node], right[node]), node)
+                inner = feature[node] != -1
+            total += value[node]
+        return total
+
+    def predict(self, X: np.ndarray) -> np.ndarray:
+        """Classes (int8, (N,)) of the rows of ``X`` (N, 15)."""
+        return np.where(self.score(X) > self.decision_threshold, FALLING, BALANCED).astype(np.int8)
+
+    def format(self, feature_names: Sequence[str] = FEATURE_NAMES, mode_name: str | None = None) -> str:
+        """A summary (the trees themselves are in the model file)."""
+        head = f'if footContactMode = {mode_name} then\n  ' if mode_name is not None else ''
+        used = sorted({feature_names[f] for tree in self.trees for f in tree.feature if f != -1})
+        return (f'{head}class <- falling if {self.bias:.4g} + the sum of {len(self.trees)} trees '
+                f'({self.rule_size} comparisons on {", ".join(used) or "no feature"}) > '
+                f'{self.decision_threshold:g}, else balanced.')
+
+    def to_json(self) -> dict[str, Any]:
+        return {'bias': self.bias, 'decision_threshold': self.decision_threshold,
+                'trees': [tree.to_json() for tree in self.trees]}
+
+    @classmethod
+    def from_json(cls, value: Any) -> BoostedTrees:
+        """Validated: raises :class:`BoostedTreesError` naming the offending field."""
+        if not isinstance(value, dict) or set(value) != {'bias', 'decision_threshold', 'trees'}:
+            raise BoostedTreesError('expected an object with keys bias, decision_threshold, trees')
+        if not isinstance(value['trees'], list):
+            raise BoostedTreesError('trees: expected an array')
+        trees = []
+        for index, raw in enumerate(value['trees']):
+            try:
+                trees.append(RegressionTree.from_json(raw, f'trees[{index}]'))
+            except TimeToFallError as error:
+                raise BoostedTreesError(str(error)) from error
+        try:
+            return cls(tuple(trees), value['bias'], value['decision_threshold'])
+        except (TypeError, BoostedTreesError) as error:
+            raise BoostedTreesError(str(error)) from error
