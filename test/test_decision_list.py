@@ -7,6 +7,7 @@ import pytest
 
 from fall_predictor.monitor.decision_list import (Condition, DecisionList, PerModeDecisionLists, Rule,
                                           simplify_conditions)
+from fall_predictor.monitor.boosted_trees import BoostedTrees
 from fall_predictor.monitor.model_file import load_model
 from fall_predictor.monitor.records import BALANCED, CONTACT_MODE_NAMES, FALLING, FEATURE_NAMES, N_CONTACT_MODES
 
@@ -127,16 +128,25 @@ def test_per_mode_lists_route_by_mode_and_mean_rule_size_counts_empty_modes():
     assert PerModeDecisionLists.empty().mean_rule_size == 0.0
 
 
-@pytest.mark.parametrize('name', ['default_model.json', 'plain_model.json', 'g1_model.json'])
+def _comparisons(classifier) -> list[Condition]:
+    """Every comparison a mode's classifier makes: a list's conditions, or the trees' splits."""
+    if isinstance(classifier, BoostedTrees):
+        return [Condition(f, '<=', tree.threshold[i]) for tree in classifier.trees
+                for i, f in enumerate(tree.feature) if f != -1]
+    return [c for rule in classifier.rules for c in rule.conditions]
+
+
+@pytest.mark.parametrize('name', ['default_model.json', 'plain_model.json', 'g1_model.json',
+                                  'g1_boosted_model.json'])
 def test_shipped_lists_compiled_predict_one_equals_predict_at_and_around_every_threshold(name):
-    """``predict_one`` runs the rules as generated Python code: it must compare exactly as the
+    """``predict_one`` runs the rules (or trees) as generated Python code: it must compare exactly as the
     vectorised path, at each threshold itself (a threshold written back wrongly by one ulp flips
     it), one ulp either side, and with NaN; a pickled list (a sweep's worker result) too."""
     lists, _ = load_model(Path(__file__).resolve().parents[1] / 'models' / name)
     rng = np.random.default_rng(7)
     checked = 0
     for dl in lists.lists:
-        conditions = [c for rule in dl.rules for c in rule.conditions]
+        conditions = _comparisons(dl)
         if not conditions:
             continue
         X = rng.normal(scale=2.0, size=(600, len(FEATURE_NAMES)))

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Optional, Sequence
 
@@ -174,6 +174,8 @@ class ModelEvaluation:
     direction_error_deg_capture_point: Optional[dict[str, Any]] = None
     #: the CoM guard [m] the model and the baselines were evaluated with (:func:`evaluate_model`)
     guard_com_height_m: float = GUARD_COM_HEIGHT_M
+    #: trajectories left out: not fallen, not settled at their horizon (id -> why; method §4)
+    unsettled: dict[str, str] = field(default_factory=dict)
 
 
 def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: float,
@@ -221,7 +223,8 @@ def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: f
                 data_dir, trajectories, triggers, robot_mass_kg, name))
                 for name in ('momentum', 'capture_point'))
     return ModelEvaluation(result, float(tau_his_s), report.fingerprint, dict(report.errors),
-                           curves, ttf_error, direction_error, cp_error, guard)
+                           curves, ttf_error, direction_error, cp_error, guard,
+                           dict(report.unsettled))
 
 
 def evaluation_json(evaluation: ModelEvaluation) -> dict[str, Any]:
@@ -232,6 +235,7 @@ def evaluation_json(evaluation: ModelEvaluation) -> dict[str, Any]:
         'n_pre_push_alarms': evaluation.result.n_pre_push_alarms,
         'dataset_fingerprint': evaluation.dataset_fingerprint,
         'unreadable': evaluation.unreadable,
+        'unsettled_left_out': evaluation.unsettled,
         'time_to_fall_error_s': evaluation.time_to_fall_error_s,
         'direction_error_deg': evaluation.direction_error_deg,
         'direction_error_deg_capture_point': evaluation.direction_error_deg_capture_point}
