@@ -5,6 +5,7 @@ import argparse
 import importlib
 import signal
 import sys
+import warnings
 
 #: The command groups, one module each under fall_predictor/cli/, each exposing
 #: ``register(subparsers)``: each area's options live with its code.
@@ -37,7 +38,13 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if getattr(args, 'push_force', 0) < 0:
         parser.error('--push-force must be >= 0')
-    return int(args.func(args) or 0)
+    with warnings.catch_warnings():
+        warnings.showwarning = _note            # data left out is said as a note, not a traceback
+        return int(args.func(args) or 0)
+
+
+def _note(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f'note: {message}', file=sys.stderr)
 
 
 if __name__ == '__main__':
