@@ -6,7 +6,7 @@ and it runs the same offline. Per sample of features it gives a :class:`MonitorS
 ``fall_predictor/state`` carries) and, when the robot's fall state changes, a :class:`FallEvent`:
 
 * **prediction**: :class:`~fall_predictor.monitor.predictor.OnlinePredictor` (per-mode decision
-  lists, the ``tau_his`` window, the CoM guard);
+  lists or boosted trees, the ``tau_his`` window, the CoM guard);
 * **trigger**: ``latched`` from the first falling prediction until :meth:`FallMonitor.reset`, the
   only way to undo it; a new run (a clock jump), a degraded or stale sample never undoes it;
 * **direction**: the heading-frame direction of the horizontal momentum at each falling sample

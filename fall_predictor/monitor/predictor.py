@@ -3,7 +3,8 @@
 :class:`OnlinePredictor` is the one predictor used by the offline evaluator and by the ROS
 predictor node. Per sample at time ``t`` it computes
 
-* ``atomic``: the contact mode's decision list says falling for the feature vector ``x``;
+* ``atomic``: the contact mode's decision list (or boosted trees, method §8a) says falling for
+  the feature vector ``x``;
 * ``guard``: the CoM height ``x[2]`` is below the guard height (0.48 m, method §5);
 * ``falling``: ``atomic or guard`` held at every sample of ``[t - tau_his, t]``;
 * ``latched``: falling has been output at least once since :meth:`OnlinePredictor.reset`.
