@@ -39,6 +39,8 @@ from fall_predictor.monitor.fileio import atomic_output
 from fall_predictor.monitor.records import FEATURE_NAMES, PushSpec, TrajectoryFeatures
 
 FORMAT = 'fall_predictor/dataset/v1'
+#: Feature columns of the horizontal momentum (whether a trajectory settled, data/outcomes.py).
+LIN_MOM_X, LIN_MOM_Y = FEATURE_NAMES.index('lin_mom_x'), FEATURE_NAMES.index('lin_mom_y')
 CACHE_FORMAT = 'fall_predictor/features-cache/v4'  # v3: LR lateral edges fold FRONT/BACK; v4: + cp
 #: The robot's URDF of an imported robot dataset whose bags hold no /robot_description.
 ROBOT_URDF_FILE = 'robot.urdf'
@@ -314,8 +316,6 @@ def load_features(data_dir: str | os.PathLike, jobs: int = 1, progress: bool = T
     return LoadReport(trajectories, errors, rebuilt, h.hexdigest()[:16], settings, state, note,
                       unsettled)
 
-
-LIN_MOM_X, LIN_MOM_Y = FEATURE_NAMES.index('lin_mom_x'), FEATURE_NAMES.index('lin_mom_y')
 
 
 def _mass_or_none(out: Path) -> Optional[float]:

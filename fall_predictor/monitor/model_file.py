@@ -1,6 +1,6 @@
 """The model file: a learned predictor's decision lists and provenance as plain JSON.
 
-Layout (schema ``fall_predictor.decision_lists``, version 3)::
+Layout (schema ``fall_predictor.decision_lists``, version 4)::
 
     {
       "schema": "fall_predictor.decision_lists",
