@@ -126,11 +126,10 @@ def test_cli_trains_boosted_trees_that_evaluate_from_their_file_as_in_memory(fix
     lists, metadata = load_model(model)
     assert lists.boosted and metadata.learner_name == 'BoostedTreesLearner'
     assert metadata.learner_params['decision_threshold'] == 0.5
-    in_memory, _ = train_model(fixture_dataset, -0.25, 'boosting',
-                               {'max_iter': 20, 'decision_threshold': 0.5}, sample_stride=10,
-                               state='estimated')
-    assert lists == in_memory
     trajectories = load_dataset(fixture_dataset, state='estimated').trajectories
+    in_memory = fit_strided(trajectories, -0.25, make_learner('boosting', {'max_iter': 20,
+                                                                           'decision_threshold': 0.5}))
+    assert lists == in_memory
     from_file = evaluate_lists(trajectories, lists, (0.0, 0.03))
     assert from_file == evaluate_lists(trajectories, in_memory, (0.0, 0.03))
     assert from_file[0.0].n_fallen > 0 and from_file[0.0].n_missed < from_file[0.0].n_fallen
@@ -182,8 +181,9 @@ def test_a_model_records_the_guard_of_its_datasets_robot(tmp_path, capsys, robot
 def test_trajectories_not_settled_at_their_horizon_are_left_out_with_a_warning(fixture_dataset, monkeypatch):
     import fall_predictor.data.outcomes as outcomes
     from fall_predictor.learning.training import UnsettledTrajectories
-    everything = load_dataset(fixture_dataset).trajectories
-    assert not load_dataset(fixture_dataset).unsettled          # the fixture's runs settle
+    as_recorded = load_dataset(fixture_dataset)
+    everything = as_recorded.trajectories
+    assert not as_recorded.unsettled                            # the fixture's runs settle
     # With no margin over a zero walking level, every balanced run is "still moving".
     monkeypatch.setattr(outcomes, 'SETTLE_MOMENTUM_FACTOR', 0.0)
     monkeypatch.setattr(outcomes, 'SETTLE_MOMENTUM_FLOOR_MPS', 0.0)
