@@ -103,7 +103,7 @@ def test_every_offline_subcommand_runs_without_ros(small_dataset, tmp_path):
     model = tmp_path / 'model.json'
     result = _run_without_ros([
         ['simulate', '--duration', '0.3', '--json'],
-        ['generate', '--trajectories', '1', '--seed', '3', '--horizon', '0.2',
+        ['generate', '--trajectories', '1', '--seed', '3', '--horizon', '0.2', '--settle-extension', '0',
          '--out', str(tmp_path / 'generated'), '--json'],
         ['stats', str(data), '--plots', str(tmp_path / 'plots'), '--json'],
         ['train', '--data', str(data), '--tau-plus', '0', '--out', str(model)],
@@ -146,7 +146,8 @@ def test_sigterm_stops_generate_and_its_worker_processes(tmp_path):
     from pathlib import Path
     out = tmp_path / 'd'
     command = [sys.executable, '-m', 'fall_predictor.cli', 'generate', '--trajectories', '6',
-               '--seed', '3', '--horizon', '1.0', '--jobs', '2', '--out', str(out), '--json']
+               '--seed', '3', '--horizon', '1.0', '--settle-extension', '0', '--jobs', '2',
+               '--out', str(out), '--json']
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                                start_new_session=True)
     deadline = time.monotonic() + 120.0

@@ -25,7 +25,8 @@ SEED = 11
 
 
 def _config() -> GenerationConfig:
-    return GenerationConfig(seed=SEED, horizon_after_push_s=0.5, pre_push_s=0.2)
+    return GenerationConfig(seed=SEED, horizon_after_push_s=0.5, pre_push_s=0.2,
+                            settle_extension_s=0.0)
 
 
 def _contents(dataset: Path) -> dict[str, str]:
@@ -71,7 +72,8 @@ def test_the_cli_generates_on_a_cluster_and_reports_cpu_and_machines(cluster, lo
                                                                      tmp_path, capsys):
     out = tmp_path / 'cli'
     assert main(['generate', '--trajectories', '2', '--seed', str(SEED),
-                 '--horizon', '0.5', '--out', str(out), '--scheduler', cluster.scheduler_address,
+                 '--horizon', '0.5', '--settle-extension', '0', '--out', str(out),
+                 '--scheduler', cluster.scheduler_address,
                  '--json']) == 0
     payload = json.loads(capsys.readouterr().out)
     assert payload['scheduler'] == cluster.scheduler_address and payload['cpu_s'] > 0
@@ -79,7 +81,8 @@ def test_the_cli_generates_on_a_cluster_and_reports_cpu_and_machines(cluster, lo
     # Same trajectories as the library call with the CLI's settings, made locally.
     local = tmp_path / 'local'
     generate_dataset(local, 2, SEED, progress=False,
-                     config=GenerationConfig(seed=SEED, horizon_after_push_s=0.5))
+                     config=GenerationConfig(seed=SEED, horizon_after_push_s=0.5,
+                                             settle_extension_s=0.0))
     assert _contents(out) == _contents(local)
 
 

@@ -107,6 +107,24 @@ def test_a_trajectory_from_a_walk_prefix_equals_one_from_a_fresh_world(sim):
         assert warm.t_reflex == fresh.t_reflex and warm.fallen == fresh.fallen
 
 
+def test_a_run_goes_on_in_steps_while_asked_and_stops_at_its_cap():
+    asked = []
+
+    def twice(measurements):
+        asked.append(measurements[-1].t)
+        return len(asked) <= 2
+    plain = run_trajectory(None, 0.5)
+    extended = run_trajectory(None, 0.5, go_on_while=twice, max_extension_s=3.0)
+    # Asked at the horizon and after each 0.5 s step; the third answer (no) ends the run.
+    assert asked == pytest.approx([0.5, 1.0, 1.5])
+    assert extended.measurements[-1].t == pytest.approx(1.5)
+    # Going on changes nothing before the horizon (the walk planned for longer is the same walk).
+    n = len(plain.measurements)
+    assert np.array_equal(extended.joint_positions[:n], plain.joint_positions)
+    capped = run_trajectory(None, 0.5, go_on_while=lambda measurements: True, max_extension_s=0.7)
+    assert capped.measurements[-1].t == pytest.approx(1.2)
+
+
 def test_quaternions_to_matrices_matches_pybullet():
     """The measurement's quaternion conversion against PyBullet's own, and orthonormal."""
     import pybullet

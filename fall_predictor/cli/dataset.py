@@ -34,6 +34,7 @@ def generation_config(args):
     extra = {} if args.robot == DEFAULT_ROBOT else {
         'robot': args.robot, 'push_distribution': PushDistribution.for_robot(profile)}
     return GenerationConfig(seed=args.seed, horizon_after_push_s=args.horizon,
+                            settle_extension_s=args.settle_extension,
                             gait_variety=not (args.fixed_gait or standing) and profile.gait_variety,
                             sensor_noise_scale=args.sensor_noise,
                             sensor_timing=_sensor_timing(args), **extra)
@@ -134,6 +135,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--jobs', type=argtypes.positive_int, default=1, help='parallel processes')
     p.add_argument('--horizon', type=argtypes.positive, default=4.0,
                    help='simulated seconds after the push ends before a trajectory counts as balanced')
+    p.add_argument('--settle-extension', type=argtypes.nonnegative, default=3.0, metavar='SECONDS',
+                   help='a trajectory still moving at the horizon is simulated on until it settles or '
+                        'falls, for up to this much longer (0: stop at the horizon)')
     p.add_argument('--sensor-noise', type=float, default=None, metavar='SCALE', help='also record the sensor topics (noise x SCALE; 1 = default sensors)')
     p.add_argument('--sensor-timing', choices=('simulator', 'robot'), default='simulator',
                    help='how the sensor topics are published: the simulator\'s timing (all at 1 kHz, one '

@@ -16,6 +16,7 @@ import shutil
 import tempfile
 import time
 from dataclasses import asdict, dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable, Optional
 
@@ -28,7 +29,7 @@ from fall_predictor.data.dataset import (FORMAT, DatasetError, IndexRow, read_in
                                          write_index_csv)
 from fall_predictor.data.generation_cost import (COSTS_DIR, GENERATION_COST_KEY,
                                                  record_generation_cost, trajectory_cost)
-from fall_predictor.data.outcomes import height_drop_time
+from fall_predictor.data.outcomes import height_drop_time, unsettled_at_horizon
 from fall_predictor.data.sensorbag import (write_robot_description, write_sensor_message,
                                            write_sensor_params)
 from fall_predictor.data.parallel import (PerThread, compute_backend, compute_parallel, machine,
@@ -58,6 +59,10 @@ class GenerationConfig:
     #: Simulated time after the push ends; a trajectory that has not fallen by then counts as
     #: balanced. Justified by the calibration data (docs/results.md).
     horizon_after_push_s: float = 4.0
+    #: A trajectory still moving at the horizon (:func:`~fall_predictor.data.outcomes.unsettled_at_horizon`
+    #: on the simulator's state) is simulated on until it settles or falls, for up to this much
+    #: longer [s] (method §4): a robot cut off mid-fall is not a balanced one.
+    settle_extension_s: float = 3.0
     #: Walking recorded before the push onset (the simulation itself starts from standing).
     pre_push_s: float = 1.0
     joint_state_rate_hz: float = 100.0
@@ -77,6 +82,7 @@ class GenerationConfig:
 
     def manifest(self) -> dict:
         out = {'format': FORMAT, 'seed': self.seed, 'horizon_after_push_s': self.horizon_after_push_s,
+               'settle_extension_s': self.settle_extension_s,
                'pre_push_s': self.pre_push_s, 'joint_state_rate_hz': self.joint_state_rate_hz,
                'gait_variety': self.gait_variety,
                'push_distribution': asdict(self.push_distribution), 'robot': simulated_robot(self.robot)}
@@ -134,7 +140,8 @@ def _walk_prefix(config: GenerationConfig):
     record = config.sensor_noise_scale is not None
     return _WORKER.get(('prefix', config.robot, dist.settle_s, dist.walk_cycle_s(), record),
                        lambda: WalkPrefix(Simulator(profile=load_profile(config.robot)), until_s=until,
-                                          walk_duration_s=until + config.horizon_after_push_s + 5.0,
+                                          walk_duration_s=(until + config.horizon_after_push_s
+                                                           + config.settle_extension_s + 5.0),
                                           record_sensors=record))
 
 
@@ -171,19 +178,19 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
     cpu0, wall0 = time.thread_time(), time.perf_counter()
     tid = trajectory_id(index)
     rng = trajectory_seed(config.seed, index)
-    duration_s = None
     if config.gait_variety:
         gait, push = config.push_distribution.sample_with_gait(rng)
-        duration_s = push.t_force_end + config.horizon_after_push_s
-        result = run_trajectory(push, duration_s, gait=gait, simulator=_worker_simulator(config.robot),
-                                record_sensors=config.sensor_noise_scale is not None)
+        start = {'gait': gait, 'simulator': _worker_simulator(config.robot)}
     else:
         gait, push = None, config.push_distribution.sample(rng)
-        duration_s = push.t_force_end + config.horizon_after_push_s
-        result = run_trajectory(push, duration_s, prefix=_walk_prefix(config),
-                                record_sensors=config.sensor_noise_scale is not None)
-    simulated_s = result.measurements[-1].t
+        start = {'prefix': _walk_prefix(config)}
     t_start = round(push.t_push - config.pre_push_s, 6)
+    mass_kg = load_profile(config.robot).total_mass_kg
+    result = run_trajectory(push, push.t_force_end + config.horizon_after_push_s,
+                            record_sensors=config.sensor_noise_scale is not None,
+                            go_on_while=partial(_still_moving, push.t_push, t_start, mass_kg),
+                            max_extension_s=config.settle_extension_s, **start)
+    simulated_s = result.measurements[-1].t
     first = next(i for i, m in enumerate(result.measurements) if m.t >= t_start - 1e-9)
     measurements = result.measurements[first:]
     t_height_drop = None
@@ -195,8 +202,8 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
     with tempfile.TemporaryDirectory(prefix='fall_predictor_bag_') as folder:
         # The bag's own directory name is the one it is renamed from when committed
         # (metadata.yaml names the MCAP file relative to it, so the files do not change).
-        partial = Path(folder) / (tid + '.partial')
-        with BagWriter(partial) as bag:
+        unfinished = Path(folder) / (tid + '.partial')
+        with BagWriter(unfinished) as bag:
             applied = next((m.push_force for m in measurements if m.push_force.any()), np.zeros(3))
             bag.write_push(push.t_push, applied)
             readings = _sensor_readings(config, index, result, bag, first)
@@ -211,7 +218,7 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
                     bag.write_joint_state(m.t, load_profile(config.robot).joint_names,
                                           result.joint_positions[i],
                                           result.joint_velocities[i])
-        files = {f.name: f.read_bytes() for f in sorted(partial.iterdir())}
+        files = {f.name: f.read_bytes() for f in sorted(unfinished.iterdir())}
     row = IndexRow(trajectory_id=tid, bag=f'bags/{tid}', force_n=push.force_n, angle_deg=push.angle_deg,
                    height_m=push.height_m, t_push=push.t_push, t_force_end=push.t_force_end,
                    fallen=result.fallen, t_fallen=result.t_fallen, t_height_drop=t_height_drop,
@@ -219,6 +226,16 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
                    samples=len(measurements), **_gait_fields(gait))
     cost = trajectory_cost(time.thread_time() - cpu0, time.perf_counter() - wall0, simulated_s)
     return SimulatedTrajectory(row, files, cost)
+
+
+def _still_moving(t_push: float, t_start: float, mass_kg: float, measurements: list) -> bool:
+    """Whether a run's recording so far (from ``t_start``) ends unsettled (the loader's test,
+    :func:`~fall_predictor.data.outcomes.unsettled_at_horizon`, on the simulator's state)."""
+    first = next(i for i, m in enumerate(measurements) if m.t >= t_start - 1e-9)
+    recorded = measurements[first:]
+    t = np.fromiter((m.t for m in recorded), float, len(recorded))
+    momentum = np.array([m.lin_mom[:2] for m in recorded])
+    return unsettled_at_horizon(t, momentum, t_push, mass_kg) is not None
 
 
 def _driver_streams(config: GenerationConfig):

@@ -33,6 +33,8 @@ ROBOT_NAME = 'asimo_like'
 ROBOT_TOTAL_MASS_KG = rm.TOTAL_MASS_KG
 ROBOT_JOINT_NAMES = rm.JOINT_NAMES
 #: How the simulated robot is driven (recorded in every dataset's manifest).
+#: :func:`run_trajectory`: how long a run goes on at a time while ``go_on_while`` says so [s].
+EXTENSION_STEP_S = 0.5
 ROBOT_CONTROL = {'actuation': SimulatorConfig().actuation, 'stabilizer': StabilizerConfig().enabled}
 
 
@@ -175,7 +177,9 @@ def run_trajectory(push: Optional[PushSpec], duration_s: float,
                    prefix: Optional[WalkPrefix] = None,
                    stabilizer: Optional[StabilizerConfig] = None,
                    record_sensors: bool = False,
-                   profile: Optional[RobotProfile] = None) -> TrajectoryResult:
+                   profile: Optional[RobotProfile] = None,
+                   go_on_while: Optional[Callable[[list[Measurement]], bool]] = None,
+                   max_extension_s: float = 0.0) -> TrajectoryResult:
     """Simulate from the standing posture for up to ``duration_s`` seconds.
 
     Stops early when fallen (if ``stop_when_fallen``). ``fall_trigger`` (a predictor) is asked
@@ -184,7 +188,10 @@ def run_trajectory(push: Optional[PushSpec], duration_s: float,
     less simulation); it must have been made with the same gait, reflex and simulator settings.
     ``record_sensors`` keeps the exact sensor quantities of every step (the prefix must have
     been made with it too). Controller settings not given are the robot's (its profile's:
-    ``profile``, else the simulator's robot).
+    ``profile``, else the simulator's robot). ``go_on_while``: asked with the samples so far
+    when a run that has not fallen reaches ``duration_s``; while it says so the run goes on, in
+    steps of :data:`EXTENSION_STEP_S`, for up to ``max_extension_s`` more seconds (a robot
+    still moving when the horizon ends: its outcome is not known yet).
     """
     if prefix is not None and push is not None and push.t_push <= prefix.until_s:
         sim = prefix.sim
@@ -193,12 +200,17 @@ def run_trajectory(push: Optional[PushSpec], duration_s: float,
     else:
         own = simulator is None and prefix is None
         sim = prefix.sim if prefix is not None else (simulator or Simulator(sim_config, profile))
-        run = _new_run(sim, gait, reflex, walk_duration_s=duration_s + 5.0, stabilizer=stabilizer,
+        run = _new_run(sim, gait, reflex, walk_duration_s=duration_s + max_extension_s + 5.0,
+                       stabilizer=stabilizer,
                        record_sensors=record_sensors)
     try:
         if push is not None:
             sim.schedule_push(push)
         _advance(sim, run, duration_s, stop_when_fallen, fall_trigger)
+        end_s = duration_s + max_extension_s
+        while (go_on_while is not None and run.t_fallen is None and sim.t < end_s - 1e-9
+               and go_on_while(run.measurements)):
+            _advance(sim, run, min(sim.t + EXTENSION_STEP_S, end_s), stop_when_fallen, fall_trigger)
         t_fallen = run.t_fallen
         event = run.switch.balance.reflex_event
         return TrajectoryResult(push=push, measurements=run.measurements,
