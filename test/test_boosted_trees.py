@@ -51,6 +51,34 @@ def test_falling_needs_the_score_strictly_above_the_threshold():
     assert BoostedTrees(trees.trees, 0.0, 0.999).predict_one(features(30.0, 0.6)) == FALLING
 
 
+def test_a_models_decision_threshold_moves_for_its_boosted_modes_only():
+    from fall_predictor.monitor.decision_list import DecisionList, PerModeDecisionLists
+    from fall_predictor.monitor.fall_monitor import FallenConfig, FallMonitor
+    model = PerModeDecisionLists((example(),) * 2 + (DecisionList(),) * 14)
+    assert model.decision_threshold == 1.0
+    x = features(25.0, 0.6)                               # score 1.5
+    lowered, raised = model.with_decision_threshold(1.4), model.with_decision_threshold(1.5)
+    assert lowered.decision_threshold == 1.4 and lowered.lists[2:] == model.lists[2:]
+    assert (lowered.predict_one(x, 1), raised.predict_one(x, 1)) == (FALLING, BALANCED)
+    with pytest.raises(BoostedTreesError, match='decision_threshold'):
+        model.with_decision_threshold(math.inf)
+    lists_only = PerModeDecisionLists.empty()
+    assert lists_only.decision_threshold is None
+    with pytest.raises(ValueError, match='decision lists, which have no decision threshold'):
+        lists_only.with_decision_threshold(0.0)
+    # At run time: effective from the next step; the history window's run goes on.
+    monitor = FallMonitor(raised, 0.002, FallenConfig(0.2, 0.3), guard_com_height_m=0.1)
+    x_array = np.array(x)
+    assert not monitor.step(0.000, x_array, 1)[0].atomic
+    monitor.decision_threshold = 1.4
+    assert monitor.decision_threshold == 1.4
+    states = [monitor.step(t, x_array, 1)[0] for t in (0.001, 0.002, 0.003)]
+    assert [s.atomic for s in states] == [True, True, True]
+    assert [s.falling for s in states] == [False, False, True]   # 2 ms after the run began
+    with pytest.raises(ValueError, match='no decision threshold'):
+        FallMonitor(lists_only, 0.0, FallenConfig(0.2, 0.3)).decision_threshold = 0.0
+
+
 def test_sizes_count_comparisons_and_trees():
     trees = example()
     assert (trees.rule_size, trees.depth) == (2, 2)

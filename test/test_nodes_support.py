@@ -19,9 +19,11 @@ from pathlib import Path
 
 import rclpy
 
+from fall_predictor.monitor.boosted_trees import BoostedTrees
 from fall_predictor.monitor.decision_list import Condition, DecisionList, PerModeDecisionLists, Rule
 from fall_predictor.monitor.model_file import ModelMetadata, save_model
 from fall_predictor.monitor.records import FALLING, FEATURE_NAMES, N_CONTACT_MODES
+from fall_predictor.monitor.time_to_fall import RegressionTree
 
 #: Momentum threshold of the test model [kg m/s].
 MOMENTUM_THRESHOLD = 25.0
@@ -57,6 +59,19 @@ def write_momentum_model(path: Path) -> Path:
         tau_plus_s=0.0, balanced_weight=4.0, falling_weight=1.0, learner_name='hand-built',
         learner_params={'momentum_threshold_kg_m_s': MOMENTUM_THRESHOLD},
         dataset_fingerprint='none', recommended_tau_his_s=MODEL_TAU_HIS_S))
+    return path
+
+
+def write_boosted_model(path: Path) -> Path:
+    """A boosted-trees model, one stump per contact mode: score -1 + 2.5 when the forward momentum
+    exceeds MOMENTUM_THRESHOLD, else -1 - 0.5; falling above decision threshold 1.0."""
+    x = FEATURE_NAMES.index('lin_mom_x')
+    stump = RegressionTree((x, -1, -1), (MOMENTUM_THRESHOLD, 0.0, 0.0), (1, -1, -1), (2, -1, -1),
+                           (0.0, -0.5, 2.5))
+    trees = BoostedTrees((stump,), bias=-1.0, decision_threshold=1.0)
+    save_model(path, PerModeDecisionLists((trees,) * N_CONTACT_MODES), ModelMetadata(
+        tau_plus_s=0.0, balanced_weight=4.0, falling_weight=1.0, learner_name='hand-built',
+        learner_params={}, dataset_fingerprint='none', recommended_tau_his_s=MODEL_TAU_HIS_S))
     return path
 
 

@@ -16,7 +16,8 @@ import rclpy.node
 from geometry_msgs.msg import WrenchStamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
-from test_nodes_support import MODEL_TAU_HIS_S, ros_context, test_domain_id, write_momentum_model
+from test_nodes_support import (MODEL_TAU_HIS_S, MOMENTUM_THRESHOLD, ros_context, test_domain_id,
+                                write_boosted_model, write_momentum_model)
 
 from fall_predictor.ros.bringup import ros_environment
 from fall_predictor.contract.topics import FEATURES, STATE
@@ -142,6 +143,39 @@ def test_predictor_node_defaults_tau_his_to_the_models_recommendation(tmp_path: 
             assert node.get_parameter('tau_his_s').value == MODEL_TAU_HIS_S
         finally:
             node.destroy_node()
+
+
+def test_boosted_models_decision_threshold_is_a_run_time_parameter_lists_have_none(tmp_path: Path) -> None:
+    boosted = write_boosted_model(tmp_path / 'boosted.json')
+    lists = write_momentum_model(tmp_path / 'lists.json')
+    x = np.zeros(15)
+    x[2], x[3] = 0.59, MOMENTUM_THRESHOLD + 5.0               # the stump's score: 1.5
+    with ros_context(DOMAIN) as context:
+        node = PredictorNode(context=context, parameter_overrides=[
+            Parameter('model_path', value=str(boosted)), Parameter('max_sample_age_s', value=0.0)])
+        try:
+            assert node.get_parameter('decision_threshold').value == 1.0   # the model's
+            assert node.set_parameters([Parameter('decision_threshold', value=2.0)])[0].successful
+            assert node._monitor.decision_threshold == 2.0
+            for k in range(30):
+                node._on_features(messages.features_msg(ros_qos.TYPES, 10**9 + k * 10**6, x, 0))
+            assert not node._monitor.latched                 # 1.5 is not above 2.0
+            assert node.set_parameters([Parameter('decision_threshold', value=1.4)])[0].successful
+            for k in range(30, 60):
+                node._on_features(messages.features_msg(ros_qos.TYPES, 10**9 + k * 10**6, x, 0))
+            assert node._monitor.latched
+        finally:
+            node.destroy_node()
+        node = PredictorNode(context=context, parameter_overrides=[Parameter('model_path', value=str(lists))])
+        try:
+            result = node.set_parameters([Parameter('decision_threshold', value=1.0)])[0]
+            assert not result.successful and 'decision lists' in result.reason
+        finally:
+            node.destroy_node()
+        with pytest.raises(NodeStartupError, match='decision_threshold is set, but the model holds '
+                                                   'decision lists'):
+            PredictorNode(context=context, parameter_overrides=[
+                Parameter('model_path', value=str(lists)), Parameter('decision_threshold', value=1.0)])
 
 
 def test_predictor_node_refuses_a_missing_model_in_process(tmp_path: Path) -> None:

@@ -135,6 +135,16 @@ def test_cli_trains_boosted_trees_that_evaluate_from_their_file_as_in_memory(fix
     assert from_file[0.0].n_fallen > 0 and from_file[0.0].n_missed < from_file[0.0].n_fallen
     code, out, _ = run_cli(capsys, 'rules', str(model))
     assert code == 0 and 'the sum of 20 trees' in out
+    # The threshold moved at evaluation: as the same trees trained with that threshold.
+    code, out, err = run_cli(capsys, 'evaluate', '--data', str(fixture_dataset), '--model', str(model),
+                             '--tau-his', '0', '--decision-threshold', '2.5', '--json')
+    assert code == 0, err
+    payload = json.loads(out)
+    expected = evaluate_lists(trajectories, lists.with_decision_threshold(2.5), (0.0,))[0.0]
+    assert payload['decision_threshold'] == 2.5
+    assert (payload['n_false_positives'], payload['n_missed']) == (expected.n_false_positives,
+                                                                   expected.n_missed)
+    assert expected.n_false_positives < from_file[0.0].n_false_positives  # higher: fewer alarms
 
 
 def test_cli_rejects_unusable_models_and_datasets(fixture_dataset, tmp_path, capsys):
@@ -147,6 +157,13 @@ def test_cli_rejects_unusable_models_and_datasets(fixture_dataset, tmp_path, cap
                      ('evaluate', '--data', str(fixture_dataset), '--model', str(model), '--tau-his', '0')):
             code, out, err = run_cli(capsys, *argv)
             assert code == 2 and str(model) in err and 'Traceback' not in err, (argv, err)
+    lists_model = tmp_path / 'lists.json'
+    code, _, err = run_cli(capsys, 'train', '--data', str(fixture_dataset), '--tau-plus', '0',
+                           '--out', str(lists_model))
+    assert code == 0, err
+    code, _, err = run_cli(capsys, 'evaluate', '--data', str(fixture_dataset), '--model',
+                           str(lists_model), '--tau-his', '0', '--decision-threshold', '1')
+    assert code == 2 and 'decision lists, which have no decision threshold' in err
     code, _, err = run_cli(capsys, 'train', '--data', str(tmp_path), '--tau-plus', '0',
                            '--out', str(tmp_path / 'm.json'))
     assert code == 2 and 'not a dataset directory' in err

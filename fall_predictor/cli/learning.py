@@ -77,6 +77,11 @@ def cmd_evaluate(args) -> int:
         tau_his = args.tau_his if args.tau_his is not None else metadata.recommended_tau_his_s
         if tau_his is None:
             return _fail('evaluate', f'{args.model} recommends no tau_his: give --tau-his')
+        if args.decision_threshold is not None:
+            try:
+                lists = lists.with_decision_threshold(args.decision_threshold)
+            except ValueError as error:
+                return _fail('evaluate', f'--decision-threshold: {args.model}: {error}')
         state = argtypes.resolved_state(args)
         evaluation = evaluate_model(args.data, lists, tau_his, baselines=args.baselines,
                                     jobs=args.jobs, skip_unreadable=args.skip_unreadable,
@@ -87,12 +92,16 @@ def cmd_evaluate(args) -> int:
     except (DatasetError, ModelFileError) as error:
         return _fail('evaluate', error)
     payload = {'model': str(args.model), 'data': str(args.data), 'state': state,
-               'model_state': metadata.state, **evaluation_json(evaluation),
+               'model_state': metadata.state, 'decision_threshold': lists.decision_threshold,
+               **evaluation_json(evaluation),
                'trained_on_this_dataset': metadata.dataset_fingerprint == evaluation.dataset_fingerprint,
                'dataset_guard_com_height_m': dataset_guard}
     r = evaluation.result
     lines = [f'{r.n_trajectories} trajectories ({r.n_fallen} fallen), {state} state (model trained on '
-             f'the {metadata.state} state), tau_his {tau_his:.3f} s, the model\'s CoM guard '
+             f'the {metadata.state} state), tau_his {tau_his:.3f} s'
+             + ('' if lists.decision_threshold is None
+                else f', decision threshold {lists.decision_threshold:g}')
+             + ', the model\'s CoM guard '
              f'{evaluation.guard_com_height_m:g} m',
              f'FPR {r.fpr:.3f} ({r.n_false_positives}/{r.n_balanced} balanced trajectories), '
              f'Wilson 95 % [{r.fpr_ci95[0]:.3f}, {r.fpr_ci95[1]:.3f}]',
@@ -169,6 +178,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--model', type=Path, required=True, help='model file (JSON)')
     p.add_argument('--tau-his', type=argtypes.nonnegative, default=None,
                    help='history window [s] (default: the model\'s recommended value)')
+    p.add_argument('--decision-threshold', type=argtypes.finite(float), default=None, metavar='LOG_ODDS',
+                   help='boosted-trees models: falling when the score exceeds this (default: the '
+                        'model\'s); the other half of their operating point beside --tau-his')
     p.add_argument('--baselines', action='store_true',
                    help='also evaluate the CoM-height, momentum and capture-point baselines')
     argtypes.add_state_argument(p)

@@ -14,7 +14,7 @@ agree on every input, NaN included.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable, Literal, Sequence
 
 import numpy as np
@@ -233,6 +233,24 @@ class PerModeDecisionLists:
     def boosted(self) -> bool:
         """Whether any mode's classifier is boosted trees."""
         return any(isinstance(c, BoostedTrees) for c in self.lists)
+
+    @property
+    def decision_threshold(self) -> float | None:
+        """The boosted modes' decision threshold [log-odds] when they share one, else None (a model
+        of decision lists, or boosted modes with thresholds of their own)."""
+        found = {c.decision_threshold for c in self.lists if isinstance(c, BoostedTrees)}
+        return found.pop() if len(found) == 1 else None
+
+    def with_decision_threshold(self, threshold: float) -> PerModeDecisionLists:
+        """The same classifiers, every boosted mode saying falling when its score exceeds
+        ``threshold`` [log-odds] (the operating point of boosted trees beside ``tau_his``, method
+        §8a). ValueError for a model without boosted trees: a decision list has no threshold."""
+        if not self.boosted:
+            raise ValueError('the model holds decision lists, which have no decision threshold '
+                             '(their operating point is the history window tau_his)')
+        return PerModeDecisionLists(tuple(
+            replace(c, decision_threshold=threshold) if isinstance(c, BoostedTrees) else c
+            for c in self.lists))
 
     @classmethod
     def empty(cls) -> PerModeDecisionLists:

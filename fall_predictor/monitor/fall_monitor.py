@@ -134,6 +134,16 @@ class FallMonitor:
         self.predictor.tau_his_s = value
 
     @property
+    def decision_threshold(self) -> Optional[float]:
+        """Boosted trees' decision threshold [log-odds] (None for decision lists); settable at
+        any time, effective from the next step (ValueError for decision lists)."""
+        return self.predictor.lists.decision_threshold
+
+    @decision_threshold.setter
+    def decision_threshold(self, value: float) -> None:
+        self.predictor.lists = self.predictor.lists.with_decision_threshold(value)
+
+    @property
     def latched(self) -> bool:
         return self._latched
 

@@ -82,10 +82,7 @@ class OnlinePredictor:
 
     def __init__(self, lists: PerModeDecisionLists, tau_his_s: float, dt_s: float = 0.001,
                  guard_com_height_m: float = GUARD_COM_HEIGHT_M) -> None:
-        if not isinstance(lists, PerModeDecisionLists):
-            raise TypeError(f'lists must be PerModeDecisionLists, got {type(lists).__name__}')
-        self._lists = lists
-        self._predict_by_mode = tuple(decision_list.predict_one for decision_list in lists.lists)
+        self.lists = lists
         self._tau_his_s = _check_tau_his(tau_his_s)
         self._dt_s = _check_positive('dt_s', dt_s)
         self._time_tolerance_s = self._dt_s * TIME_TOLERANCE_FRACTION
@@ -94,7 +91,16 @@ class OnlinePredictor:
 
     @property
     def lists(self) -> PerModeDecisionLists:
+        """The classifiers; settable at any time (e.g. another decision threshold), effective from
+        the next step, the history and latch kept."""
         return self._lists
+
+    @lists.setter
+    def lists(self, lists: PerModeDecisionLists) -> None:
+        if not isinstance(lists, PerModeDecisionLists):
+            raise TypeError(f'lists must be PerModeDecisionLists, got {type(lists).__name__}')
+        self._lists = lists
+        self._predict_by_mode = tuple(decision_list.predict_one for decision_list in lists.lists)
 
     @property
     def tau_his_s(self) -> float:

@@ -28,7 +28,8 @@ DEGRADED state with it; a wall-clock watchdog publishes a STALE state whenever n
 for ``stale_timeout_s``. Health, counters and reasons go to ``/diagnostics``.
 
 Parameters: ``model_path`` (default: the shipped model), ``tau_his_s`` (settable at run time;
-default: the model's recommended window), ``stale_timeout_s``, ``max_sample_age_s``,
+default: the model's recommended window), ``decision_threshold`` (boosted-trees models only;
+settable at run time; default: the model's), ``stale_timeout_s``, ``max_sample_age_s``,
 ``robot_mass_kg``, and the fallen-detection heights of the robot (``robot``'s profile). A missing
 or invalid model makes the node refuse to start with one FATAL line (exit code 1).
 """
@@ -39,6 +40,7 @@ import time
 from typing import Callable, Optional
 
 from geometry_msgs.msg import Vector3Stamped
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.parameter import Parameter
 from std_msgs.msg import Bool
 from std_srvs.srv import SetBool, Trigger
@@ -58,9 +60,9 @@ from fall_predictor.ros.health import (MAX_SAMPLE_AGE, Diagnostics, FaultLog, In
                                        SampleAge, guarded, steady_clock)
 from fall_predictor.ros.in_process import Output, connect_input
 from fall_predictor.ros.lifecycle import AUTOSTART, MonitorLifecycleNode
-from fall_predictor.ros.parameters import (FROM_MODEL, MAX_MODEL_BYTES, MODEL_PATH, ParamSpec,
-                                           declare_parameters, feature_setting_params,
-                                           load_model_for)
+from fall_predictor.ros.parameters import (FROM_MODEL, MAX_MODEL_BYTES, MODEL_PATH,
+                                           NodeStartupError, ParamSpec, declare_parameters,
+                                           feature_setting_params, load_model_for)
 from fall_predictor.ros.robots import ROBOT_PARAM, fallen_config_for, profile_for
 from fall_predictor.ros.runner import run_node
 
@@ -84,6 +86,12 @@ TAU_HIS = ParamSpec('tau_his_s', FROM_MODEL, 'history window [s]: falling only w
                     'prediction of the last tau_his_s was falling (method §8); settable at run '
                     'time; -1 = the model\'s recommended window (set at configure)', 0.0,
                     MAX_TAU_HIS_S, unset=FROM_MODEL)
+#: ``decision_threshold``'s "the model's own" value (a log-odds threshold may be any sign).
+THRESHOLD_FROM_MODEL = -1000.0
+DECISION_THRESHOLD = ParamSpec('decision_threshold', THRESHOLD_FROM_MODEL, 'boosted-trees models: '
+                               'falling when the score [log-odds] exceeds it (method §8a); settable '
+                               'at run time; -1000 = the model\'s (set at configure); refused for '
+                               'decision lists', -50.0, 50.0, unset=THRESHOLD_FROM_MODEL)
 
 
 class PredictorNode(MonitorLifecycleNode):
@@ -96,7 +104,9 @@ class PredictorNode(MonitorLifecycleNode):
         super().__init__(NODE_NAME, **kwargs)
         p = self._params = declare_parameters(
             self, (AUTOSTART, MODEL_PATH, MAX_MODEL_BYTES, STALE_TIMEOUT, MAX_SAMPLE_AGE, ROBOT_PARAM,
-                   TAU_HIS, ROBOT_MASS, *feature_setting_params(SETTINGS)))
+                   TAU_HIS, DECISION_THRESHOLD, ROBOT_MASS, *feature_setting_params(SETTINGS)))
+        # A model of decision lists has no decision threshold: setting one is refused, in words.
+        self.add_on_set_parameters_callback(self._check_decision_threshold)
         self._stale_timeout_s = float(p['stale_timeout_s'])
         self._max_sample_age_s = float(p['max_sample_age_s'])
         self._monitor: Optional[FallMonitor] = None
@@ -139,6 +149,15 @@ class PredictorNode(MonitorLifecycleNode):
         if tau_his_s == FROM_MODEL:         # the model's recommended window, shown as the value
             tau_his_s = min(metadata.recommended_tau_his_s or 0.0, MAX_TAU_HIS_S)
             self.set_parameters([Parameter('tau_his_s', value=float(tau_his_s))])
+        threshold = self.get_parameter('decision_threshold').value
+        if threshold != THRESHOLD_FROM_MODEL:
+            try:
+                lists = lists.with_decision_threshold(float(threshold))
+            except ValueError as error:
+                raise NodeStartupError(f'decision_threshold is set, but {error}') from error
+        elif lists.decision_threshold is not None:     # the model's threshold, shown as the value
+            self.set_parameters([Parameter('decision_threshold',
+                                           value=float(lists.decision_threshold))])
         profile = profile_for(robot)
         mass_kg = ROBOT_MASS.value_or_none(p['robot_mass_kg']) or profile.total_mass_kg
         model_mass_kg = getattr(metadata, 'robot_mass_kg', None)
@@ -172,10 +191,24 @@ class PredictorNode(MonitorLifecycleNode):
                     continue
                 self._monitor.tau_his_s = float(parameter.value)
                 self.get_logger().info(f'tau_his_s = {parameter.value} s')
+            elif (parameter.name == 'decision_threshold' and self._monitor is not None
+                  and parameter.value != THRESHOLD_FROM_MODEL):
+                self._monitor.decision_threshold = float(parameter.value)
+                self.get_logger().info(f'decision_threshold = {parameter.value}')
             elif parameter.name == 'stale_timeout_s':
                 self._stale_timeout_s = float(parameter.value)
             elif parameter.name == 'max_sample_age_s':
                 self._max_sample_age_s = float(parameter.value)
+
+    def _check_decision_threshold(self, parameters: list[Parameter]) -> SetParametersResult:
+        for parameter in parameters:
+            if (parameter.name == 'decision_threshold' and self._monitor is not None
+                    and parameter.value != THRESHOLD_FROM_MODEL
+                    and not self._monitor.predictor.lists.boosted):
+                return SetParametersResult(
+                    successful=False, reason='the model holds decision lists, which have no '
+                    'decision threshold (their operating point is tau_his_s)')
+        return SetParametersResult(successful=True)
 
     # -- services --------------------------------------------------------------------------
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
