@@ -91,15 +91,17 @@ class EffortWrench:
         world's z) and velocity (the base part: its angular velocity in the base frame),
         ``tau_joints``: efforts [N m] in the description's joint order."""
         model, data = self.robot.model, self.data
-        b = pin.nonLinearEffects(model, data, q, v)              # also computes the kinematics
-        pin.computeJointJacobians(model, data, q)
+        b = pin.nonLinearEffects(model, data, q, v)
+        # Each sole's Jacobian from its own chain (cheaper than every joint's Jacobian).
+        jacobians = [pin.computeFrameJacobian(model, data, q, sole_id, _LOCAL)
+                     for sole_id, _ in self._jac_cols]
         out: dict[str, Optional[np.ndarray]] = {}
         if self._square:
             # Both legs' 6 x 6 systems in one call; a leg near a singularity (a straight knee)
             # gets the least-squares, minimum-norm answer below instead.
             a = self._a
-            for k, (sole_id, cols) in enumerate(self._jac_cols):
-                a[k] = pin.getFrameJacobian(model, data, sole_id, _LOCAL)[:, cols].T
+            for k, (_, cols) in enumerate(self._jac_cols):
+                a[k] = jacobians[k][:, cols].T
             rhs = (b[self._b_rows] - tau_joints[self._tau_rows]).reshape(len(SIDES), 6, 1)
             with np.errstate(invalid='ignore', divide='ignore'):   # singular: NaN, handled below
                 solved = _solve(a, rhs).reshape(len(SIDES), 6)
@@ -107,10 +109,9 @@ class EffortWrench:
             for k, side in enumerate(SIDES):
                 if norm_sq[k] < self._max_wrench_sq:
                     out[side] = solved[k]
-        for side in SIDES:
+        for k, side in enumerate(SIDES):
             if side not in out:
-                jac = pin.getFrameJacobian(model, data, self.robot.sole_ids[side], _LOCAL)
-                wrench, *_ = np.linalg.lstsq(jac[:, self.leg_v[side]].T,
+                wrench, *_ = np.linalg.lstsq(jacobians[k][:, self.leg_v[side]].T,
                                              b[self.leg_v[side]] - tau_joints[self.leg_tau[side]],
                                              rcond=1e-6)
                 out[side] = wrench if np.isfinite(wrench).all() else None
