@@ -43,16 +43,22 @@ def test_each_trajectory_has_a_complete_bag_and_index_row(small_dataset):
     assert (small_dataset / 'index.csv').read_text().count('\n') == 9
 
 
-def _config(seed, settle_extension_s=0.0):
+def _config(seed):
     # A horizon this short ends most runs mid-motion: going on until they settle is tested on its own.
-    return GenerationConfig(seed=seed, horizon_after_push_s=0.3, pre_push_s=0.2,
-                            settle_extension_s=settle_extension_s)
+    return GenerationConfig(seed=seed, horizon_after_push_s=0.3, pre_push_s=0.2, settle_extension_s=0.0)
 
 
-def test_a_run_still_moving_at_the_horizon_is_recorded_until_it_settles_or_falls(tmp_path):
+def test_a_run_still_moving_at_the_horizon_is_recorded_until_it_settles_or_falls(tmp_path, capsys):
+    from fall_predictor.cli import main
     from fall_predictor.data.outcomes import unsettled_at_horizon
-    (a,) = generate_dataset(tmp_path / 'cut', 1, 21, config=_config(21), progress=False)
-    (b,) = generate_dataset(tmp_path / 'whole', 1, 21, config=_config(21, 2.0), progress=False)
+    (a,) = generate_dataset(tmp_path / 'cut', 1, 21, progress=False, config=GenerationConfig(
+        seed=21, horizon_after_push_s=0.3, settle_extension_s=0.0))
+    assert main(['generate', '--trajectories', '1', '--seed', '21', '--horizon', '0.3',
+                 '--settle-extension', '2', '--out', str(tmp_path / 'whole'), '--json']) == 0
+    reported = json.loads(capsys.readouterr().out)['recorded_past_horizon']
+    (b,) = read_index(tmp_path / 'whole')
+    assert reported == {b.trajectory_id: {'fallen': b.fallen,
+                                         'after_push_end_s': round(b.t_end - b.t_force_end, 3)}}
     ms_a = read_trajectory(tmp_path / 'cut' / a.bag).measurements
     ms_b = read_trajectory(tmp_path / 'whole' / b.bag).measurements
     mass_kg = load_profile('asimo_like').total_mass_kg

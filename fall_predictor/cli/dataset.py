@@ -54,6 +54,8 @@ def cmd_generate(args) -> int:
     wall = time.perf_counter() - start
     rows = [r for r in rows if int(r.trajectory_id.split('_')[1]) < args.trajectories]
     fallen = sum(r.fallen for r in rows)
+    # Runs still moving at the horizon, recorded on until they settled or fell (method §4).
+    went_on = [r for r in rows if r.t_end - r.t_force_end > config.horizon_after_push_s + 1e-6]
     size = sum(f.stat().st_size for f in Path(args.out).rglob('*') if f.is_file() and 'cache' not in f.parts)
     cost = read_manifest(args.out).get('generation', {})
     payload = {'out': str(args.out), 'trajectories': len(rows), 'fallen': fallen,
@@ -61,13 +63,17 @@ def cmd_generate(args) -> int:
                'disk_bytes': size, 'seed': args.seed, 'jobs': args.jobs, 'scheduler': args.scheduler,
                'gait_variety': config.gait_variety, 'cpu_s': cost.get('cpu_s'),
                'cpu_per_simulated_s': cost.get('cpu_per_simulated_s'),
-               'machines': cost.get('machines', {})}
+               'machines': cost.get('machines', {}),
+               'recorded_past_horizon': {r.trajectory_id: {'fallen': r.fallen, 'after_push_end_s': round(
+                   r.t_end - r.t_force_end, 3)} for r in went_on}}
     machines = ', '.join(f'{host} ({m["cores"]} cores, {m["trajectories"]} traj)'
                          for host, m in payload['machines'].items())
     _emit(args, payload, [f'{len(rows)} trajectories in {args.out} ({fallen} fallen, '
                           f'{size / 1e6:.0f} MB) in {wall:.0f} s',
                           f'CPU {payload["cpu_s"]:.0f} s in all ({payload["cpu_per_simulated_s"]:.3f} s per '
-                          f'simulated s) on {machines}' if payload['cpu_s'] is not None else 'CPU: not recorded'])
+                          f'simulated s) on {machines}' if payload['cpu_s'] is not None else 'CPU: not recorded',
+                          f'{len(went_on)} still moving at the {config.horizon_after_push_s:g} s horizon, '
+                          f'recorded until they settled or fell ({sum(r.fallen for r in went_on)} fell)'])
     return 0
 
 
