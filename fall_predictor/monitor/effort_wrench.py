@@ -37,8 +37,8 @@ _LOCAL = pin.ReferenceFrame.LOCAL
 try:
     # numpy's LU solve itself: np.linalg.solve's checks and error-state handling cost twice the
     # solve of two 6 x 6 systems (~2.7 of ~4 us), once per 1 kHz sample. A singular system gives
-    # NaN instead of raising (handled by the caller). Where a numpy release moves it, the public
-    # function is used.
+    # NaN instead of raising (EffortWrench.wrenches then solves it in the least-squares sense).
+    # Where a numpy release moves it, the public function is used.
     from numpy.linalg._umath_linalg import solve as _solve
 except ImportError:                                     # pragma: no cover - numpy internals
     _solve = np.linalg.solve
