@@ -103,8 +103,11 @@ class EffortWrench:
             for k, (_, cols) in enumerate(self._jac_cols):
                 a[k] = jacobians[k][:, cols].T
             rhs = (b[self._b_rows] - tau_joints[self._tau_rows]).reshape(len(SIDES), 6, 1)
-            with np.errstate(invalid='ignore', divide='ignore'):   # singular: NaN, handled below
-                solved = _solve(a, rhs).reshape(len(SIDES), 6)
+            try:
+                with np.errstate(invalid='ignore', divide='ignore'):   # singular: NaN, see below
+                    solved = _solve(a, rhs).reshape(len(SIDES), 6)
+            except np.linalg.LinAlgError:                   # the public function raises instead
+                solved = np.full((len(SIDES), 6), np.nan)
             norm_sq = (solved * solved).sum(axis=1).tolist()       # NaN if not finite
             for k, side in enumerate(SIDES):
                 if norm_sq[k] < self._max_wrench_sq:
