@@ -14,12 +14,18 @@ chosen on all the development folds, evaluated once on the test set; and each fi
 cost per 1 kHz decision (``predict_one``, one sample at a time as the monitor calls it, over
 the test set's samples). Writes JSON (``--out``).
 
+With ``--window``, a third learner, ``boosting_window``: the same boosting on the features and
+their changes over the last 50, 100 and 200 ms (60 inputs; :class:`WindowedBoosting`), selected
+and evaluated alike: what a window of the recent past buys by nested CV. An offline reference:
+the onboard monitor computes no such inputs (no cost per decision is given for it).
+
     .venv/bin/python benchmarks/bench_boosted_trees.py --data data/g1_dev1000 \\
         --test data/g1_test400 --folds 5 --out docs/boosted_trees/g1.json
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import time
 from pathlib import Path
@@ -34,11 +40,13 @@ from fall_predictor.learning.metrics import evaluate_atomic
 from fall_predictor.learning.nested import nested_operating_point
 from fall_predictor.learning.training import fit_strided, load_dataset, make_learner
 from fall_predictor.monitor.boosted_trees import BoostedTrees
-from fall_predictor.monitor.records import FALLING
+from fall_predictor.monitor.records import FALLING, N_CONTACT_MODES
 
 TAU_HIS_S = (0.0, 0.016, 0.03, 0.044, 0.06, 0.08, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4)
 THRESHOLDS = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0)
 BUDGETS = (0.0, 0.01, 0.06)
+#: ``--window``: the lags of the feature changes added to the inputs [s].
+WINDOW_LAGS_S = (0.05, 0.1, 0.2)
 KEEP = ('n_balanced', 'n_false_positives', 'fpr', 'fpr_ci95', 'n_fallen', 'tau_lead_s',
         'tau_lead_ci95', 'n_missed', 'lead_fraction')
 
@@ -61,9 +69,72 @@ def fold_results(lists, trajs, kind: str, thresholds, guard_m: float) -> dict:
     if kind == 'tree':
         atomic = [lists.predict(t.X, t.mode) == FALLING for t in trajs]
         return {0.0: evaluate_atomic(trajs, atomic, TAU_HIS_S, 0.001, guard_m)}
-    per_traj = [scores(lists, t) for t in trajs]
+    if isinstance(lists, WindowedBoosting):
+        per_traj = [lists.scores(t) for t in trajs]
+    else:
+        per_traj = [scores(lists, t) for t in trajs]
     return {thr: evaluate_atomic(trajs, [s > thr for s in per_traj], TAU_HIS_S, 0.001, guard_m)
             for thr in thresholds}
+
+
+def windowed(traj, lags_s=WINDOW_LAGS_S):
+    """``traj`` with its 15 features and their changes over each lag (``x(t) - x(t - lag)``, the
+    first sample's features before the start): 60 inputs."""
+    parts = [traj.X]
+    for lag in lags_s:
+        j = np.searchsorted(traj.t, traj.t - lag - 1e-9)
+        parts.append(traj.X - traj.X[np.clip(j, 0, len(traj.t) - 1)])
+    return dataclasses.replace(traj, X=np.hstack(parts))
+
+
+class WindowedBoosting:
+    """The boosting learner on the windowed inputs, per contact mode, as ``fit_strided`` trains it
+    (mirror images made from the 15 features, then windowed). An offline reference: its trees take
+    60 inputs, which the onboard monitor does not compute; scores from scikit-learn's
+    ``decision_function``, which the exported trees equal bit for bit (test_boosting.py)."""
+
+    def __init__(self, params: dict) -> None:
+        self.params = params
+
+    def fit(self, trajs, tau_plus_s: float, mirror: bool) -> 'WindowedBoosting':
+        from sklearn.ensemble import HistGradientBoostingClassifier
+
+        from fall_predictor.learning.learners import training_set
+        from fall_predictor.learning.training import (BALANCED_WEIGHT, DEFAULT_SAMPLE_STRIDE,
+                                                      FALLING_WEIGHT, subsample)
+        if mirror:
+            from fall_predictor.learning.mirror import with_mirror_images
+            trajs = with_mirror_images(trajs)
+        stride = DEFAULT_SAMPLE_STRIDE
+        X, y, w, modes, _ = training_set([subsample(windowed(t), stride) for t in trajs],
+                                              tau_plus_s, BALANCED_WEIGHT * stride,
+                                              FALLING_WEIGHT * stride)
+        hp = make_learner('boosting', self.params)      # its validated hyper-parameters
+        self.models = {}
+        for mode in range(N_CONTACT_MODES):
+            falling = y[modes == mode] == FALLING
+            if not falling.any():
+                continue
+            if falling.all():
+                self.models[mode] = np.inf
+                continue
+            # As BoostedTreesLearner fits (its input check allows the 15 features only).
+            self.models[mode] = HistGradientBoostingClassifier(
+                max_iter=hp.max_iter, max_depth=hp.max_depth, learning_rate=hp.learning_rate,
+                min_samples_leaf=hp.min_samples_leaf, l2_regularization=hp.l2_regularization,
+                max_bins=hp.max_bins, early_stopping=False, random_state=hp.random_state,
+            ).fit(X[modes == mode], falling, sample_weight=w[modes == mode])
+        return self
+
+    def scores(self, traj) -> np.ndarray:
+        out = np.full(len(traj.mode), -np.inf)          # a mode without falling samples: balanced
+        X = windowed(traj).X
+        for mode, model in self.models.items():
+            rows = traj.mode == mode
+            if rows.any():
+                out[rows] = model if not hasattr(model, 'decision_function') else \
+                    model.decision_function(X[rows])
+        return out
 
 
 def figures(pooled) -> dict:
@@ -97,12 +168,22 @@ def main(argv: list[str] | None = None) -> dict:
                         default=THRESHOLDS)
     parser.add_argument('--param', type=learner_param, action='append', default=[], metavar='KEY=VALUE',
                         help='boosting hyper-parameter, repeatable (decision_threshold is swept)')
+    parser.add_argument('--window', action='store_true',
+                        help='also the boosting learner on the features and their changes over '
+                             'the last 50, 100 and 200 ms (an offline reference, not shippable)')
     parser.add_argument('--jobs', type=int, default=2)
     parser.add_argument('--out', type=Path, default=None)
     args = parser.parse_args(argv)
     guard_m = dataset_guard_com_height_m(args.data)
     trajs = load_dataset(args.data, jobs=args.jobs, state='estimated').trajectories
     learners = {'tree': make_learner('tree'), 'boosting': make_learner('boosting', dict(args.param))}
+    if args.window:
+        learners['boosting_window'] = WindowedBoosting(dict(args.param))
+
+    def fit(name, learner, train):
+        if isinstance(learner, WindowedBoosting):
+            return WindowedBoosting(learner.params).fit(train, args.tau_plus, args.mirror)
+        return fit_strided(train, args.tau_plus, learner, mirror=args.mirror)
     folds = stratified_trajectory_folds(trajs, args.folds, args.seed)
     fits = {name: [] for name in learners}
     fit_s = {name: 0.0 for name in learners}
@@ -111,13 +192,16 @@ def main(argv: list[str] | None = None) -> dict:
         test = [trajs[i] for i in test_index]
         for name, learner in learners.items():
             start = time.perf_counter()
-            lists = fit_strided(train, args.tau_plus, learner, mirror=args.mirror)
+            lists = fit(name, learner, train)
             fit_s[name] += time.perf_counter() - start
-            for thr, results in fold_results(lists, test, name, args.thresholds, guard_m).items():
-                fits[name].append(FoldFit(k, thr, None, len(train), lists.rule_sizes, lists.depths, 0.0, results))
+            kind = 'tree' if name == 'tree' else 'boosting'
+            sizes = (lists.rule_sizes, lists.depths) if hasattr(lists, 'rule_sizes') else ((), ())
+            for thr, results in fold_results(lists, test, kind, args.thresholds, guard_m).items():
+                fits[name].append(FoldFit(k, thr, None, len(train), *sizes, 0.0, results))
         print(f'fold {k} done', flush=True)
     out = {'data': str(args.data), 'folds': args.folds, 'seed': args.seed, 'tau_plus_s': args.tau_plus,
            'mirror': args.mirror, 'boosting_params': learners['boosting'].get_params(),
+           'window_lags_s': list(WINDOW_LAGS_S) if args.window else None,
            'setting': '(decision_threshold [log-odds], tau_his [s]); the lists: (0, tau_his)',
            'fit_s_per_fold': {n: round(s / args.folds, 1) for n, s in fit_s.items()},
            'nested': {}, 'test': None}
@@ -135,9 +219,11 @@ def main(argv: list[str] | None = None) -> dict:
         test_guard_m = dataset_guard_com_height_m(args.test)
         out['test'] = {'data': str(args.test), 'learners': {}}
         for name, learner in learners.items():
-            lists = fit_strided(trajs, args.tau_plus, learner, mirror=args.mirror)
-            results = fold_results(lists, test, name, args.thresholds, test_guard_m)
-            row = {'mean_rule_size': lists.mean_rule_size, 'cost': cost_us(lists, test)}
+            lists = fit(name, learner, trajs)
+            kind = 'tree' if name == 'tree' else 'boosting'
+            results = fold_results(lists, test, kind, args.thresholds, test_guard_m)
+            row = ({'mean_rule_size': lists.mean_rule_size, 'cost': cost_us(lists, test)}
+                   if hasattr(lists, 'mean_rule_size') else {})
             for budget in BUDGETS:
                 thr, tau_his = chosen_on_dev[(name, budget)]
                 payload = evaluation_result_json(results[thr][tau_his])
