@@ -25,7 +25,6 @@ the onboard monitor computes no such inputs (no cost per decision is given for i
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import time
 from pathlib import Path
@@ -42,11 +41,13 @@ from fall_predictor.learning.training import fit_strided, load_dataset, make_lea
 from fall_predictor.monitor.boosted_trees import BoostedTrees
 from fall_predictor.monitor.records import FALLING, N_CONTACT_MODES
 
+# --window: the features and their changes over these lags, as the temporal-window benchmark
+# makes them (this directory is on the path when a benchmark runs as a script).
+from bench_temporal_window import LAGS_S as WINDOW_LAGS_S, windowed  # noqa: E402
+
 TAU_HIS_S = (0.0, 0.016, 0.03, 0.044, 0.06, 0.08, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4)
 THRESHOLDS = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0)
 BUDGETS = (0.0, 0.01, 0.06)
-#: ``--window``: the lags of the feature changes added to the inputs [s].
-WINDOW_LAGS_S = (0.05, 0.1, 0.2)
 KEEP = ('n_balanced', 'n_false_positives', 'fpr', 'fpr_ci95', 'n_fallen', 'tau_lead_s',
         'tau_lead_ci95', 'n_missed', 'lead_fraction')
 
@@ -75,16 +76,6 @@ def fold_results(lists, trajs, kind: str, thresholds, guard_m: float) -> dict:
         per_traj = [scores(lists, t) for t in trajs]
     return {thr: evaluate_atomic(trajs, [s > thr for s in per_traj], TAU_HIS_S, 0.001, guard_m)
             for thr in thresholds}
-
-
-def windowed(traj, lags_s=WINDOW_LAGS_S):
-    """``traj`` with its 15 features and their changes over each lag (``x(t) - x(t - lag)``, the
-    first sample's features before the start): 60 inputs."""
-    parts = [traj.X]
-    for lag in lags_s:
-        j = np.searchsorted(traj.t, traj.t - lag - 1e-9)
-        parts.append(traj.X - traj.X[np.clip(j, 0, len(traj.t) - 1)])
-    return dataclasses.replace(traj, X=np.hstack(parts))
 
 
 class WindowedBoosting:
