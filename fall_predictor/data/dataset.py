@@ -317,7 +317,6 @@ def load_features(data_dir: str | os.PathLike, jobs: int = 1, progress: bool = T
                       unsettled)
 
 
-
 def _mass_or_none(out: Path) -> Optional[float]:
     """The robot's mass, or None for a dataset whose manifest does not give it (then no
     trajectory is checked for settling)."""
