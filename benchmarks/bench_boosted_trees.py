@@ -107,7 +107,7 @@ class WindowedBoosting:
             if not falling.any():
                 continue
             if falling.all():
-                self.models[mode] = np.inf
+                self.models[mode] = np.inf              # every sample falling: a constant score
                 continue
             # As BoostedTreesLearner fits (its input check allows the 15 features only).
             self.models[mode] = HistGradientBoostingClassifier(
@@ -123,8 +123,7 @@ class WindowedBoosting:
         for mode, model in self.models.items():
             rows = traj.mode == mode
             if rows.any():
-                out[rows] = model if not hasattr(model, 'decision_function') else \
-                    model.decision_function(X[rows])
+                out[rows] = model if isinstance(model, float) else model.decision_function(X[rows])
         return out
 
 

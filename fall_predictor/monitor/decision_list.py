@@ -209,6 +209,11 @@ def _compile_predict_one(rules: Sequence[Rule], default: int) -> Callable[[Seque
     return namespace['predict_one']
 
 
+#: Why a model of decision lists takes no decision threshold (the CLI and the nodes say it).
+NO_DECISION_THRESHOLD = ('the model holds decision lists, which have no decision threshold (their '
+                         'operating point is the history window tau_his)')
+
+
 @dataclass(frozen=True)
 class PerModeDecisionLists:
     """One classifier per foot contact mode, indexed like :data:`CONTACT_MODE_NAMES`: a
@@ -246,8 +251,7 @@ class PerModeDecisionLists:
         ``threshold`` [log-odds] (the operating point of boosted trees beside ``tau_his``, method
         §8a). ValueError for a model without boosted trees: a decision list has no threshold."""
         if not self.boosted:
-            raise ValueError('the model holds decision lists, which have no decision threshold '
-                             '(their operating point is the history window tau_his)')
+            raise ValueError(NO_DECISION_THRESHOLD)
         return PerModeDecisionLists(tuple(
             replace(c, decision_threshold=threshold) if isinstance(c, BoostedTrees) else c
             for c in self.lists))

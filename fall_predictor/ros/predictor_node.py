@@ -49,6 +49,7 @@ from fall_predictor.contract import messages
 from fall_predictor.contract.topics import (ENABLE_SERVICE, FALL_DIRECTION, FALL_EVENT, FALLING,
                                             FEATURES, HEADING_FRAME, MONITOR_RESET_SERVICE, STATE)
 from fall_predictor.contract.wire import LEVEL_OK, LEVEL_STALE, LEVEL_WARN
+from fall_predictor.monitor.decision_list import NO_DECISION_THRESHOLD
 from fall_predictor.monitor.fall_monitor import (EVENT_FALLING, EVENT_NAMES, FallEvent, FallMonitor,
                                                  MonitorState)
 from fall_predictor.monitor.timeline import Stamp, StampTimeline
@@ -205,9 +206,7 @@ class PredictorNode(MonitorLifecycleNode):
             if (parameter.name == 'decision_threshold' and self._monitor is not None
                     and parameter.value != THRESHOLD_FROM_MODEL
                     and not self._monitor.predictor.lists.boosted):
-                return SetParametersResult(
-                    successful=False, reason='the model holds decision lists, which have no '
-                    'decision threshold (their operating point is tau_his_s)')
+                return SetParametersResult(successful=False, reason=NO_DECISION_THRESHOLD)
         return SetParametersResult(successful=True)
 
     # -- services --------------------------------------------------------------------------
