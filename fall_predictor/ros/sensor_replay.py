@@ -81,9 +81,10 @@ class SensorReplayer:
     def spin_until(self, done: Callable[[], bool], timeout_s: float) -> bool:
         return spin_until(self.executor, done, timeout_s)
 
-    def connected(self) -> bool:
-        """Every sensor topic and the description have a subscriber."""
-        return (all(p.get_subscription_count() for p in self.pubs.values())
+    def connected(self, streams: Sequence[str] = ('joints', 'imu', 'l', 'r')) -> bool:
+        """The description and each of ``streams`` have a subscriber (a robot without foot F/T
+        sensors: ``('joints', 'imu')``, its monitor subscribes to no wrench)."""
+        return (all(self.pubs[stream].get_subscription_count() for stream in streams)
                 and self.description.get_subscription_count() > 0)
 
     def publish_description(self, urdf: str) -> None:
