@@ -120,6 +120,27 @@ def test_a_run_report_keeps_why_its_states_were_unusable() -> None:
         **{f'joint j{k} stuck': f'joint j{k} stuck' for k in range(MAX_REASONS - 2)}}
 
 
+def test_a_new_run_begins_where_its_streams_restart_even_when_its_first_states_were_lost() -> None:
+    """After a reset the previous run's messages still in flight are dropped: the measurements
+    from their first sample stamped near 0; the states from theirs, or, when the monitor lost
+    the new run's first half second (its inputs are best effort), from the first state the new
+    run's measurements have reached (the monitor cannot be ahead of the simulator)."""
+    from fall_predictor.ros.observer import NEW_RUN_T_S, RunBoundary
+    boundary = RunBoundary()
+    assert boundary.take_sample(3.2) and boundary.take_state(3.2)   # a first run: all taken
+    boundary.reset()
+    # The old run's last samples and states, in flight.
+    assert not boundary.take_sample(3.3) and not boundary.take_state(3.25)
+    assert [boundary.take_sample(0.001 * k) for k in range(1, 801)] == [True] * 800
+    assert not boundary.take_state(3.3)                 # still the old run: 3.3 s > 0.8 s
+    assert boundary.take_state(NEW_RUN_T_S + 0.2)       # no state before 0.7 s arrived
+    assert boundary.take_state(3.4)                     # from here on, the new run's
+    boundary.reset()
+    assert boundary.take_state(0.001)                   # the usual case: stamped near 0
+    assert boundary.take_state(NEW_RUN_T_S)             # and the rest of the run
+    boundary.reset()
+    assert not boundary.take_state(NEW_RUN_T_S)         # no new measurement yet: not known
+
 def test_param_spec_checks_type_finiteness_and_range() -> None:
     spec = ParamSpec('tau_his_s', 0.05, 'window [s]', 0.0, 2.0)
     assert spec.check(0.5) is None

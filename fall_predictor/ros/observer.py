@@ -42,7 +42,8 @@ from fall_predictor.monitor.records import Measurement, PushSpec
 from fall_predictor.msg import FallState
 from fall_predictor.msg import Measurement as MeasurementMsg
 
-#: After a reset, samples from this time on still belong to the previous run [s].
+#: After a reset, a sample stamped before this [s] begins the new run (simulation time restarts
+#: at 0; the previous run's samples still in flight are stamped later).
 NEW_RUN_T_S = 0.5
 #: Node name of the observer unless its user names it.
 DEFAULT_NODE_NAME = 'fall_predictor_observer'
@@ -122,6 +123,47 @@ def reason_kind(reason: str) -> str:
     """A reason with its measured values as ``#``: the reasons of one fault, whatever the values
     (``'sample arrived # s after its stamp (max_sample_age_s #)'``)."""
     return _MEASURED_VALUE.sub('#', reason)
+
+
+class RunBoundary:
+    """Where the new run begins in the measurement and state streams after a reset.
+
+    Simulation time restarts at 0 on a reset, and messages of the previous run may still be in
+    flight. The measurement stream (lossless, straight from the simulator) begins the new run
+    at its first sample stamped before :data:`NEW_RUN_T_S`. The states come from the monitor,
+    whose best-effort inputs may lose the new run's first half second when it falls behind the
+    unpaced simulation, so a state also begins the new run once the new run's measurements have
+    reached its stamp: the monitor cannot be ahead of the simulator. (An old state stamped no
+    later than the new run has already advanced would be taken too; the observer pauses and
+    drains before resetting, so none is in flight that long.)
+    """
+
+    def __init__(self) -> None:
+        self._in_new_run_samples = self._in_new_run_states = True
+        #: Latest sample time of the new run [s] (None: none yet).
+        self._t_new_run: Optional[float] = None
+
+    def reset(self) -> None:
+        """A reset was requested: drop the previous run's messages until the new run begins."""
+        self._in_new_run_samples = self._in_new_run_states = False
+        self._t_new_run = None
+
+    def take_sample(self, t: float) -> bool:
+        """Whether the measurement stamped ``t`` [s] belongs to the current run."""
+        if not self._in_new_run_samples:
+            if t >= NEW_RUN_T_S:
+                return False
+            self._in_new_run_samples = True
+        self._t_new_run = t if self._t_new_run is None else max(self._t_new_run, t)
+        return True
+
+    def take_state(self, t: float) -> bool:
+        """Whether the state stamped ``t`` [s] belongs to the current run."""
+        if not self._in_new_run_states:
+            if t >= NEW_RUN_T_S and (self._t_new_run is None or t > self._t_new_run):
+                return False
+            self._in_new_run_states = True
+        return True
 
 
 @dataclass
@@ -258,7 +300,7 @@ class Observer:
         #: The push run :meth:`run_push` follows (it stays after the run ends).
         self.run: Optional[RunObservation] = None
         # After a reset: drop samples and states of the previous run still in flight.
-        self._skip_old_samples = self._skip_old_states = False
+        self._run_boundary = RunBoundary()
 
     def destroy(self) -> None:
         """Stop the executor and destroy the node."""
@@ -273,10 +315,8 @@ class Observer:
             return                          # not a sample (e.g. the node tests' garbage)
         if m is None:
             return                          # a fault: no state to record
-        if self._skip_old_samples:
-            if m.t >= NEW_RUN_T_S:
-                return                      # still the previous run, in flight
-            self._skip_old_samples = False
+        if not self._run_boundary.take_sample(m.t):
+            return                          # still the previous run, in flight
         self.samples.append(ReceivedSample(m.t, m.fallen))
         if self.run is not None:
             self.run.add_measurement(m)
@@ -287,10 +327,8 @@ class Observer:
         except WireFormatError:
             return
         state = ObservedState(stamp_ns / 1e9, monitor_state)
-        if self._skip_old_states:
-            if state.t >= NEW_RUN_T_S:
-                return
-            self._skip_old_states = False
+        if not self._run_boundary.take_state(state.t):
+            return
         self.states.append(state)
         if self.run is not None:
             self.run.add_state(state)
@@ -364,7 +402,7 @@ class Observer:
         self.samples.clear()
         self.states.clear()
         self.modes.clear()
-        self._skip_old_samples = self._skip_old_states = True
+        self._run_boundary.reset()
         if self.pause_client.service_is_ready():
             self.call(self.pause_client, SetBool.Request(data=True))
             self.spin_for(0.05)             # let the last samples of the old run arrive
