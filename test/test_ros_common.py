@@ -5,6 +5,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import time
 
 import pytest
 
@@ -124,3 +125,67 @@ def test_an_unknown_executor_is_refused_in_words() -> None:
     done = _run('shutdown', 'multi')
     assert done.returncode == 1
     assert "FALL_PREDICTOR_EXECUTOR='multi' is not an executor" in done.stderr
+
+
+# A node that leaves behind an object whose finalizer never returns, as deleting a Fast DDS
+# participant did not when it livelocked with discovery threads while other processes left.
+_STUCK_TEARDOWN = textwrap.dedent('''
+    import sys
+    import threading
+    from rclpy.node import Node
+    from fall_predictor.ros.parameters import NodeStartupError
+    from fall_predictor.ros.runner import run_nodes
+
+    class Stuck:
+        def __init__(self, node):
+            self.node, node.stuck = node, self      # a cycle: freed by the collector
+        def __del__(self):
+            threading.Event().wait()
+
+    class StuckNode(Node):
+        def __init__(self):
+            super().__init__('stuck_teardown')
+            Stuck(self)
+            if sys.argv[1] == 'refuse':
+                raise NodeStartupError('no usable model: the reason')
+            print('started', file=sys.stderr, flush=True)
+
+    raise SystemExit(run_nodes((StuckNode,), 'stuck_teardown', []))
+''')
+
+
+def test_a_node_that_cannot_start_exits_even_if_its_teardown_hangs() -> None:
+    """The node that failed in its constructor is torn down under the bound: exit code 1 after
+    TEARDOWN_TIMEOUT_S, its FATAL line the only output (no stack dump)."""
+    from fall_predictor.ros.runner import TEARDOWN_TIMEOUT_S
+    started = time.monotonic()
+    done = subprocess.run([sys.executable, '-c', _STUCK_TEARDOWN, 'refuse'],
+                          env=ros_environment(test_domain_id(170)), capture_output=True,
+                          text=True, timeout=60)
+    elapsed_s = time.monotonic() - started
+    assert done.returncode == 1, done.stderr
+    assert TEARDOWN_TIMEOUT_S <= elapsed_s < TEARDOWN_TIMEOUT_S + 20.0
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1 and '[FATAL]' in lines[0], done.stderr
+    assert 'cannot start: no usable model: the reason' in lines[0]
+
+
+def test_a_teardown_that_hangs_at_interpreter_exit_ends_with_its_stacks() -> None:
+    """After a normal stop the bound lasts through the interpreter's shutdown (where the
+    collector frees the node's cycle): exit code 1 and every thread's stack on stderr."""
+    from fall_predictor.ros.runner import TEARDOWN_TIMEOUT_S
+    process = subprocess.Popen([sys.executable, '-c', _STUCK_TEARDOWN, 'run'],
+                               env=ros_environment(test_domain_id(170)),
+                               stderr=subprocess.PIPE, text=True)
+    try:
+        assert process.stderr.readline().strip() == 'started'
+        process.send_signal(signal.SIGINT)
+        started = time.monotonic()
+        assert process.wait(timeout=60) == 1
+        elapsed_s = time.monotonic() - started
+        log = process.stderr.read()
+    finally:
+        process.kill()
+        process.stderr.close()
+    assert TEARDOWN_TIMEOUT_S <= elapsed_s < TEARDOWN_TIMEOUT_S + 20.0
+    assert 'Timeout (' in log and 'in __del__' in log, log

@@ -1,8 +1,11 @@
 """The ``main()`` of every node: create the nodes of a process and spin them until shutdown."""
 from __future__ import annotations
 
+import faulthandler
+import gc
 import os
 import signal
+import sys
 import time
 from collections.abc import Sequence
 from typing import Callable, Optional
@@ -46,6 +49,32 @@ def make_executor(kind: Optional[str] = None) -> Executor:
 
 #: Longest wait [s] of one spin: a stop request is seen within this.
 _SPIN_PERIOD_S = 0.1
+
+#: Wall time [s] the DDS teardown of a node process may take once its nodes are destroyed
+#: (:func:`_bound_teardown`); milliseconds normally.
+TEARDOWN_TIMEOUT_S = 5.0
+#: Where a hung teardown's stacks go when the process is already stopping because a node could
+#: not start (its FATAL line says why; kept open for faulthandler's thread).
+_QUIET_DUMP = None
+
+
+def _bound_teardown(quiet: bool) -> None:
+    """End the process (exit code 1) if what remains of its exit takes longer than
+    :data:`TEARDOWN_TIMEOUT_S`, interpreter shutdown included.
+
+    Deleting a Fast DDS 2.14 participant can livelock with its discovery threads when other
+    processes of the domain leave at the same moment (seen: six node processes refusing to start
+    together; the main thread spins in ``DomainParticipant::set_listener`` under
+    ``rmw_destroy_node`` while a receive thread waits in a discovery callback). That wait holds
+    the GIL, so the watchdog is faulthandler's C thread; it writes every thread's Python stack
+    to stderr (``quiet``: nowhere) and calls ``_exit(1)``. Armed only after the nodes are
+    destroyed: a recorder drains its queue in ``destroy_node``, and that must not be cut short.
+    """
+    global _QUIET_DUMP
+    if quiet and _QUIET_DUMP is None:
+        _QUIET_DUMP = open(os.devnull, 'w')        # noqa: SIM115 (open until the process ends)
+    faulthandler.dump_traceback_later(TEARDOWN_TIMEOUT_S, exit=True,
+                                      file=_QUIET_DUMP if quiet else sys.stderr)
 
 
 class StopRequest:
@@ -98,22 +127,30 @@ def run_nodes(factories: Sequence[Callable[[], Node]], name: str,
     """Create one node per factory in this process and spin them all with one executor
     (:func:`make_executor`: the callbacks of all nodes run in turn, no threads), until
     Ctrl-C / SIGTERM / shutdown. Exit code as :func:`run_node`; if one node cannot start,
-    none runs."""
+    none runs.
+
+    The body of a node process: once its nodes are destroyed, the rest of the process's exit
+    is bounded by :data:`TEARDOWN_TIMEOUT_S` (:func:`_bound_teardown`; exit code 1 if it
+    hangs), through the interpreter's own shutdown.
+    """
     stop = StopRequest()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop.install()
     nodes: list[Node] = []
+    could_not_start = False
     try:
         try:
             for factory in factories:
                 nodes.append(factory())
         except NodeStartupError as error:
             rclpy.logging.get_logger(name).fatal(f'cannot start: {error}')
+            could_not_start = True
             return 1
         try:
             kind = executor_kind()
         except NodeStartupError as error:
             rclpy.logging.get_logger(name).fatal(f'cannot start: {error}')
+            could_not_start = True
             return 1
         if kind == 'events' and any(list(node.guards) for node in nodes):
             # This rclpy's EventsExecutor refuses guard conditions ("Guard conditions not
@@ -139,6 +176,10 @@ def run_nodes(factories: Sequence[Callable[[], Node]], name: str,
     finally:
         for node in nodes:
             node.destroy_node()
+        _bound_teardown(quiet=could_not_start)
+        # A node that failed in its constructor is torn down here, under the bound, rather
+        # than by the collector at interpreter exit.
+        gc.collect()
         rclpy.try_shutdown()
 
 
