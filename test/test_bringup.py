@@ -106,9 +106,11 @@ def test_record_live_with_c_bal_throughout_then_import_and_train(tmp_path: Path)
         assert row.force_n == pytest.approx(result['push']['force_n'], rel=1e-6)
         assert row.fallen == result['fell']
         if row.fallen:
-            # The bag holds every sample; the bring-up's own observer may see the fall a few
-            # samples late when its queue overflows on a saturated machine, never early.
-            assert row.t_fallen - 1e-9 <= result['t_fallen'] <= row.t_fallen + 0.005
+            # The bring-up's own observer sees the fall when the bag does, unless it lost
+            # samples (its queue overflows on a saturated machine): then late by at most what it
+            # lost, never early.
+            late_s = result['t_fallen'] - row.t_fallen
+            assert -1e-9 <= late_s <= 0.001 * result['observer_lost_samples'] + 1e-9, result
     assert cli_main(['train', '--data', str(tmp_path / 'data'), '--tau-plus=0', '--out',
                      str(tmp_path / 'trained.json')]) == 0
     lists, metadata = load_model(tmp_path / 'trained.json')

@@ -120,26 +120,45 @@ def test_a_run_report_keeps_why_its_states_were_unusable() -> None:
         **{f'joint j{k} stuck': f'joint j{k} stuck' for k in range(MAX_REASONS - 2)}}
 
 
-def test_a_new_run_begins_where_its_streams_restart_even_when_its_first_states_were_lost() -> None:
-    """After a reset the previous run's messages still in flight are dropped: the measurements
-    from their first sample stamped near 0; the states from theirs, or, when the monitor lost
-    the new run's first half second (its inputs are best effort), from the first state the new
-    run's measurements have reached (the monitor cannot be ahead of the simulator)."""
+def test_a_new_run_begins_where_its_stream_goes_back_in_time_even_without_its_first_messages(
+) -> None:
+    """After a reset the previous run's messages still in flight are dropped; each stream (one
+    writer, in order) begins the new run at its first message stamped before the latest one
+    received, or before NEW_RUN_T_S: an observer that lost the new run's first half second
+    (its queue overflowed) or a monitor that did (best-effort inputs) still follows the run."""
     from fall_predictor.ros.observer import NEW_RUN_T_S, RunBoundary
     boundary = RunBoundary()
     assert boundary.take_sample(3.2) and boundary.take_state(3.2)   # a first run: all taken
     boundary.reset()
-    # The old run's last samples and states, in flight.
-    assert not boundary.take_sample(3.3) and not boundary.take_state(3.25)
-    assert [boundary.take_sample(0.001 * k) for k in range(1, 801)] == [True] * 800
-    assert not boundary.take_state(3.3)                 # still the old run: 3.3 s > 0.8 s
-    assert boundary.take_state(NEW_RUN_T_S + 0.2)       # no state before 0.7 s arrived
-    assert boundary.take_state(3.4)                     # from here on, the new run's
+    # The old run's last messages, in flight, only go forward: dropped.
+    assert not boundary.take_sample(3.201) and not boundary.take_sample(3.202)
+    assert not boundary.take_state(3.201)
+    # The new run's first 0.7 s of states were lost: its first state, 0.7 s, goes back in time.
+    assert boundary.take_sample(0.001) and boundary.take_sample(0.002)
+    assert boundary.take_state(NEW_RUN_T_S + 0.2) and boundary.take_state(3.4)
+    assert boundary.take_sample(3.4)                    # and the rest of the run
     boundary.reset()
     assert boundary.take_state(0.001)                   # the usual case: stamped near 0
-    assert boundary.take_state(NEW_RUN_T_S)             # and the rest of the run
+    assert not boundary.take_sample(3.41)               # this stream's old run, in flight
+    boundary = RunBoundary()
+    assert boundary.take_sample(0.3)                    # the first run, with no latest stamp
     boundary.reset()
-    assert not boundary.take_state(NEW_RUN_T_S)         # no new measurement yet: not known
+    assert not boundary.take_state(NEW_RUN_T_S)         # a state forward of all received ones
+
+
+def test_a_run_report_counts_the_samples_its_observer_missed() -> None:
+    """Gaps in the 1 kHz stamps the observer received are its own losses; its ``t_fallen`` is
+    the first fallen sample it received (late by at most what it lost)."""
+    from fall_predictor.ros.observer import RunObservation
+    run = RunObservation(PushSpec(100.0, 0.0, 0.1, 2.5))
+    first = run_trajectory(None, 0.001).measurements[0]
+    received = [1, 2, 3, 7, 8, 108, 109]               # ms: 3 lost, then 99 (the fall at 0.010)
+    for ms in received:
+        run.add_measurement(dataclasses.replace(first, t=ms / 1000.0, non_foot_contact=ms >= 10))
+    report = run.result(0, 4.0, 'balance')
+    assert report['observer_lost_samples'] == 3 + 99
+    assert report['t_fallen'] == 0.108 and report['t_end'] == 0.109
+
 
 def test_param_spec_checks_type_finiteness_and_range() -> None:
     spec = ParamSpec('tau_his_s', 0.05, 'window [s]', 0.0, 2.0)

@@ -25,7 +25,10 @@ fallen). ``stopped_by`` is ``fallen`` or ``horizon``. ``degraded_states`` counts
 states without a prediction (degraded or stale) and ``degraded_reasons`` says why: each kind of
 reason in the state's own words, its measured values as ``#`` (a sample arriving 0.057 s and one
 0.081 s late are one kind), with its count; ``degraded_reason_examples`` gives the first reason of
-each kind in full.
+each kind in full. ``observer_lost_samples`` counts the measurements the bring-up's own observer
+missed (its queue of 1000 overflows if it lags a second of simulation behind, on a saturated
+machine): ``t_fallen`` is then late by up to the gap that hid the fall (the recorder counts its
+own gaps in its bag's metadata).
 
 Shutdown is ordered (simulator first, the recorder last so that it can drain) by SIGINT, then
 SIGTERM, then SIGKILL after timeouts; the node processes also get SIGTERM if this process dies

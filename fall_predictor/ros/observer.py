@@ -36,14 +36,14 @@ from fall_predictor.ros.runner import spin_until
 from fall_predictor.contract import messages
 from fall_predictor.contract.topics import (CONTROLLER_MODE, DIAGNOSTICS, MEASUREMENT,
                                             MONITOR_RESET_SERVICE, PAUSE_SERVICE, PUSH_REQUEST,
-                                            RESET_SERVICE, STATE, WireFormatError)
+                                            RESET_SERVICE, SIM_RATE_HZ, STATE, WireFormatError)
 from fall_predictor.monitor.fall_monitor import STATUS_DEGRADED, STATUS_STALE, MonitorState
 from fall_predictor.monitor.records import Measurement, PushSpec
 from fall_predictor.msg import FallState
 from fall_predictor.msg import Measurement as MeasurementMsg
 
-#: After a reset, a sample stamped before this [s] begins the new run (simulation time restarts
-#: at 0; the previous run's samples still in flight are stamped later).
+#: After a reset, a message stamped before this [s] begins the new run (simulation time
+#: restarts at 0; :class:`RunBoundary`).
 NEW_RUN_T_S = 0.5
 #: Node name of the observer unless its user names it.
 DEFAULT_NODE_NAME = 'fall_predictor_observer'
@@ -129,41 +129,36 @@ class RunBoundary:
     """Where the new run begins in the measurement and state streams after a reset.
 
     Simulation time restarts at 0 on a reset, and messages of the previous run may still be in
-    flight. The measurement stream (lossless, straight from the simulator) begins the new run
-    at its first sample stamped before :data:`NEW_RUN_T_S`. The states come from the monitor,
-    whose best-effort inputs may lose the new run's first half second when it falls behind the
-    unpaced simulation, so a state also begins the new run once the new run's measurements have
-    reached its stamp: the monitor cannot be ahead of the simulator. (An old state stamped no
-    later than the new run has already advanced would be taken too; the observer pauses and
-    drains before resetting, so none is in flight that long.)
+    flight. Each stream has one writer (the simulator, the predictor) and arrives in order, so
+    the new run begins at the first message stamped earlier than the latest one received: the
+    previous run's messages only go forward. A message stamped before :data:`NEW_RUN_T_S` also
+    begins it (the first run, or a previous run shorter than that). Neither test needs the new
+    run's first messages: an observer that fell more than its queue behind, or a monitor whose
+    best-effort inputs lost the new run's first half second, loses them.
     """
 
     def __init__(self) -> None:
-        self._in_new_run_samples = self._in_new_run_states = True
-        #: Latest sample time of the new run [s] (None: none yet).
-        self._t_new_run: Optional[float] = None
+        self._in_new_run = {'samples': True, 'states': True}
+        #: Per stream the latest stamp received [s], of whichever run.
+        self._t_latest = {'samples': -math.inf, 'states': -math.inf}
 
     def reset(self) -> None:
         """A reset was requested: drop the previous run's messages until the new run begins."""
-        self._in_new_run_samples = self._in_new_run_states = False
-        self._t_new_run = None
+        self._in_new_run = {'samples': False, 'states': False}
 
     def take_sample(self, t: float) -> bool:
         """Whether the measurement stamped ``t`` [s] belongs to the current run."""
-        if not self._in_new_run_samples:
-            if t >= NEW_RUN_T_S:
-                return False
-            self._in_new_run_samples = True
-        self._t_new_run = t if self._t_new_run is None else max(self._t_new_run, t)
-        return True
+        return self._take('samples', t)
 
     def take_state(self, t: float) -> bool:
         """Whether the state stamped ``t`` [s] belongs to the current run."""
-        if not self._in_new_run_states:
-            if t >= NEW_RUN_T_S and (self._t_new_run is None or t > self._t_new_run):
-                return False
-            self._in_new_run_states = True
-        return True
+        return self._take('states', t)
+
+    def _take(self, stream: str, t: float) -> bool:
+        if not self._in_new_run[stream] and (t < NEW_RUN_T_S or t < self._t_latest[stream]):
+            self._in_new_run[stream] = True
+        self._t_latest[stream] = t
+        return self._in_new_run[stream]
 
 
 @dataclass
@@ -185,9 +180,15 @@ class RunObservation:
     degraded_reason_examples: dict[str, str] = field(default_factory=dict)
     push_applied_n: Optional[list[float]] = None
     measurements_started: bool = False
+    #: Measurements this observer did not receive (gaps in the 1 kHz stamps): its reliable
+    #: queue overflowed while it lagged, so ``t_fallen`` may be late by up to a gap.
+    lost_samples: int = 0
 
     def add_measurement(self, m: Measurement) -> None:
         """Take one measurement of this run."""
+        if self.measurements_started:
+            missing = round((m.t - self.t_last) * SIM_RATE_HZ) - 1
+            self.lost_samples += max(missing, 0)
         self.measurements_started = True
         self.t_last = m.t
         if self.push_applied_n is None and m.push_force.any():
@@ -248,6 +249,7 @@ class RunObservation:
             'degraded_states': self.degraded_states,
             'degraded_reasons': dict(self.degraded_reasons),
             'degraded_reason_examples': dict(self.degraded_reason_examples),
+            'observer_lost_samples': self.lost_samples,
         }
 
 
