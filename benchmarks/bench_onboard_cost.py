@@ -70,7 +70,8 @@ def chain_for(profile, model: Path | None = None) -> OnboardChain:
                               layout.force_sensors)
     fallen = FallenConfig(profile.fallen_com_height_m, profile.guard_com_height_m)
     monitor = FallMonitor(lists, metadata.recommended_tau_his_s, fallen, settings.sample_period_s,
-                          settings.guard_com_height_m, profile.total_mass_kg)
+                          settings.guard_com_height_m, profile.total_mass_kg, metadata.time_to_fall,
+                          fall_direction=metadata.fall_direction)    # as the predictor node
     return OnboardChain(pipeline, settings, monitor)
 
 

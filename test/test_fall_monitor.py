@@ -128,3 +128,14 @@ def test_a_bad_configuration_is_refused():
         FallenConfig(0.5, 0.4)
     with pytest.raises(ValueError):
         FallenConfig(0.3, 0.5, unsupported_s=-1.0)
+
+
+def test_a_model_with_a_learned_direction_reports_it():
+    from fall_predictor.monitor.fall_direction import DIRECTION_INPUT_NAMES, LearnedDirection
+    from fall_predictor.monitor.time_to_fall import RegressionTree
+    turn = RegressionTree((-1,), (0.0,), (-1,), (-1,), (0.5,), n_inputs=len(DIRECTION_INPUT_NAMES))
+    m = monitor(tau_his_s=0.0, fall_direction=LearnedDirection((turn,)))
+    state, event = run(m, 0.0, 1, p_x=30.0)[0]                 # momentum along +x
+    assert state.falling and event.kind == EVENT_FALLING
+    assert state.fall_direction == pytest.approx((math.cos(0.5), math.sin(0.5)))
+    assert event.direction == state.fall_direction

@@ -197,15 +197,40 @@ def test_boosted_trees_round_trip_beside_lists(tmp_path):
     loaded, _ = load_model(path)
     assert loaded == lists and loaded.boosted and not example_lists().boosted
     document = json.loads(path.read_text())
-    assert document['schema_version'] == 4
+    assert document['schema_version'] == SCHEMA_VERSION
     assert document['lists'][3] == {'mode': document['contact_mode_names'][3],
                                     'boosted_trees': lists.lists[3].to_json()}
     document['lists'][3]['boosted_trees']['trees'][1]['threshold'][0] = 'x'
     path.write_text(json.dumps(document))
     with pytest.raises(ModelFileError, match=r'lists\[3\]\.boosted_trees: trees\[1\]'):
         load_model(path)
-    # A version-3 file has no boosted entries.
+    # A version-3 file has no boosted entries (nor a learned direction).
     document['schema_version'] = 3
+    del document['fall_direction']
     path.write_text(json.dumps(document))
     with pytest.raises(ModelFileError, match=r'lists\[3\]'):
         load_model(path)
+
+
+def test_a_learned_fall_direction_round_trips_and_version_4_files_still_load(tmp_path):
+    import dataclasses
+    from fall_predictor.monitor.fall_direction import DIRECTION_INPUT_NAMES, LearnedDirection
+    from fall_predictor.monitor.time_to_fall import RegressionTree
+    tree = RegressionTree((5, -1, -1), (0.01, 0.0, 0.0), (1, -1, -1), (2, -1, -1), (0.0, -0.2, 0.3),
+                          n_inputs=len(DIRECTION_INPUT_NAMES))
+    learned = LearnedDirection((tree,), bias=0.05)
+    path = tmp_path / 'model.json'
+    save_model(path, example_lists(), dataclasses.replace(example_metadata(), fall_direction=learned))
+    _, metadata = load_model(path)
+    assert metadata.fall_direction == learned
+    document = json.loads(path.read_text())
+    assert document['schema_version'] == SCHEMA_VERSION == 5
+    document['fall_direction']['trees'][0]['value'][1] = 'x'
+    path.write_text(json.dumps(document))
+    with pytest.raises(ModelFileError, match=r'fall_direction\.trees\[0\]'):
+        load_model(path)
+    # Version 4 has no learned direction: the monitor then gives the momentum's.
+    del document['fall_direction']
+    document['schema_version'] = 4
+    path.write_text(json.dumps(document))
+    assert load_model(path)[1].fall_direction is None

@@ -218,6 +218,38 @@ def test_boosted_models_decision_threshold_is_a_run_time_parameter_lists_have_no
                 Parameter('model_path', value=str(lists)), Parameter('decision_threshold', value=1.0)])
 
 
+def test_predictor_node_reports_the_models_learned_fall_direction(tmp_path: Path) -> None:
+    """A model with a learned direction (here a constant turn of 0.5 rad to the left): the
+    states and the FALLING event carry the momentum's direction turned by it."""
+    from fall_predictor.monitor.fall_direction import DIRECTION_INPUT_NAMES, LearnedDirection
+    from fall_predictor.monitor.model_file import load_model, save_model
+    from fall_predictor.monitor.time_to_fall import RegressionTree
+    path = write_momentum_model(tmp_path / 'model.json')
+    lists, metadata = load_model(path)
+    turn = RegressionTree((-1,), (0.0,), (-1,), (-1,), (0.5,), n_inputs=len(DIRECTION_INPUT_NAMES))
+    save_model(path, lists, dataclasses.replace(metadata, fall_direction=LearnedDirection((turn,))))
+    x = np.zeros(15)
+    x[2], x[3] = 0.59, MOMENTUM_THRESHOLD + 5.0              # falling forward
+    with ros_context(DOMAIN) as context:
+        node = PredictorNode(context=context, parameter_overrides=[
+            Parameter('model_path', value=str(path)), Parameter('max_sample_age_s', value=0.0)])
+        states, events = [], []
+        node._state_pub.publish = states.append
+        node._event_pub.publish = events.append
+        try:
+            for k in range(30):
+                node._on_features(messages.features_msg(ros_qos.TYPES, 10**9 + k * 10**6, x, 0))
+        finally:
+            node.destroy_node()
+    falling = [messages.fall_state_from_msg(m)[1] for m in states]
+    falling = [state for state in falling if state.falling]
+    assert falling and all(state.fall_direction == pytest.approx((math.cos(0.5), math.sin(0.5)))
+                           for state in falling)
+    assert len(events) == 1
+    assert (events[0].direction.x, events[0].direction.y) == pytest.approx(
+        (math.cos(0.5), math.sin(0.5)))
+
+
 def test_predictor_node_refuses_a_missing_model_in_process(tmp_path: Path) -> None:
     missing = tmp_path / 'nowhere.json'
     with ros_context(DOMAIN) as context:

@@ -1,4 +1,4 @@
-"""``fall-predictor train``, ``rules`` and ``evaluate``: models."""
+"""``fall-predictor train``, ``rules``, ``evaluate`` and ``fit-direction``: models."""
 from __future__ import annotations
 
 import argparse
@@ -87,7 +87,8 @@ def cmd_evaluate(args) -> int:
                                     jobs=args.jobs, skip_unreadable=args.skip_unreadable,
                                     progress=not args.json, time_to_fall=metadata.time_to_fall,
                                     robot_mass_kg=metadata.robot_mass_kg, state=state,
-                                    guard_com_height_m=metadata.feature_settings.guard_com_height_m)
+                                    guard_com_height_m=metadata.feature_settings.guard_com_height_m,
+                                    fall_direction=metadata.fall_direction)
         dataset_guard = dataset_guard_com_height_m(args.data)
     except (DatasetError, ModelFileError) as error:
         return _fail('evaluate', error)
@@ -129,6 +130,49 @@ def cmd_evaluate(args) -> int:
     for tid, error in evaluation.unreadable.items():
         lines.append(f'SKIPPED {tid}: {error}')
     _emit(args, payload, lines)
+    return 0
+
+
+def cmd_fit_direction(args) -> int:
+    import dataclasses
+
+    import numpy as np
+
+    from fall_predictor.data.dataset import DatasetError
+    from fall_predictor.learning.direction_training import (direction_errors_deg,
+                                                            fit_learned_direction, trigger_samples)
+    from fall_predictor.learning.training import load_dataset
+    from fall_predictor.monitor.fall_direction import momentum_direction
+    from fall_predictor.monitor.model_file import ModelFileError, load_model, save_model
+
+    try:
+        lists, metadata = load_model(args.model)
+        tau_his = metadata.recommended_tau_his_s
+        if tau_his is None:
+            return _fail('fit-direction', f'{args.model} recommends no tau_his: its triggers are '
+                                          'not defined')
+        state = argtypes.resolved_state(args)
+        report = load_dataset(args.data, args.jobs, progress=not args.json, state=state)
+        samples = trigger_samples(args.data, report.trajectories, lists, tau_his,
+                                  metadata.feature_settings.guard_com_height_m)
+        if samples.X.shape[0] == 0:
+            return _fail('fit-direction', f'{args.data}: the model triggers on no fall with a true '
+                                          'CoM to learn from (a recorded robot has none)')
+        learned = fit_learned_direction(samples, mirror=not args.no_mirror)
+        save_model(args.out, lists, dataclasses.replace(metadata, fall_direction=learned))
+    except (DatasetError, ModelFileError, ValueError) as error:
+        return _fail('fit-direction', error)
+    momentum, fitted = (direction_errors_deg(samples, d) for d in (momentum_direction, learned.direction))
+    payload = {'model': str(args.out), 'from_model': str(args.model), 'data': str(args.data),
+               'state': state, 'tau_his_s': tau_his, 'mirror': not args.no_mirror,
+               'triggers': int(samples.X.shape[0]), 'trees': len(learned.trees),
+               'in_sample_median_error_deg': {'momentum': float(np.median(momentum)),
+                                              'learned': float(np.median(fitted))}}
+    _emit(args, payload, [
+        f'wrote {args.out}: a learned fall direction ({len(learned.trees)} trees) fitted at '
+        f'{samples.X.shape[0]} triggers of {args.model} on {args.data} ({state} state)',
+        f'median error at those triggers (in sample): momentum {np.median(momentum):.1f} deg, '
+        f'learned {np.median(fitted):.1f} deg; evaluate it on held-out data'])
     return 0
 
 
@@ -189,3 +233,19 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help='leave out unreadable bags instead of failing')
     p.add_argument('--json', action='store_true', help='print one JSON object')
     p.set_defaults(func=cmd_evaluate)
+
+    p = sub.add_parser('fit-direction', help='add a learned fall direction to a model',
+                       description='Fit the fall direction the monitor reports (method §8b) at a model\'s '
+                                   'triggers on a development dataset: the momentum\'s direction turned by '
+                                   'an angle that boosted trees predict from the state seen from the '
+                                   'momentum, fitted on the falls and their mirror images; write the model '
+                                   'with it. Its decisions are unchanged. Exit code 2 if the model or the '
+                                   'dataset cannot be used (a dataset without the true CoM cannot).')
+    p.add_argument('--data', type=Path, required=True, help='development dataset directory')
+    p.add_argument('--model', type=Path, required=True, help='model file (JSON) whose triggers to use')
+    p.add_argument('--out', type=Path, required=True, help='model file to write (JSON)')
+    argtypes.add_state_argument(p)
+    p.add_argument('--no-mirror', action='store_true', help='fit without the mirror images')
+    p.add_argument('--jobs', type=argtypes.positive_int, default=1, help='processes loading features')
+    p.add_argument('--json', action='store_true', help='print one JSON object')
+    p.set_defaults(func=cmd_fit_direction)

@@ -21,19 +21,21 @@ import numpy as np
 from fall_predictor.learning.learners import RuleListLearner, _check_float, _check_int
 from fall_predictor.monitor.boosted_trees import BoostedTrees
 from fall_predictor.monitor.decision_list import DecisionList
-from fall_predictor.monitor.records import BALANCED, FALLING
+from fall_predictor.monitor.records import BALANCED, FALLING, N_FEATURES
 from fall_predictor.monitor.time_to_fall import RegressionTree
 
 
-def _exported_tree(nodes: np.ndarray) -> RegressionTree:
-    """One fitted HGB predictor's node array as a RegressionTree (leaf: feature -1)."""
+def exported_tree(nodes: np.ndarray, n_inputs: int = N_FEATURES) -> RegressionTree:
+    """One fitted HGB predictor's node array as a RegressionTree (leaf: feature -1) over
+    ``n_inputs`` inputs."""
     leaf = nodes['is_leaf'].astype(bool)
     return RegressionTree(
         feature=tuple(-1 if leaf[i] else int(nodes['feature_idx'][i]) for i in range(len(nodes))),
         threshold=tuple(0.0 if leaf[i] else float(nodes['num_threshold'][i]) for i in range(len(nodes))),
         left=tuple(-1 if leaf[i] else int(nodes['left'][i]) for i in range(len(nodes))),
         right=tuple(-1 if leaf[i] else int(nodes['right'][i]) for i in range(len(nodes))),
-        value=tuple(float(nodes['value'][i]) if leaf[i] else 0.0 for i in range(len(nodes))))
+        value=tuple(float(nodes['value'][i]) if leaf[i] else 0.0 for i in range(len(nodes))),
+        n_inputs=n_inputs)
 
 
 class BoostedTreesLearner(RuleListLearner):
@@ -96,5 +98,5 @@ class BoostedTreesLearner(RuleListLearner):
         model.fit(X, falling, sample_weight=w)
         self.estimator_ = model
         bias = float(np.ravel(model._baseline_prediction)[0])
-        trees = tuple(_exported_tree(iteration[0].nodes) for iteration in model._predictors)
+        trees = tuple(exported_tree(iteration[0].nodes) for iteration in model._predictors)
         self.trees_ = BoostedTrees(trees, bias, float(self.decision_threshold))

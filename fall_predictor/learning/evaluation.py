@@ -168,7 +168,8 @@ class ModelEvaluation:
     baselines: Optional[BaselineCurves] = None
     #: |predicted - true| time to fall [s] at the triggers: {median, p90, max, n}
     time_to_fall_error_s: Optional[dict[str, Any]] = None
-    #: capture-point fall direction's angular error [deg] at the triggers: {median, p90, max, n}
+    #: the model's fall direction's angular error [deg] at the triggers: {median, p90, max, n}
+    #: (its learned direction, else the momentum's: ``fall_direction``)
     direction_error_deg: Optional[dict[str, Any]] = None
     #: the same for the capture-point direction (the physical default, less accurate here)
     direction_error_deg_capture_point: Optional[dict[str, Any]] = None
@@ -176,17 +177,23 @@ class ModelEvaluation:
     guard_com_height_m: float = GUARD_COM_HEIGHT_M
     #: trajectories left out: not fallen, not settled at their horizon (id -> why; method §4)
     unsettled: dict[str, str] = field(default_factory=dict)
+    #: the same for the momentum's direction (the model's own when it has no learned one)
+    direction_error_deg_momentum: Optional[dict[str, Any]] = None
+    #: which direction ``direction_error_deg`` is: 'learned' or 'momentum'
+    fall_direction: str = 'momentum'
 
 
 def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: float,
                    baselines: bool = False, jobs: int = 1, skip_unreadable: bool = False,
                    progress: bool = False, time_to_fall: Optional[Any] = None,
                    robot_mass_kg: Optional[float] = None, state: str = 'true',
-                   guard_com_height_m: Optional[float] = None) -> ModelEvaluation:
+                   guard_com_height_m: Optional[float] = None,
+                   fall_direction: Optional[Any] = None) -> ModelEvaluation:
     """method §5 metrics of the predictor ``lists`` with history window ``tau_his_s`` [s] over
     every trajectory of ``data_dir``; with ``baselines``, the hand-coded baselines too.
     With a ``time_to_fall`` regressor and/or ``robot_mass_kg`` [kg], the time-to-fall and
-    fall-direction errors at the triggers (:mod:`fall_predictor.learning.when_where`).
+    fall-direction errors at the triggers (:mod:`fall_predictor.learning.when_where`): the
+    ``fall_direction`` (the model's learned one) when given, else the momentum's.
     ``state``: the features come from the true or the estimated state (data/dataset.py).
 
     The CoM guard is the model's, as on the robot, where the monitor runs a model with the
@@ -211,7 +218,7 @@ def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: f
     if baselines:
         distances = capture_point_distances_cached(data_dir, trajectories, jobs, progress, state)
         curves = baseline_curves(trajectories, distances, guard_com_height_m=guard)
-    ttf_error = direction_error = cp_error = None
+    ttf_error = direction_error = cp_error = momentum_error = None
     if time_to_fall is not None or robot_mass_kg is not None:
         from fall_predictor.learning import when_where
         triggers = when_where.trigger_indices(trajectories, lists, tau_his_s, guard)
@@ -219,12 +226,16 @@ def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: f
             ttf_error = when_where.summary(
                 when_where.time_to_fall_errors(trajectories, triggers, time_to_fall))
         if robot_mass_kg is not None:
-            direction_error, cp_error = (when_where.summary(when_where.direction_errors_deg(
+            momentum_error, cp_error = (when_where.summary(when_where.direction_errors_deg(
                 data_dir, trajectories, triggers, robot_mass_kg, name))
                 for name in ('momentum', 'capture_point'))
+            direction_error = momentum_error if fall_direction is None else when_where.summary(
+                when_where.direction_errors_deg(data_dir, trajectories, triggers, robot_mass_kg,
+                                                fall_direction.direction))
     return ModelEvaluation(result, float(tau_his_s), report.fingerprint, dict(report.errors),
                            curves, ttf_error, direction_error, cp_error, guard,
-                           dict(report.unsettled))
+                           dict(report.unsettled), momentum_error,
+                           'momentum' if fall_direction is None else 'learned')
 
 
 def evaluation_json(evaluation: ModelEvaluation) -> dict[str, Any]:
@@ -238,7 +249,9 @@ def evaluation_json(evaluation: ModelEvaluation) -> dict[str, Any]:
         'unsettled_left_out': evaluation.unsettled,
         'time_to_fall_error_s': evaluation.time_to_fall_error_s,
         'direction_error_deg': evaluation.direction_error_deg,
-        'direction_error_deg_capture_point': evaluation.direction_error_deg_capture_point}
+        'direction_error_deg_capture_point': evaluation.direction_error_deg_capture_point,
+        'direction_error_deg_momentum': evaluation.direction_error_deg_momentum,
+        'fall_direction': evaluation.fall_direction}
     if evaluation.baselines is not None:
         payload['baselines'] = {name: [curve_point_json(p) for p in pareto_front(curve)]
                                 for name, curve in evaluation.baselines.named().items()}

@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
-from typing import Any, Optional, Sequence, Union
+from typing import Any, Callable, Optional, Sequence, Union
 
 import numpy as np
 
@@ -128,10 +128,11 @@ def actual_directions(data_dir: PathLike, trajectories: Sequence[TrajectoryFeatu
 
 def direction_errors_deg(data_dir: PathLike, trajectories: Sequence[TrajectoryFeatures],
                          triggers: Sequence[Optional[int]], mass_kg: float,
-                         direction: str = 'momentum') -> list[float]:
-    """Angular error [deg] of a predicted fall direction (a name of :data:`DIRECTIONS`) at
-    each trigger."""
-    predict = DIRECTIONS[direction]
+                         direction: Union[str, Callable] = 'momentum') -> list[float]:
+    """Angular error [deg] of a predicted fall direction (a name of :data:`DIRECTIONS`, or a
+    function of the features and the mass such as a learned direction's ``direction``) at each
+    trigger."""
+    predict = DIRECTIONS[direction] if isinstance(direction, str) else direction
     errors = []
     for traj, k, actual in zip(trajectories, triggers, actual_directions(data_dir, trajectories, triggers)):
         if actual is None:
@@ -145,9 +146,14 @@ def direction_errors_deg(data_dir: PathLike, trajectories: Sequence[TrajectoryFe
 def when_where_lines(payload: dict[str, Any]) -> list[str]:
     """Text lines for the ``time_to_fall_error_s`` / ``direction_error_deg`` of an evaluation."""
     lines = []
-    for key, unit in (('time_to_fall_error_s', 's'), ('direction_error_deg', 'deg')):
+    for key, unit in (('time_to_fall_error_s', 's'), ('direction_error_deg', 'deg'),
+                      ('direction_error_deg_momentum', 'deg')):
         e = payload.get(key)
+        if key == 'direction_error_deg_momentum' and payload.get('fall_direction') != 'learned':
+            continue                        # the same as direction_error_deg
         if e is not None and e['n']:
-            lines.append(f'{key}: median {e["median"]:.3f} {unit}, p90 {e["p90"]:.3f}, max '
+            label = (f'{key} ({payload["fall_direction"]})' if key == 'direction_error_deg'
+                     and 'fall_direction' in payload else key)
+            lines.append(f'{label}: median {e["median"]:.3f} {unit}, p90 {e["p90"]:.3f}, max '
                          f'{e["max"]:.3f} over {e["n"]} triggers')
     return lines

@@ -43,10 +43,11 @@ def _tree_source(tree: RegressionTree, node: int, indent: str, lines: list[str])
     _tree_source(tree, tree.right[node], indent + '    ', lines)
 
 
-def _compile_score_one(trees: Sequence[RegressionTree], bias: float
-                       ) -> Callable[[Sequence[float]], float]:
-    """The score as one Python function (validated numbers only: feature indices and ``repr`` of
-    finite floats, which read back bit for bit)::
+def compile_tree_sum(trees: Sequence[RegressionTree], bias: float, n_inputs: int = N_FEATURES
+                     ) -> Callable[[Sequence[float]], float]:
+    """``bias`` plus the trees' leaves for one input vector of ``n_inputs`` values, as one Python
+    function (validated numbers only: feature indices and ``repr`` of finite floats, which read
+    back bit for bit)::
 
         def score_one(x):
             x0, x1, ..., x14 = x
@@ -58,7 +59,7 @@ def _compile_score_one(trees: Sequence[RegressionTree], bias: float
             return s
     """
     lines = ['def score_one(x):',
-             '    ' + ', '.join(f'x{i}' for i in range(N_FEATURES)) + ' = x',
+             '    ' + ''.join(f'x{i}, ' for i in range(n_inputs)) + '= x',
              f'    s = {float(bias)!r}']
     for tree in trees:
         _tree_source(tree, 0, '    ', lines)
@@ -91,7 +92,7 @@ class BoostedTrees:
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise BoostedTreesError(f'{name} must be a finite number, got {value!r}')
             object.__setattr__(self, name, float(value))
-        object.__setattr__(self, '_score_one', _compile_score_one(self.trees, self.bias))
+        object.__setattr__(self, '_score_one', compile_tree_sum(self.trees, self.bias))
         object.__setattr__(self, '_arrays', tuple(
             tuple(np.asarray(getattr(tree, k)) for k in ('feature', 'threshold', 'left', 'right', 'value'))
             for tree in self.trees))

@@ -9,9 +9,11 @@ and it runs the same offline. Per sample of features it gives a :class:`MonitorS
   lists or boosted trees, the ``tau_his`` window, the CoM guard);
 * **trigger**: ``latched`` from the first falling prediction until :meth:`FallMonitor.reset`, the
   only way to undo it; a new run (a clock jump), a degraded or stale sample never undoes it;
-* **direction**: the heading-frame direction of the horizontal momentum at each falling sample
-  (:func:`~fall_predictor.monitor.fall_direction.momentum_direction`); **time to fall** from the
-  model's regressor when it has one, clamped to [0, 1000] s (NaN otherwise);
+* **direction**: the heading-frame fall direction at each falling sample: the model's learned
+  direction when it has one (:class:`~fall_predictor.monitor.fall_direction.LearnedDirection`),
+  else the horizontal momentum's (:func:`~fall_predictor.monitor.fall_direction.momentum_direction`);
+  **time to fall** from the model's regressor when it has one, clamped to [0, 1000] s (NaN
+  otherwise);
 * **fallen**: the robot is down when its CoM is below ``fallen_com_height_m`` above the support, or
   its floating base is tilted beyond ``fallen_tilt_rad`` (method §4), or no foot has touched the
   ground for ``unsupported_s`` (lying on its back, or carried); it stands again when a foot is on
@@ -32,7 +34,7 @@ from dataclasses import dataclass
 from typing import Optional, Sequence
 
 from fall_predictor.monitor.decision_list import PerModeDecisionLists
-from fall_predictor.monitor.fall_direction import momentum_direction
+from fall_predictor.monitor.fall_direction import LearnedDirection, momentum_direction
 from fall_predictor.monitor.contact_modes import ContactMode
 from fall_predictor.monitor.predictor import COM_HEIGHT_FEATURE, OnlinePredictor
 
@@ -108,6 +110,7 @@ class FallMonitor:
     """Features in, :class:`MonitorState` (and :class:`FallEvent` s) out; see the module docs.
 
     ``time_to_fall``: an object with ``predict_one(x, mode)`` (the model's regressor) or None;
+    ``fall_direction``: the model's learned direction or None (the momentum's direction);
     ``mass_kg``: the robot's mass (the momentum's direction does not depend on it, its capture
     point would).
     """
@@ -115,12 +118,14 @@ class FallMonitor:
     def __init__(self, lists: PerModeDecisionLists, tau_his_s: float, fallen: FallenConfig,
                  dt_s: float = 0.001, guard_com_height_m: Optional[float] = None,
                  mass_kg: float = 1.0, time_to_fall: Optional[object] = None,
-                 max_gap_s: float = 0.1) -> None:
+                 max_gap_s: float = 0.1, fall_direction: Optional[LearnedDirection] = None
+                 ) -> None:
         kwargs = {} if guard_com_height_m is None else {'guard_com_height_m': guard_com_height_m}
         self.predictor = OnlinePredictor(lists, tau_his_s, dt_s, **kwargs)
         self.fallen_config = fallen
         self.mass_kg = float(mass_kg)
         self.time_to_fall = time_to_fall
+        self.direction_of = momentum_direction if fall_direction is None else fall_direction.direction
         self.max_gap_s = float(max_gap_s)
         self.enabled = True
         self.reset()
@@ -203,7 +208,7 @@ class FallMonitor:
         out = self.predictor.step(t, values, mode)
         direction, time_to_fall_s = _NAN2, math.nan
         if out.falling:
-            d = momentum_direction(values, self.mass_kg)
+            d = self.direction_of(values, self.mass_kg)
             direction = (float(d[0]), float(d[1]))
             if self.time_to_fall is not None:
                 time_to_fall_s = min(max(float(self.time_to_fall.predict_one(values, mode)), 0.0),

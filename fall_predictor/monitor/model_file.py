@@ -1,6 +1,6 @@
 """The model file: a learned predictor's decision lists and provenance as plain JSON.
 
-Layout (schema ``fall_predictor.decision_lists``, version 4)::
+Layout (schema ``fall_predictor.decision_lists``, version 5)::
 
     {
       "schema": "fall_predictor.decision_lists",
@@ -22,8 +22,13 @@ Layout (schema ``fall_predictor.decision_lists``, version 4)::
       "dataset_fingerprint": "...",
       "created": {"utc": "2025-01-01T00:00:00Z", "package_version": "0.1.0"},
       "robot_mass_kg": <kg>,                                  # the training robot's; or null (version 3)
-      "time_to_fall": {"trees": [...16, tree or null], "fallback": tree}   # or null (version 3)
+      "time_to_fall": {"trees": [...16, tree or null], "fallback": tree},  # or null (version 3)
+      "fall_direction": {"inputs": [...8 names], "bias": 0.0, "trees": [tree, ...]}  # or null (5)
     }
+
+Version 5 added ``fall_direction``: a learned fall direction
+(:class:`~fall_predictor.monitor.fall_direction.LearnedDirection`, returned as
+``metadata.fall_direction``; None: the monitor gives the momentum's direction).
 
 Version 4 lets a mode's entry be boosted trees instead of a list (method §8a;
 :mod:`fall_predictor.monitor.boosted_trees`): ``{"mode": "LR-INSIDE", "boosted_trees":
@@ -58,15 +63,16 @@ from fall_predictor.monitor.fileio import atomic_output, read_regular_file
 from fall_predictor.monitor.decision_list import (COMPARISON_OPS, Condition, DecisionList,
                                           PerModeDecisionLists, Rule)
 from fall_predictor.monitor.boosted_trees import BoostedTrees, BoostedTreesError
+from fall_predictor.monitor.fall_direction import FallDirectionError, LearnedDirection
 from fall_predictor.monitor.time_to_fall import TimeToFallError, TimeToFallRegressor
 from fall_predictor.monitor.records import (BALANCED, CLASS_NAMES, CONTACT_MODE_NAMES, FALLING,
                                     FEATURE_NAMES, N_CONTACT_MODES, N_FEATURES)
 
 SCHEMA_NAME = 'fall_predictor.decision_lists'
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
 #: Older versions this reader still accepts (version 2: no robot mass, no time to fall;
-#: version 3: decision lists only).
-SUPPORTED_SCHEMA_VERSIONS = (2, 3, 4)
+#: version 3: decision lists only; version 4: no learned fall direction).
+SUPPORTED_SCHEMA_VERSIONS = (2, 3, 4, 5)
 #: Values of ``training.state`` (optional; absent = 'true').
 TRAINING_STATES = ('true', 'estimated')
 _CLASS_BY_NAME = {CLASS_NAMES[BALANCED]: BALANCED, CLASS_NAMES[FALLING]: FALLING}
@@ -113,6 +119,8 @@ class ModelMetadata:
     state: str = 'true'
     #: Trained on the trajectories and their left-right mirror images.
     mirror: bool = False
+    #: The learned fall direction (None: the momentum's direction).
+    fall_direction: Optional[LearnedDirection] = field(default=None, compare=False)
 
 
 def _classifier_document(mode_name: str, classifier: DecisionList | BoostedTrees) -> dict[str, Any]:
@@ -148,6 +156,8 @@ def _model_document(lists: PerModeDecisionLists, metadata: ModelMetadata) -> dic
         'created': {'utc': metadata.created_utc, 'package_version': metadata.package_version},
         'robot_mass_kg': metadata.robot_mass_kg,
         'time_to_fall': None if metadata.time_to_fall is None else metadata.time_to_fall.to_json(),
+        'fall_direction': (None if metadata.fall_direction is None
+                           else metadata.fall_direction.to_json()),
     }
 
 
@@ -168,7 +178,7 @@ def save_model(path: PathLike, lists: PerModeDecisionLists, metadata: ModelMetad
         temporary.write_text(text, encoding='utf-8')
 
 
-#: Largest model file read [bytes] by default: the shipped model is ~0.1 MB; a file far
+#: Largest model file read [bytes] by default: the shipped models are 0.4-1.3 MB; a file far
 #: larger is not a model, and reading it would cost the node memory and start-up time.
 DEFAULT_MAX_MODEL_BYTES = 20_000_000
 
@@ -254,7 +264,8 @@ def _parse_model(text: str, path: Path) -> tuple[PerModeDecisionLists, ModelMeta
     read.object(document, 'top level', ('schema', 'schema_version', 'feature_names',
                                          'contact_mode_names', 'lists', 'features', 'training',
                                          'recommended_tau_his_s', 'dataset_fingerprint', 'created')
-                + (('robot_mass_kg', 'time_to_fall') if version >= 3 else ()))
+                + (('robot_mass_kg', 'time_to_fall') if version >= 3 else ())
+                + (('fall_direction',) if version >= 5 else ()))
     mass = document.get('robot_mass_kg')
     if mass is not None:
         mass = read.number(mass, 'robot_mass_kg')
@@ -266,6 +277,12 @@ def _parse_model(text: str, path: Path) -> tuple[PerModeDecisionLists, ModelMeta
             time_to_fall = TimeToFallRegressor.from_json(time_to_fall)
         except TimeToFallError as error:
             raise read.fail('time_to_fall', str(error)) from error
+    fall_direction = document.get('fall_direction')
+    if fall_direction is not None:
+        try:
+            fall_direction = LearnedDirection.from_json(fall_direction, 'fall_direction')
+        except FallDirectionError as error:
+            raise read.fail('fall_direction', str(error)) from error
     if document['feature_names'] != list(FEATURE_NAMES):
         raise read.fail('feature_names', f'expected {list(FEATURE_NAMES)}, got {document["feature_names"]!r}')
     if document['contact_mode_names'] != list(CONTACT_MODE_NAMES):
@@ -354,5 +371,6 @@ def _parse_model(text: str, path: Path) -> tuple[PerModeDecisionLists, ModelMeta
         recommended_tau_his_s=tau_his, sample_stride=stride, feature_settings=feature_settings,
         created_utc=read.string(created['utc'], 'created.utc'),
         package_version=read.string(created['package_version'], 'created.package_version'),
-        robot_mass_kg=mass, time_to_fall=time_to_fall, state=state, mirror=mirror)
+        robot_mass_kg=mass, time_to_fall=time_to_fall, state=state, mirror=mirror,
+        fall_direction=fall_direction)
     return PerModeDecisionLists(tuple(lists)), metadata

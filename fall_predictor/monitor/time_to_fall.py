@@ -19,7 +19,7 @@ otherwise. Node 0 is the root.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Optional, Sequence
 
 from fall_predictor.monitor.records import N_CONTACT_MODES, N_FEATURES
@@ -40,6 +40,9 @@ class RegressionTree:
     left: tuple[int, ...]
     right: tuple[int, ...]
     value: tuple[float, ...]
+    #: Length of the input vector a walk reads (feature indices must be below it): the 15
+    #: features unless the tree reads other inputs (the learned fall direction's).
+    n_inputs: int = field(default=N_FEATURES, compare=False)
 
     def __post_init__(self) -> None:
         n = len(self.feature)
@@ -52,8 +55,8 @@ class RegressionTree:
                 raise TimeToFallError(f'node {i}: non-finite threshold or value')
             if f == -1:
                 continue
-            if not 0 <= f < N_FEATURES:
-                raise TimeToFallError(f'node {i}: feature index {f} not in [0, {N_FEATURES})')
+            if not 0 <= f < self.n_inputs:
+                raise TimeToFallError(f'node {i}: feature index {f} not in [0, {self.n_inputs})')
             # Children come after their parent: the walk always ends, on a leaf.
             if not (i < self.left[i] < n and i < self.right[i] < n):
                 raise TimeToFallError(f'node {i}: children {self.left[i]}, {self.right[i]} '
@@ -79,13 +82,13 @@ class RegressionTree:
         return {k: list(getattr(self, k)) for k in _KEYS}
 
     @classmethod
-    def from_json(cls, doc: Any, where: str) -> 'RegressionTree':
+    def from_json(cls, doc: Any, where: str, n_inputs: int = N_FEATURES) -> 'RegressionTree':
         if not isinstance(doc, dict) or set(doc) != set(_KEYS):
             raise TimeToFallError(f'{where}: expected an object with keys {list(_KEYS)}')
         try:
             ints = {k: tuple(_int(v) for v in doc[k]) for k in ('feature', 'left', 'right')}
             floats = {k: tuple(_float(v) for v in doc[k]) for k in ('threshold', 'value')}
-            return cls(**ints, **floats)
+            return cls(**ints, **floats, n_inputs=n_inputs)
         except (TypeError, TimeToFallError) as error:
             raise TimeToFallError(f'{where}: {error}') from error
 

@@ -168,7 +168,8 @@ class PredictorNode(MonitorLifecycleNode):
                 f'weighs {profile.total_mass_kg:.1f} kg: its alarms are those of another robot')
         self._monitor = FallMonitor(lists, float(tau_his_s), fallen_config_for(robot),
                                     settings.sample_period_s, settings.guard_com_height_m,
-                                    float(mass_kg), getattr(metadata, 'time_to_fall', None))
+                                    float(mass_kg), getattr(metadata, 'time_to_fall', None),
+                                    fall_direction=getattr(metadata, 'fall_direction', None))
         self._timeline.reset()
         self._model_description = (f'{p["model_path"] or "the shipped model"} (mean rule size '
                                    f'{lists.mean_rule_size:.1f}, tau_plus {metadata.tau_plus_s} s)')
