@@ -19,6 +19,8 @@ $FP sweep --data data/d1000s --out docs/sweep_wide_mirror --jobs "$JOBS" --mirro
   --no-capture-point --tau-plus=-2,-1.5,-1.25,-1,-0.75,-0.5,-0.25,0,0.25,0.5,0.75 \
   --tau-his 0,0.004,0.008,0.016,0.03,0.044,0.06,0.08,0.1,0.15,0.2,0.3 --no-learning-curve --json > /dev/null
 $FP train --data data/d1000s --mirror --tau-plus=-0.25 --tau-his-recommended 0.06 --out models/default_model.json --jobs "$JOBS"
+# Its learned fall direction (method §8b), fitted at its triggers on the development set.
+$FP fit-direction --data data/d1000s --model models/default_model.json --out models/default_model.json --jobs "$JOBS" --json
 .venv/bin/python scripts/model_evaluation.py --sweep docs/sweep_wide_mirror/sweep.json --model models/default_model.json \
   --out models/default_model.evaluation.json \
   --dataset-command "fall-predictor generate --trajectories 1000 --seed 0 --out data/d1000s --sensor-noise 1 --jobs 2"
