@@ -30,11 +30,12 @@ from fall_predictor.data.dataset import robot_total_mass_kg
 from fall_predictor.learning.direction_training import (DIRECTION_LEARNER_PARAMS, DirectionSamples,
                                                         direction_errors_deg, fit_learned_direction,
                                                         trigger_samples)
-from fall_predictor.learning.intervals import bootstrap_quantile_interval
 from fall_predictor.learning.training import load_dataset
 from fall_predictor.monitor.fall_direction import (DIRECTION_INPUT_NAMES, capture_point_direction,
                                                    momentum_direction)
 from fall_predictor.monitor.model_file import load_model
+
+from bench_time_to_fall import spread      # median and p90 with bootstrap intervals
 
 VARIANTS = {
     'shipped settings': {},
@@ -43,14 +44,6 @@ VARIANTS = {
     'depth 2': {'max_depth': 2},
     '40 a leaf': {'min_samples_leaf': 40},
 }
-
-
-def spread(errors) -> dict:
-    """Median and p90 [deg] with bootstrap 95 % intervals (one error per trajectory)."""
-    e = np.asarray(errors, dtype=float)
-    return {'n': int(e.size), 'median': float(np.median(e)),
-            'median_ci95': bootstrap_quantile_interval(e, 0.5),
-            'p90': float(np.percentile(e, 90)), 'p90_ci95': bootstrap_quantile_interval(e, 0.9)}
 
 
 def cross_validated(samples: DirectionSamples, repeats: int, **fit) -> dict[str, float]:
