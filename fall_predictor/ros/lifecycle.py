@@ -35,6 +35,8 @@ class MonitorLifecycleNode(LifecycleNode):
         self.active = False
         #: Why the last configure failed (None: it did not).
         self.startup_error: Optional[NodeStartupError] = None
+        # Configuring at start-up: a failure stops the process with one FATAL line (the runner's).
+        self._autostarting = False
 
     # -- what a subclass does ----------------------------------------------------------------
     def _configure(self) -> None:
@@ -56,7 +58,8 @@ class MonitorLifecycleNode(LifecycleNode):
             self._configure()
         except NodeStartupError as error:
             self.startup_error = error
-            self.get_logger().error(f'cannot configure: {error}')
+            if not self._autostarting:      # at start-up the process's FATAL line says it
+                self.get_logger().error(f'cannot configure: {error}')
             return TransitionCallbackReturn.FAILURE
         self.startup_error = None
         return TransitionCallbackReturn.SUCCESS
@@ -87,6 +90,11 @@ class MonitorLifecycleNode(LifecycleNode):
         if not autostart:
             self.get_logger().info('waiting for the lifecycle manager (autostart false)')
             return
-        if self.trigger_configure() != TransitionCallbackReturn.SUCCESS:
+        self._autostarting = True
+        try:
+            configured = self.trigger_configure() == TransitionCallbackReturn.SUCCESS
+        finally:
+            self._autostarting = False
+        if not configured:
             raise NodeStartupError(str(self.startup_error))
         self.trigger_activate()

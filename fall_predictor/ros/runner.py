@@ -142,15 +142,13 @@ def run_nodes(factories: Sequence[Callable[[], Node]], name: str,
         try:
             for factory in factories:
                 nodes.append(factory())
-        except NodeStartupError as error:
-            rclpy.logging.get_logger(name).fatal(f'cannot start: {error}')
-            could_not_start = True
-            return 1
-        try:
             kind = executor_kind()
         except NodeStartupError as error:
-            rclpy.logging.get_logger(name).fatal(f'cannot start: {error}')
+            # Stopping from here: bounded already (the FATAL line goes to the console before
+            # its /rosout publish, which is DDS).
             could_not_start = True
+            _bound_teardown(quiet=True)
+            rclpy.logging.get_logger(name).fatal(f'cannot start: {error}')
             return 1
         if kind == 'events' and any(list(node.guards) for node in nodes):
             # This rclpy's EventsExecutor refuses guard conditions ("Guard conditions not
