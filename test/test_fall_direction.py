@@ -133,3 +133,10 @@ def test_the_fitted_direction_recovers_a_known_turn_and_is_odd_under_the_mirror(
     assert np.median(errors) == pytest.approx(0.4, abs=1e-9)
     with pytest.raises(ValueError, match='too few'):
         fit_learned_direction(_samples(9, seed=3))           # 18 with the mirror images
+
+
+def test_trees_over_the_15_features_are_not_a_learned_direction():
+    tree = RegressionTree((-1,), (0.0,), (-1,), (-1,), (0.5,))          # n_inputs 15
+    with pytest.raises(FallDirectionError, match='read the 8 direction inputs, got RegressionTree '
+                                                 'over 15 inputs'):
+        LearnedDirection((tree,))

@@ -130,8 +130,9 @@ class LearnedDirection:
         object.__setattr__(self, 'trees', tuple(self.trees))
         for tree in self.trees:
             if not isinstance(tree, RegressionTree) or tree.n_inputs != len(DIRECTION_INPUT_NAMES):
-                raise FallDirectionError(f'a learned direction\'s trees read the '
-                                         f'{len(DIRECTION_INPUT_NAMES)} direction inputs, got {tree!r}')
+                raise FallDirectionError(
+                    f'a learned direction\'s trees read the {len(DIRECTION_INPUT_NAMES)} direction '
+                    f'inputs, got {type(tree).__name__} over {getattr(tree, "n_inputs", "?")} inputs')
         if (isinstance(self.bias, bool) or not isinstance(self.bias, (int, float))
                 or not math.isfinite(self.bias)):
             raise FallDirectionError(f'bias must be a finite number, got {self.bias!r}')
