@@ -13,6 +13,10 @@ tau_his, estimated state):
    momentum's and the capture point's, at the test triggers: median and p90 angular error with
    95 % bootstrap intervals over trajectories.
 
+3. **A reference for the time to fall** (not shipped): the same learner on the same inputs fitted
+   on the time left at the development triggers (``t_fallen - t_k``), against the model's own
+   regressor and a constant (the development triggers' median), at the test triggers.
+
 Writes JSON (``--out``).
 
     python benchmarks/bench_fall_direction.py --dev data/d1000s --test data/t1000s_2026 \\
@@ -32,7 +36,7 @@ from fall_predictor.learning.direction_training import (DIRECTION_LEARNER_PARAMS
                                                         trigger_samples)
 from fall_predictor.learning.training import load_dataset
 from fall_predictor.monitor.fall_direction import (DIRECTION_INPUT_NAMES, capture_point_direction,
-                                                   momentum_direction)
+                                                   direction_inputs, momentum_direction)
 from fall_predictor.monitor.model_file import load_model
 
 from bench_time_to_fall import spread      # median and p90 with bootstrap intervals
@@ -44,6 +48,38 @@ VARIANTS = {
     'depth 2': {'max_depth': 2},
     '40 a leaf': {'min_samples_leaf': 40},
 }
+
+
+def time_left_at_triggers(trajectories, lists, tau_his_s: float, guard_m: float):
+    """Features (N, 15), contact modes (N,) and time left until fallen [s] (N,) at the in-time
+    triggers."""
+    from fall_predictor.learning.when_where import trigger_indices
+    rows = [(traj.X[k], int(traj.mode[k]), traj.t_fallen - traj.t[k])
+            for traj, k in zip(trajectories, trigger_indices(trajectories, lists, tau_his_s, guard_m))
+            if k is not None]
+    return (np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
+            np.array([r[2] for r in rows]))
+
+
+def time_to_fall_reference(dev, test, regressor) -> dict:
+    """Absolute time-to-fall errors [s] at the test triggers: boosting on the direction inputs
+    fitted at the development triggers, the model's regressor, a constant."""
+    from sklearn.ensemble import HistGradientBoostingRegressor
+
+    def inputs(X):
+        values = [direction_inputs(x.tolist()) for x in X]
+        return np.array([v if v is not None else (np.nan,) * len(DIRECTION_INPUT_NAMES)
+                         for v in values])
+    (X_dev, _, left_dev), (X_test, mode_test, left_test) = dev, test
+    fitted = HistGradientBoostingRegressor(**DIRECTION_LEARNER_PARAMS, early_stopping=False,
+                                           random_state=0).fit(inputs(X_dev), left_dev)
+    out = {'boosting_on_direction_inputs': spread(np.abs(fitted.predict(inputs(X_test)) - left_test)),
+           'constant': spread(np.abs(np.median(left_dev) - left_test))}
+    if regressor is not None:
+        out['model_regressor'] = spread(np.abs(
+            np.array([regressor.predict_one(x.tolist(), m) for x, m in zip(X_test, mode_test)])
+            - left_test))
+    return out
 
 
 def cross_validated(samples: DirectionSamples, repeats: int, **fit) -> dict[str, float]:
@@ -77,10 +113,11 @@ def main(argv: list[str] | None = None) -> dict:
     args = parser.parse_args(argv)
     lists, metadata = load_model(args.model)
     tau_his, guard = metadata.recommended_tau_his_s, metadata.feature_settings.guard_com_height_m
-    sets = {}
+    sets, time_left = {}, {}
     for name, data in (('dev', args.dev), ('test', args.test)):
         report = load_dataset(data, args.jobs, progress=True, state='estimated')
         sets[name] = trigger_samples(data, report.trajectories, lists, tau_his, guard)
+        time_left[name] = time_left_at_triggers(report.trajectories, lists, tau_his, guard)
     dev, test = sets['dev'], sets['test']
     result: dict = {'model': str(args.model), 'dev': str(args.dev), 'test': str(args.test),
                     'tau_his_s': tau_his, 'state': 'estimated', 'inputs': list(DIRECTION_INPUT_NAMES),
@@ -101,6 +138,8 @@ def main(argv: list[str] | None = None) -> dict:
         'capture_point': spread(direction_errors_deg(
             test, lambda x, _m: capture_point_direction(x, mass))),
     }
+    result['time_to_fall_reference_s'] = time_to_fall_reference(
+        time_left['dev'], time_left['test'], metadata.time_to_fall)
     text = json.dumps(result, indent=1)
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
