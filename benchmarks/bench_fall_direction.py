@@ -14,8 +14,9 @@ tau_his, estimated state):
    95 % bootstrap intervals over trajectories.
 
 3. **A reference for the time to fall** (not shipped): the same learner on the same inputs fitted
-   on the time left at the development triggers (``t_fallen - t_k``), against the model's own
-   regressor and a constant (the development triggers' median), at the test triggers.
+   on the time left (``t_fallen - t``) at the development triggers, and at every 10th sample from
+   each trigger until fallen, against the model's own regressor and a constant (the development
+   triggers' median): errors at the test triggers and over the test samples after them.
 
 Writes JSON (``--out``).
 
@@ -50,36 +51,46 @@ VARIANTS = {
 }
 
 
-def time_left_at_triggers(trajectories, lists, tau_his_s: float, guard_m: float):
-    """Features (N, 15), contact modes (N,) and time left until fallen [s] (N,) at the in-time
-    triggers."""
+def time_left_after_triggers(trajectories, lists, tau_his_s: float, guard_m: float,
+                             stride: int = 10):
+    """Features (N, 15), contact modes (N,), time left until fallen [s] (N,) and whether the
+    sample is the trigger (N,), at every ``stride``-th sample from each in-time trigger until
+    fallen (the samples the monitor reports a time to fall on)."""
     from fall_predictor.learning.when_where import trigger_indices
-    rows = [(traj.X[k], int(traj.mode[k]), traj.t_fallen - traj.t[k])
-            for traj, k in zip(trajectories, trigger_indices(trajectories, lists, tau_his_s, guard_m))
-            if k is not None]
-    return (np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
-            np.array([r[2] for r in rows]))
+    rows = []
+    for traj, k in zip(trajectories, trigger_indices(trajectories, lists, tau_his_s, guard_m)):
+        if k is None:
+            continue
+        end = int(np.searchsorted(traj.t, traj.t_fallen))
+        rows += [(traj.X[j], int(traj.mode[j]), traj.t_fallen - traj.t[j], j == k)
+                 for j in range(k, max(end, k + 1), stride)]
+    return tuple(np.array([r[i] for r in rows]) for i in range(4))
 
 
 def time_to_fall_reference(dev, test, regressor) -> dict:
-    """Absolute time-to-fall errors [s] at the test triggers: boosting on the direction inputs
-    fitted at the development triggers, the model's regressor, a constant."""
+    """Absolute time-to-fall errors [s] at the test triggers and over every 10th sample from
+    the trigger until fallen: boosting on the direction inputs fitted at the development
+    triggers only and on all those samples, the model's regressor, a constant."""
     from sklearn.ensemble import HistGradientBoostingRegressor
 
     def inputs(X):
         values = [direction_inputs(x.tolist()) for x in X]
         return np.array([v if v is not None else (np.nan,) * len(DIRECTION_INPUT_NAMES)
                          for v in values])
-    (X_dev, _, left_dev), (X_test, mode_test, left_test) = dev, test
-    fitted = HistGradientBoostingRegressor(**DIRECTION_LEARNER_PARAMS, early_stopping=False,
-                                           random_state=0).fit(inputs(X_dev), left_dev)
-    out = {'boosting_on_direction_inputs': spread(np.abs(fitted.predict(inputs(X_test)) - left_test)),
-           'constant': spread(np.abs(np.median(left_dev) - left_test))}
+    (X_dev, _, left_dev, trig_dev), (X_test, mode_test, left_test, trig_test) = dev, test
+    predictions = {'constant (the development triggers\' median)':
+                   np.full(left_test.size, np.median(left_dev[trig_dev]))}
+    for name, rows in (('boosting fitted at the triggers', trig_dev),
+                       ('boosting fitted from the trigger to fallen', np.ones_like(trig_dev))):
+        fitted = HistGradientBoostingRegressor(**DIRECTION_LEARNER_PARAMS, early_stopping=False,
+                                               random_state=0).fit(inputs(X_dev[rows]), left_dev[rows])
+        predictions[name] = fitted.predict(inputs(X_test))
     if regressor is not None:
-        out['model_regressor'] = spread(np.abs(
-            np.array([regressor.predict_one(x.tolist(), m) for x, m in zip(X_test, mode_test)])
-            - left_test))
-    return out
+        predictions['model regressor'] = np.array(
+            [regressor.predict_one(x.tolist(), m) for x, m in zip(X_test, mode_test)])
+    return {name: {'at_triggers': spread(np.abs(p - left_test)[trig_test]),
+                   'trigger_to_fallen_median_s': float(np.median(np.abs(p - left_test)))}
+            for name, p in predictions.items()}
 
 
 def cross_validated(samples: DirectionSamples, repeats: int, **fit) -> dict[str, float]:
@@ -117,7 +128,7 @@ def main(argv: list[str] | None = None) -> dict:
     for name, data in (('dev', args.dev), ('test', args.test)):
         report = load_dataset(data, args.jobs, progress=True, state='estimated')
         sets[name] = trigger_samples(data, report.trajectories, lists, tau_his, guard)
-        time_left[name] = time_left_at_triggers(report.trajectories, lists, tau_his, guard)
+        time_left[name] = time_left_after_triggers(report.trajectories, lists, tau_his, guard)
     dev, test = sets['dev'], sets['test']
     result: dict = {'model': str(args.model), 'dev': str(args.dev), 'test': str(args.test),
                     'tau_his_s': tau_his, 'state': 'estimated', 'inputs': list(DIRECTION_INPUT_NAMES),
