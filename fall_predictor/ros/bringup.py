@@ -9,8 +9,9 @@ waits until they are all up and connected, then for each push:
 2. requests a push drawn from :class:`~fall_predictor.sim.pushes.PushDistribution` with the
    generator of trajectory ``i`` of a dataset with the same seed
    (:func:`~fall_predictor.sim.pushes.trajectory_seed`), so push ``i`` equals the push of
-   trajectory ``i`` of ``fall-predictor generate --seed S``; the onset (2.1 to 3.5 s into the
-   walk) is the request's stamp;
+   trajectory ``i`` of ``fall-predictor generate --fixed-gait --seed S`` (with gait variety, the
+   default, a trajectory draws its gait first, and so another push); the onset (2.1 to 3.5 s
+   into the walk) is the request's stamp;
 3. follows ``/fall_predictor/measurement`` (fallen flag), ``/fall_predictor/state`` and
    ``/fall_predictor/controller_mode`` until the robot is fallen or ``horizon_s`` of
    simulation time after the push ended, then pauses the simulator (``~/pause``), so that a
