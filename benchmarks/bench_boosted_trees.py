@@ -170,7 +170,7 @@ def main(argv: list[str] | None = None) -> dict:
     if args.window:
         learners['boosting_window'] = WindowedBoosting(dict(args.param))
 
-    def fit(name, learner, train):
+    def fit(learner, train):
         if isinstance(learner, WindowedBoosting):
             return WindowedBoosting(learner.params).fit(train, args.tau_plus, args.mirror)
         return fit_strided(train, args.tau_plus, learner, mirror=args.mirror)
@@ -182,7 +182,7 @@ def main(argv: list[str] | None = None) -> dict:
         test = [trajs[i] for i in test_index]
         for name, learner in learners.items():
             start = time.perf_counter()
-            lists = fit(name, learner, train)
+            lists = fit(learner, train)
             fit_s[name] += time.perf_counter() - start
             kind = 'tree' if name == 'tree' else 'boosting'
             sizes = (lists.rule_sizes, lists.depths) if hasattr(lists, 'rule_sizes') else ((), ())
@@ -209,7 +209,7 @@ def main(argv: list[str] | None = None) -> dict:
         test_guard_m = dataset_guard_com_height_m(args.test)
         out['test'] = {'data': str(args.test), 'learners': {}}
         for name, learner in learners.items():
-            lists = fit(name, learner, trajs)
+            lists = fit(learner, trajs)
             kind = 'tree' if name == 'tree' else 'boosting'
             results = fold_results(lists, test, kind, args.thresholds, test_guard_m)
             row = ({'mean_rule_size': lists.mean_rule_size, 'cost': cost_us(lists, test)}

@@ -32,12 +32,12 @@ from pathlib import Path
 import numpy as np
 
 from fall_predictor.data.dataset import robot_total_mass_kg
-from fall_predictor.learning.direction_training import (DIRECTION_LEARNER_PARAMS, DirectionSamples,
-                                                        direction_errors_deg, fit_learned_direction,
-                                                        trigger_samples)
+from fall_predictor.learning.direction_training import DIRECTION_LEARNER_PARAMS, fit_learned_direction
 from fall_predictor.learning.training import load_dataset
-from fall_predictor.monitor.fall_direction import (DIRECTION_INPUT_NAMES, capture_point_direction,
-                                                   direction_inputs, momentum_direction)
+from fall_predictor.learning.when_where import (DirectionSamples, direction_errors_deg,
+                                                direction_samples, trigger_indices)
+from fall_predictor.monitor.fall_direction import (DIRECTION_INPUT_NAMES, direction_inputs,
+                                                   momentum_direction)
 from fall_predictor.monitor.model_file import load_model
 
 from bench_time_to_fall import spread      # median and p90 with bootstrap intervals
@@ -51,14 +51,12 @@ VARIANTS = {
 }
 
 
-def time_left_after_triggers(trajectories, lists, tau_his_s: float, guard_m: float,
-                             stride: int = 10):
+def time_left_after_triggers(trajectories, triggers, stride: int = 10):
     """Features (N, 15), contact modes (N,), time left until fallen [s] (N,) and whether the
     sample is the trigger (N,), at every ``stride``-th sample from each in-time trigger until
     fallen (the samples the monitor reports a time to fall on)."""
-    from fall_predictor.learning.when_where import trigger_indices
     rows = []
-    for traj, k in zip(trajectories, trigger_indices(trajectories, lists, tau_his_s, guard_m)):
+    for traj, k in zip(trajectories, triggers):
         if k is None:
             continue
         end = int(np.searchsorted(traj.t, traj.t_fallen))
@@ -127,8 +125,9 @@ def main(argv: list[str] | None = None) -> dict:
     sets, time_left = {}, {}
     for name, data in (('dev', args.dev), ('test', args.test)):
         report = load_dataset(data, args.jobs, progress=True, state='estimated')
-        sets[name] = trigger_samples(data, report.trajectories, lists, tau_his, guard)
-        time_left[name] = time_left_after_triggers(report.trajectories, lists, tau_his, guard)
+        triggers = trigger_indices(report.trajectories, lists, tau_his, guard)
+        sets[name] = direction_samples(data, report.trajectories, triggers)
+        time_left[name] = time_left_after_triggers(report.trajectories, triggers)
     dev, test = sets['dev'], sets['test']
     result: dict = {'model': str(args.model), 'dev': str(args.dev), 'test': str(args.test),
                     'tau_his_s': tau_his, 'state': 'estimated', 'inputs': list(DIRECTION_INPUT_NAMES),
@@ -146,8 +145,7 @@ def main(argv: list[str] | None = None) -> dict:
     result['held_out'] = {
         'learned': spread(direction_errors_deg(test, learned.direction)),
         'momentum': spread(direction_errors_deg(test, momentum_direction)),
-        'capture_point': spread(direction_errors_deg(
-            test, lambda x, _m: capture_point_direction(x, mass))),
+        'capture_point': spread(direction_errors_deg(test, 'capture_point', mass)),
     }
     result['time_to_fall_reference_s'] = time_to_fall_reference(
         time_left['dev'], time_left['test'], metadata.time_to_fall)

@@ -139,8 +139,8 @@ def cmd_fit_direction(args) -> int:
     import numpy as np
 
     from fall_predictor.data.dataset import DatasetError
-    from fall_predictor.learning.direction_training import (direction_errors_deg,
-                                                            fit_learned_direction, trigger_samples)
+    from fall_predictor.learning.direction_training import fit_learned_direction, trigger_samples
+    from fall_predictor.learning.when_where import direction_errors_deg
     from fall_predictor.learning.training import load_dataset
     from fall_predictor.monitor.fall_direction import momentum_direction
     from fall_predictor.monitor.model_file import ModelFileError, load_model, save_model

@@ -38,6 +38,13 @@ def exported_tree(nodes: np.ndarray, n_inputs: int = N_FEATURES) -> RegressionTr
         n_inputs=n_inputs)
 
 
+def exported_trees(model, n_inputs: int = N_FEATURES) -> tuple[float, tuple[RegressionTree, ...]]:
+    """A fitted single-output HGB model (classifier or regressor) as its bias (the baseline
+    prediction) and its trees over ``n_inputs`` inputs."""
+    return (float(np.ravel(model._baseline_prediction)[0]),
+            tuple(exported_tree(iteration[0].nodes, n_inputs) for iteration in model._predictors))
+
+
 class BoostedTreesLearner(RuleListLearner):
     """Gradient-boosted trees (``sklearn.ensemble.HistGradientBoostingClassifier``) for falling.
 
@@ -97,6 +104,5 @@ class BoostedTreesLearner(RuleListLearner):
             max_bins=self.max_bins, early_stopping=False, random_state=self.random_state)
         model.fit(X, falling, sample_weight=w)
         self.estimator_ = model
-        bias = float(np.ravel(model._baseline_prediction)[0])
-        trees = tuple(exported_tree(iteration[0].nodes) for iteration in model._predictors)
+        bias, trees = exported_trees(model)
         self.trees_ = BoostedTrees(trees, bias, float(self.decision_threshold))

@@ -16,16 +16,17 @@ the true CoM's displacement from the trigger to fallen
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Optional, Sequence
 
 import numpy as np
 
-from fall_predictor.learning.boosting import exported_tree
+from fall_predictor.learning.boosting import exported_trees
 from fall_predictor.learning.mirror import MIRROR_SIGNS
+from fall_predictor.learning.when_where import (DirectionSamples, direction_samples,
+                                                trigger_indices)
 from fall_predictor.monitor.decision_list import PerModeDecisionLists
 from fall_predictor.monitor.fall_direction import (DIRECTION_INPUT_NAMES, LearnedDirection,
-                                                   angular_error_rad, direction_inputs)
+                                                   direction_inputs)
 from fall_predictor.monitor.records import TrajectoryFeatures
 
 #: The learner's settings: chosen by 5-fold cross-validation on the ASIMO-like robot's
@@ -35,28 +36,13 @@ DIRECTION_LEARNER_PARAMS = {'max_iter': 100, 'learning_rate': 0.05, 'max_depth':
                             'min_samples_leaf': 20, 'loss': 'absolute_error'}
 
 
-@dataclass(frozen=True)
-class DirectionSamples:
-    """Features at the triggers (``X``, (N, 15)) and the unit directions the CoM then left in
-    (``actual``, (N, 2), heading frame), one row per triggered fall."""
-
-    X: np.ndarray
-    actual: np.ndarray
-
-
 def trigger_samples(data_dir, trajectories: Sequence[TrajectoryFeatures],
                     lists: PerModeDecisionLists, tau_his_s: float,
                     guard_com_height_m: float) -> DirectionSamples:
     """The features and actual fall directions at ``lists``' in-time triggers on ``data_dir``
     (its true CoM: a simulated dataset)."""
-    from fall_predictor.learning.when_where import actual_directions, trigger_indices
-    triggers = trigger_indices(trajectories, lists, tau_his_s, guard_com_height_m)
-    rows, actual = [], []
-    for traj, k, a in zip(trajectories, triggers, actual_directions(data_dir, trajectories, triggers)):
-        if a is not None:
-            rows.append(np.asarray(traj.X[k], dtype=float))
-            actual.append(a)
-    return DirectionSamples(np.array(rows).reshape(len(rows), -1), np.array(actual).reshape(-1, 2))
+    return direction_samples(data_dir, trajectories, trigger_indices(
+        trajectories, lists, tau_his_s, guard_com_height_m))
 
 
 def turn_targets(samples: DirectionSamples) -> tuple[np.ndarray, np.ndarray]:
@@ -102,18 +88,5 @@ def fit_learned_direction(samples: DirectionSamples, mirror: bool = True, random
     model = HistGradientBoostingRegressor(**{**DIRECTION_LEARNER_PARAMS, **(params or {})},
                                           early_stopping=False, random_state=random_state)
     model.fit(inputs, turns)
-    bias = float(np.ravel(model._baseline_prediction)[0])
-    trees = tuple(exported_tree(iteration[0].nodes, len(DIRECTION_INPUT_NAMES))
-                  for iteration in model._predictors)
+    bias, trees = exported_trees(model, len(DIRECTION_INPUT_NAMES))
     return LearnedDirection(trees, bias)
-
-
-def direction_errors_deg(samples: DirectionSamples, direction) -> np.ndarray:
-    """Angular error [deg] of ``direction(x, mass_kg)`` (a heading-frame unit vector, NaN when
-    undefined: left out) at each sample."""
-    errors = []
-    for x, actual in zip(samples.X, samples.actual):
-        predicted = direction(x.tolist(), 1.0)
-        if np.all(np.isfinite(predicted[:2])):
-            errors.append(math.degrees(angular_error_rad(predicted, actual)))
-    return np.array(errors)

@@ -226,12 +226,11 @@ def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: f
             ttf_error = when_where.summary(
                 when_where.time_to_fall_errors(trajectories, triggers, time_to_fall))
         if robot_mass_kg is not None:
+            samples = when_where.direction_samples(data_dir, trajectories, triggers)
             momentum_error, cp_error = (when_where.summary(when_where.direction_errors_deg(
-                data_dir, trajectories, triggers, robot_mass_kg, name))
-                for name in ('momentum', 'capture_point'))
+                samples, name, robot_mass_kg)) for name in ('momentum', 'capture_point'))
             direction_error = momentum_error if fall_direction is None else when_where.summary(
-                when_where.direction_errors_deg(data_dir, trajectories, triggers, robot_mass_kg,
-                                                fall_direction.direction))
+                when_where.direction_errors_deg(samples, fall_direction.direction, robot_mass_kg))
     return ModelEvaluation(result, float(tau_his_s), report.fingerprint, dict(report.errors),
                            curves, ttf_error, direction_error, cp_error, guard,
                            dict(report.unsettled), momentum_error,

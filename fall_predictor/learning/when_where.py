@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Optional, Sequence, Union
 
@@ -126,18 +127,36 @@ def actual_directions(data_dir: PathLike, trajectories: Sequence[TrajectoryFeatu
     return out
 
 
-def direction_errors_deg(data_dir: PathLike, trajectories: Sequence[TrajectoryFeatures],
-                         triggers: Sequence[Optional[int]], mass_kg: float,
-                         direction: Union[str, Callable] = 'momentum') -> list[float]:
+@dataclass(frozen=True)
+class DirectionSamples:
+    """Features at the triggers (``X``, (N, 15)) and the unit directions the CoM then left in
+    (``actual``, (N, 2), heading frame), one row per triggered fall with a defined direction."""
+
+    X: np.ndarray
+    actual: np.ndarray
+
+
+def direction_samples(data_dir: PathLike, trajectories: Sequence[TrajectoryFeatures],
+                      triggers: Sequence[Optional[int]]) -> DirectionSamples:
+    """The features at ``triggers`` and the directions the CoM then left in
+    (:func:`actual_directions`: the dataset's true CoM)."""
+    rows, actual = [], []
+    for traj, k, a in zip(trajectories, triggers, actual_directions(data_dir, trajectories, triggers)):
+        if a is not None:
+            rows.append(np.asarray(traj.X[k], dtype=float))
+            actual.append(a)
+    return DirectionSamples(np.array(rows).reshape(len(rows), -1), np.array(actual).reshape(-1, 2))
+
+
+def direction_errors_deg(samples: DirectionSamples, direction: Union[str, Callable] = 'momentum',
+                         mass_kg: float = 1.0) -> list[float]:
     """Angular error [deg] of a predicted fall direction (a name of :data:`DIRECTIONS`, or a
     function of the features and the mass such as a learned direction's ``direction``) at each
-    trigger."""
+    sample; a prediction that is not defined (NaN) is left out."""
     predict = DIRECTIONS[direction] if isinstance(direction, str) else direction
     errors = []
-    for traj, k, actual in zip(trajectories, triggers, actual_directions(data_dir, trajectories, triggers)):
-        if actual is None:
-            continue
-        predicted = predict(traj.X[k].tolist(), mass_kg)
+    for x, actual in zip(samples.X, samples.actual):
+        predicted = predict(x.tolist(), mass_kg)
         if np.all(np.isfinite(predicted)):
             errors.append(math.degrees(angular_error_rad(predicted, actual)))
     return errors

@@ -174,7 +174,8 @@ def run_nodes(factories: Sequence[Callable[[], Node]], name: str,
     finally:
         for node in nodes:
             node.destroy_node()
-        _bound_teardown(quiet=could_not_start)
+        if not could_not_start:             # else bounded since it knew
+            _bound_teardown(quiet=False)
         # A node that failed in its constructor is torn down here, under the bound, rather
         # than by the collector at interpreter exit.
         gc.collect()
