@@ -29,7 +29,7 @@ from fall_predictor.monitor.decision_list import PerModeDecisionLists
 from fall_predictor.monitor.fall_direction import (angular_error_rad, capture_point_direction,
                                                    momentum_direction)
 from fall_predictor.monitor.predictor import predict_trajectory
-from fall_predictor.monitor.records import GUARD_COM_HEIGHT_M, TrajectoryFeatures
+from fall_predictor.monitor.records import GUARD_COM_HEIGHT_M, N_FEATURES, TrajectoryFeatures
 from fall_predictor.monitor.time_to_fall import TimeToFallRegressor
 
 PathLike = Union[str, 'os.PathLike[str]']
@@ -145,7 +145,8 @@ def direction_samples(data_dir: PathLike, trajectories: Sequence[TrajectoryFeatu
         if a is not None:
             rows.append(np.asarray(traj.X[k], dtype=float))
             actual.append(a)
-    return DirectionSamples(np.array(rows).reshape(len(rows), -1), np.array(actual).reshape(-1, 2))
+    return DirectionSamples(np.array(rows, dtype=float).reshape(len(rows), N_FEATURES),
+                            np.array(actual, dtype=float).reshape(len(actual), 2))
 
 
 def direction_errors_deg(samples: DirectionSamples, direction: Union[str, Callable] = 'momentum',
