@@ -150,7 +150,7 @@ def _sole(types: MessageTypes, foot: Sequence[float], contacts: np.ndarray) -> A
         contacts=[point(x=float(r[0]), y=float(r[1]), normal_force=float(r[2])) for r in rows])
 
 
-def _quaternion_xyzw(rot: Optional[np.ndarray]) -> list[float]:
+def quaternion_xyzw(rot: Optional[np.ndarray]) -> list[float]:
     """A rotation matrix as a unit quaternion (x, y, z, w); identity for None."""
     if rot is None:
         return [0.0, 0.0, 0.0, 1.0]
@@ -189,7 +189,7 @@ def measurement_msg(types: MessageTypes, ns: int, frame_id: str, m: Optional[Mea
             cop=_point(types, nan3), left_sole=_sole(types, nan3, empty),
             right_sole=_sole(types, nan3, empty), non_foot_contact=False,
             push_force=_vector3(types, (0.0, 0.0, 0.0)))
-    q = _quaternion_xyzw(m.torso_rotation)
+    q = quaternion_xyzw(m.torso_rotation)
     return types['fall_predictor/msg/Measurement'](
         header=header(types, ns, frame_id), fault=fault, com=_point(types, m.com),
         linear_momentum=_vector3(types, m.lin_mom), angular_momentum=_vector3(types, m.ang_mom),

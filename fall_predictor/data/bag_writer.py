@@ -27,7 +27,7 @@ from rosbags.rosbag2 import Writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
 from rosbags.rosbag2.storage_mcap import McapWriter
 
-from fall_predictor.contract import messages
+from fall_predictor.contract import cdr_encode, messages
 from fall_predictor.contract.topics import (FEATURES, HEADING_FRAME, JOINT_STATES, MEASUREMENT,
                                             ODOM_FRAME, PUSH, STATE, TOPICS_BY_NAME, WORLD_FRAME,
                                             QosSpec, time_to_ns, time_to_stamp)
@@ -153,9 +153,8 @@ class BagWriter:
         """One Measurement (``fall_predictor/msg/Measurement``) on ``topic`` stamped and logged
         at ``m.t``. Raises WireFormatError (not BagError) if ``m`` breaks the contract."""
         ns = time_to_ns(m.t)
-        messages.measurement_from_msg(
-            msg := messages.measurement_msg(self._types, ns, ODOM_FRAME, m))    # checked as read
-        self.write(topic, MEASUREMENT.msg_type, ns, msg)
+        messages.check_measurement(m)           # what a reader checks
+        self.write_raw(topic, MEASUREMENT.msg_type, ns, cdr_encode.measurement_cdr(ns, ODOM_FRAME, m))
 
     def write_features(self, t: float, x: ArrayLike, mode: int, base_tilt_rad: float = 0.0) -> None:
         """Features (15 values, contact mode index) at ``t`` [s] on ``/fall_predictor/features``."""

@@ -19,7 +19,7 @@ from typing import Optional, Union
 
 import yaml
 
-from fall_predictor.contract import messages
+from fall_predictor.contract import cdr_encode, messages
 from fall_predictor.contract.topics import (IMU, LEFT_FOOT_WRENCH, RIGHT_FOOT_WRENCH,
                                             ROBOT_DESCRIPTION, SENSOR_JOINT_STATES,
                                             SENSOR_PARAMS_METADATA_KEY, time_to_ns)
@@ -32,6 +32,9 @@ Reading = Union[JointStateReading, ImuReading, WrenchReading]
 STREAM_TOPICS = {'joints': SENSOR_JOINT_STATES, 'imu': IMU, 'l': LEFT_FOOT_WRENCH,
                  'r': RIGHT_FOOT_WRENCH}
 _TOPIC_STREAMS = {spec.name: stream for stream, spec in STREAM_TOPICS.items()}
+#: Each stream's message, serialized (what ``rosbags`` would write for its message object).
+_ENCODERS = {'joints': cdr_encode.joint_state_cdr, 'imu': cdr_encode.imu_cdr,
+             'l': cdr_encode.wrench_cdr, 'r': cdr_encode.wrench_cdr}
 
 
 def write_sensor_params(bag: BagWriter, params: dict) -> None:
@@ -48,8 +51,7 @@ def write_sensor_message(bag: BagWriter, stream: str, reading: Reading) -> None:
     """One driver message (a stream of :mod:`fall_predictor.sim.drivers` and its reading), logged
     at its stamp."""
     spec = STREAM_TOPICS[stream]
-    build = {'joints': messages.joint_state_msg, 'imu': messages.imu_msg}.get(stream, messages.wrench_msg)
-    bag.write(spec.name, spec.msg_type, reading.stamp_ns, build(bag._types, reading))
+    bag.write_raw(spec.name, spec.msg_type, reading.stamp_ns, _ENCODERS[stream](reading))
 
 
 def read_sensor_messages(path: str | os.PathLike[str]) -> Iterator[tuple[str, Reading]]:
