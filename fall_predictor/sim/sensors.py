@@ -280,8 +280,7 @@ class SensorSuite:
                        + k * e.velocity_noise_rad_s * noise[:, n:2 * n], e.velocity_quantum_rad_s)
         tau = _quantise(np.array([t.tau for t in truths])
                         + k * e.effort_noise_nm * noise[:, 2 * n:3 * n], e.effort_quantum_nm)
-        quat_true = np.array([t.imu_quat_xyzw for t in truths])
-        rot = _matrices(quat_true)
+        quat_true = [t.imu_quat_xyzw.tolist() for t in truths]
         # Specific force from the finite difference of the IMU point's velocity.
         v = np.array([t.imu_velocity_world for t in truths])
         previous = np.empty_like(v)
@@ -291,9 +290,7 @@ class SensorSuite:
         if self._prev_v is None:
             acc_world[0] = 0.0
         self._prev_v = v[-1].copy()
-        a = acc_world + np.array([0.0, 0.0, _G])
-        # rot^T a, term by term in the order of the 3 x 3 matrix-vector product (the same bits).
-        specific = rot[:, 0, :] * a[:, 0:1] + rot[:, 1, :] * a[:, 1:2] + rot[:, 2, :] * a[:, 2:3]
+        specific = _in_imu_frame(quat_true, (acc_world + np.array([0.0, 0.0, _G])).tolist())
         sig_g = k * i.gyro_noise_density_rad_s_sqrt_hz * _NYQUIST_SQRT
         sig_a = k * i.accel_noise_density_m_s2_sqrt_hz * _NYQUIST_SQRT
         m = 3 * n
@@ -303,7 +300,7 @@ class SensorSuite:
         # Attitude error: a world-frame rotation (bias + white) applied to the true attitude.
         err = (self._att_bias + k * i.orientation_noise_rad * noise[:, m + 6:m + 9]).tolist()
         quat = [np.array(rotations.multiply(rotations.from_rotation_vector(*r), qt))
-                for r, qt in zip(err, quat_true.tolist())]
+                for r, qt in zip(err, quat_true)]
         wrenches: dict[str, list] = {'l': [None] * count, 'r': [None] * count}
         for j, side in enumerate(sides):
             c = m + 9 + 6 * j
@@ -323,14 +320,17 @@ class SensorSuite:
                 for truth, en, im, w in zip(truths, enc, imu, ft)]
 
 
-def _matrices(quat_xyzw: np.ndarray) -> np.ndarray:
-    """:func:`fall_predictor.monitor.rotations.matrix` of each row (n, 4) -> (n, 3, 3), the same
-    expressions on arrays."""
-    x, y, z, w = quat_xyzw.T
-    return np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
-                     2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
-                     2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-                    axis=1).reshape(-1, 3, 3)
+def _in_imu_frame(quat_xyzw: list, vectors: list) -> np.ndarray:
+    """Each world vector in its IMU frame, ``R^T v`` with ``R`` the rotation matrix of the
+    quaternion (:func:`fall_predictor.monitor.rotations.matrix`): in floats, the same expressions
+    and sums in the same order as that matrix's product with a vector, so the same bits."""
+    out = []
+    for (x, y, z, w), (a, b, c) in zip(quat_xyzw, vectors):
+        r00, r01, r02 = 1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)
+        r10, r11, r12 = 2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)
+        r20, r21, r22 = 2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)
+        out.append((r00 * a + r10 * b + r20 * c, r01 * a + r11 * b + r21 * c, r02 * a + r12 * b + r22 * c))
+    return np.array(out)
 
 
 def apply_sensors(truths: list[SensorTruth], params: SensorParams = SensorParams(),
