@@ -7,7 +7,7 @@ process CPU time per simulated second:
 * ``generation``: what ``fall-predictor generate`` does per trajectory (simulate with C_bal,
   build the measurements, record the bag, the labels, the index row and the cost record);
 * ``simulation``: the simulation alone (``run_trajectory``: physics, servos, C_bal,
-  measurements), without recording;
+  measurements, and with ``--sensor-noise`` the sensor truth), without recording;
 * ``bare_physics``: the same robot making the same motion with PyBullet calls only: the joint
   torques and push forces that the simulation sent to PyBullet, replayed step by step into a
   fresh world, then ``stepSimulation``. The replay must end where the simulation ended (checked:
@@ -111,11 +111,15 @@ def main() -> None:
     parser.add_argument('--trajectories', type=int, default=10)
     parser.add_argument('--seed', type=int, default=0)
     parser.add_argument('--horizon', type=float, default=4.0, help='as generate --horizon')
+    parser.add_argument('--sensor-noise', type=float, default=None, metavar='SCALE',
+                        help='as generate --sensor-noise: record the robot\'s sensor topics (the '
+                             'datasets of docs/results.md use 1)')
     parser.add_argument('--out', type=Path, help='write the JSON here too')
     parser.add_argument('--profile', action='store_true', help='cProfile the generation pass')
     parser.add_argument('--profile-out', type=Path, help='where to write the profile table (text)')
     args = parser.parse_args()
-    config = GenerationConfig(seed=args.seed, horizon_after_push_s=args.horizon)
+    config = GenerationConfig(seed=args.seed, horizon_after_push_s=args.horizon,
+                              sensor_noise_scale=args.sensor_noise)
     indices = range(args.trajectories)
     folder = Path(tempfile.mkdtemp(prefix='bench_generation_'))
     try:
@@ -138,7 +142,8 @@ def main() -> None:
         cpu0 = time.process_time()
         for i in indices:
             gait, push, duration = _trajectory(config, i)
-            run_trajectory(push, duration, gait=gait, simulator=generation._worker_simulator())
+            run_trajectory(push, duration, gait=gait, simulator=generation._worker_simulator(),
+                           record_sensors=args.sensor_noise is not None)
         simulation_cpu = time.process_time() - cpu0
 
         bare_cpu, steps, pose_error = 0.0, 0, 0.0
@@ -157,6 +162,7 @@ def main() -> None:
         return cpu / simulated_s
     result = {
         'trajectories': args.trajectories, 'seed': args.seed, 'horizon_after_push_s': args.horizon,
+        'sensor_noise_scale': args.sensor_noise,
         'simulated_s': round(simulated_s, 3), 'physics_steps': steps,
         'recorded_fraction_of_simulated': round(sum(r.samples for r in rows) / steps, 4),
         'cpu_s': {'generation': generation_cpu, 'simulation': simulation_cpu, 'bare_physics': bare_cpu},
