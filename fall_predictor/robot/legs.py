@@ -138,7 +138,9 @@ class NumericLegs(LegSolver):
     def _iterate(self, chain: '_LegChain', target: pin.SE3, start: np.ndarray
                  ) -> tuple[np.ndarray, float]:
         """Damped least squares from ``start``: the leg angles and their pose error (inf: none)."""
-        model, data, q, iq, frame = chain.model, chain.data, chain.q, chain.iq, chain.frame
+        model, data, q, frame = chain.model, chain.data, chain.q, chain.frame
+        iq, iv, lower, upper = chain.q_index, chain.v_index, chain.lower, chain.upper
+        tolerance, damped, local = self.tolerance_m, self.damping * self._eye, pin.ReferenceFrame.LOCAL
         q[iq] = start
         err = _UNSOLVED
         for _ in range(self.max_iterations):
@@ -146,15 +148,16 @@ class NumericLegs(LegSolver):
             current = pin.updateFramePlacement(model, data, frame)
             relative = current.actInv(target)
             err = pin.log6(relative).vector
-            if float(np.abs(err).max()) < self.tolerance_m:     # NaN: not converged
+            if float(np.abs(err).max()) < tolerance:     # NaN: not converged
                 break
-            jac = pin.Jlog6(relative) @ pin.getFrameJacobian(model, data, frame, pin.ReferenceFrame.LOCAL)[:, chain.iv]
+            jac = pin.Jlog6(relative) @ pin.getFrameJacobian(model, data, frame, local)[:, iv]
+            jac_t = jac.T
             # The damped normal equations are symmetric positive definite: LAPACK's Cholesky
             # solve, called directly (numpy's solve costs ~5x as much through its call path).
-            _, step, info = lapack.dposv(jac.T @ jac + self.damping * self._eye, jac.T @ err)
+            _, step, info = lapack.dposv(jac_t @ jac + damped, jac_t @ err)
             if info != 0:                   # not finite: no step (the clip keeps the last q)
                 break
-            q[iq] = _clip(q[iq] + step, chain.lower, chain.upper)
+            q[iq] = _clip(q[iq] + step, lower, upper)
         error = float(np.abs(err).max())
         return q[iq].copy(), (error if error == error else math.inf)      # NaN: no solution
 
@@ -168,6 +171,8 @@ class _LegChain:
         ids = [model.getJointId(j) for j in leg_joints]
         self.iq = np.array([model.joints[i].idx_q for i in ids])
         self.iv = np.array([model.joints[i].idx_v for i in ids])
+        # A leg's joints are consecutive in its chain's model: slices (views, not copies).
+        self.q_index, self.v_index = _as_slice(self.iq), _as_slice(self.iv)
         self.lower = model.lowerPositionLimit[self.iq]
         self.upper = model.upperPositionLimit[self.iq]
         self.q = pin.neutral(model)
@@ -180,6 +185,13 @@ class _LegChain:
         lock = [j for j in range(1, full.njoints) if j not in keep and j != root]
         model = pin.buildReducedModel(full, lock, pin.neutral(full))
         return cls(model, model.getFrameId(full.frames[sole_frame].name), leg_joints)
+
+
+def _as_slice(indices: np.ndarray):
+    """``indices`` as a slice when they are consecutive (the same elements), else themselves."""
+    first = int(indices[0])
+    consecutive = np.array_equal(indices, np.arange(first, first + len(indices)))
+    return slice(first, first + len(indices)) if consecutive else indices
 
 
 def leg_solver(profile: RobotProfile) -> LegSolver:
