@@ -3,7 +3,8 @@
 Subscribes (QoS of :mod:`fall_predictor.contract.wire`) to the measurement, features, state,
 joint states, joint commands, push and controller mode topics, and writes them with
 :class:`~fall_predictor.data.bag_writer.BagWriter`: same topics, types, QoS metadata and log times
-(simulation time) as the generated datasets, so a recorded bag is read by
+(the stamps: simulation time from the simulator, ROS time on a robot) as the generated datasets,
+so a recorded bag is read by
 :func:`~fall_predictor.data.bagio.read_trajectory` and the dataset/training code like a generated
 one.
 
@@ -104,13 +105,17 @@ PARAMS = (
 )
 
 
-def _sample_time(topic: str, msg: bagio.RosbagsMsg) -> Optional[float]:
-    """Validate a deserialized message against the wire contract and return its sample time
-    [s] (None for the unstamped controller mode); raises WireFormatError."""
+def _stamp_ns(topic: str, msg: bagio.RosbagsMsg) -> Optional[int]:
+    """Validate a deserialized message against the wire contract and return its stamp [ns]
+    (None for the unstamped topics, logged at the latest measurement's); raises WireFormatError.
+
+    The monitor's outputs keep their input samples' stamps as they are: on a robot these are ROS
+    time (seconds since 1970), beyond the simulation-time range of the package's own topics."""
     if topic == JOINT_COMMANDS.name:
         stamp = msg.header.stamp
-        return JointStateSample(ns_to_time(stamp_to_ns(stamp.sec, stamp.nanosec)),
-                                tuple(msg.name), msg.position, msg.velocity, msg.effort).t
+        ns = stamp_to_ns(stamp.sec, stamp.nanosec)
+        JointStateSample(ns_to_time(ns), tuple(msg.name), msg.position, msg.velocity, msg.effort)
+        return ns
     if topic == CONTROLLER_MODE.name:
         check_controller_mode(msg.data)
         return None
@@ -121,17 +126,15 @@ def _sample_time(topic: str, msg: bagio.RosbagsMsg) -> Optional[float]:
     if topic == FALL_EVENT.name:
         return None                         # logged at the latest measurement's time
     if topic == FALL_DIRECTION.name:
-        # Logged at the latest measurement's time, like the unstamped topics.
-        time_to_ns(ns_to_time(stamp_to_ns(msg.header.stamp.sec, msg.header.stamp.nanosec)))
-        return None
+        return None                         # logged at the latest measurement's time
     if topic == MEASUREMENT.name:             # a measurement that carries a fault is recorded too
-        return messages.measurement_from_msg(msg).stamp_ns / 1e9
+        return messages.measurement_from_msg(msg).stamp_ns
     if topic == FEATURES.name:
-        return messages.features_from_msg(msg).stamp_ns / 1e9
+        return messages.features_from_msg(msg).stamp_ns
     if topic == STATE.name:
-        return messages.fall_state_from_msg(msg)[0] / 1e9
+        return messages.fall_state_from_msg(msg)[0]
     record = bagio.decode(bagio.BagMessage(topic, '', 0, msg))
-    return float(record.t)  # type: ignore[attr-defined]
+    return time_to_ns(float(record.t))  # type: ignore[attr-defined]
 
 
 class RecorderNode(Node):
@@ -209,13 +212,14 @@ class RecorderNode(Node):
         msg_type = self._types[topic]
         try:
             msg = bagio.typestore().deserialize_cdr(raw, msg_type)
-            t = _sample_time(topic, msg)
+            stamp_ns = _stamp_ns(topic, msg)
         except Exception as error:  # noqa: BLE001 - whatever does not decode is rejected
             self.rejected[topic] += 1
             self._invalid.reject(topic, error)
             return
         if topic in self._trackers:
-            assert t is not None
+            assert stamp_ns is not None
+            t = stamp_ns / 1e9
             kind = self._trackers[topic].classify(t)
             if kind is Sample.NEW_RUN:
                 self._topic_run[topic] += 1
@@ -233,12 +237,12 @@ class RecorderNode(Node):
                     run_missing = self._run_missing.setdefault(run, {})
                     run_missing[topic] = run_missing.get(topic, 0) + gap
             self._seen.add(topic)
-            t_ns = time_to_ns(t)
+            t_ns = stamp_ns
             if topic == MEASUREMENT.name:
                 self._measurement_t_ns = t_ns
         else:
             run = self._topic_run[MEASUREMENT.name]
-            t_ns = self._measurement_t_ns if t is None else time_to_ns(t)
+            t_ns = self._measurement_t_ns if stamp_ns is None else stamp_ns
         try:
             self._bag(run, t_ns).write(topic, msg_type, t_ns, msg)
         except bagio.BagError as error:

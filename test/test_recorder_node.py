@@ -1,0 +1,58 @@
+"""recorder_node on a robot's clock: the monitor's outputs stamped in ROS time (seconds since
+1970, as a robot's drivers stamp the samples they come from) are recorded at those stamps, gaps
+counted, and read back by the package's reader. Fed in process, through the subscriptions'
+own callbacks (the raw bytes DDS hands them), so no DDS discovery is involved."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
+
+from fall_predictor.contract import messages
+from fall_predictor.contract.topics import FALL_DIRECTION, MEASUREMENT, STATE
+from fall_predictor.data.bagio import iter_messages, read_trajectory
+from fall_predictor.monitor.fall_monitor import MonitorState
+from fall_predictor.ros import conversions as ros_qos
+from fall_predictor.ros.recorder_node import RecorderNode
+from test_nodes_support import ros_context, test_domain_id
+from test_recorder_crash import measurement
+
+#: 2026-11-27 08:00:00 UTC: a robot's stamp, far beyond the simulation-time range.
+ROBOT_EPOCH_NS = 1_795_852_800 * 1_000_000_000
+SKIPPED = {40, 41, 42}
+
+
+def test_monitor_outputs_stamped_in_ros_time_are_recorded_at_their_stamps(tmp_path: Path) -> None:
+    bags = tmp_path / 'bags'
+    stamps = [ROBOT_EPOCH_NS + 1_000_000 * k for k in range(200) if k not in SKIPPED]
+    with ros_context(test_domain_id(175)) as context:
+        node = RecorderNode(context=context, parameter_overrides=[Parameter('bag_path', value=str(bags))])
+        try:
+            on_measurement = node._queue_callback(MEASUREMENT.name)
+            on_state = node._queue_callback(STATE.name)
+            on_direction = node._queue_callback(FALL_DIRECTION.name)
+            for k, ns in enumerate(stamps):
+                m = measurement(0.0)
+                on_measurement(serialize_message(messages.measurement_msg(ros_qos.TYPES, ns, 'odom', m)))
+                state = MonitorState(0, contact_mode=0, tau_his_s=0.2)
+                on_state(serialize_message(messages.fall_state_msg(ros_qos.TYPES, ns, 'base_footprint', state)))
+                if k == 100:
+                    on_direction(serialize_message(ros_qos.fall_direction_msg(ns, (1.0, 0.0))))
+        finally:
+            node.destroy_node()                 # drains the queue, closes the bags
+        summary = node.summary()
+    assert summary['rejected'][MEASUREMENT.name] == 0 and summary['write_errors'] == 0, summary
+    run = bags / 'run_000'
+    recorded = read_trajectory(run)
+    # Read back as float seconds: at 1.8e9 s a float resolves 0.24 us, so compare milliseconds.
+    assert [round(m.t * 1e3) for m in recorded.measurements] == [ns // 1_000_000 for ns in stamps]
+    record = json.loads((run / 'fall_predictor.json').read_text())
+    assert record['written'][MEASUREMENT.name] == len(stamps)
+    assert record['missing_samples'][MEASUREMENT.name] == len(SKIPPED)
+    logged = {m.topic: m.t_ns for m in iter_messages(run, [FALL_DIRECTION.name, STATE.name])}
+    assert logged[FALL_DIRECTION.name] == stamps[100]       # at the latest measurement's stamp
+    assert logged[STATE.name] == stamps[-1]
+    assert np.isclose(recorded.measurements[0].com[2], 0.59)
