@@ -65,6 +65,7 @@ from fall_predictor.sim.sensors import SensorParams, apply_sensors
 from fall_predictor.sim.trajectory import TrajectoryResult, run_trajectory
 
 from bench_robot_streams import LEGS, TIMINGS   # the robot-streams benchmark's three timings
+from pacing import wait_until
 
 REPO = Path(__file__).resolve().parents[1]
 COUNTERS = ('missing_samples', 'stale_samples', 'out_of_order', 'invalid_measurements',
@@ -206,13 +207,7 @@ def replay(deployment: str, feed: Feed, domain_id: int,
         start = time.monotonic() + (stamp0 - time.time_ns()) / 1e9
         for k, (publisher, msg) in enumerate(zip(pubs, feed.msgs)):
             due = start + offsets_s[k]
-            # Sleep (releasing the CPU and the GIL: the nodes and the receiving thread need
-            # them) until just before the due time, then wait out the rest.
-            ahead = due - time.monotonic() - 0.0003
-            if ahead > 0.0:
-                time.sleep(ahead)
-            while time.monotonic() < due:
-                pass
+            wait_until(due)                 # the nodes and the receiving thread run meanwhile
             msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp0 + int(feed.stamps_ns[k]),
                                                                    1_000_000_000)
             publisher.publish(msg)

@@ -2,12 +2,13 @@
 """Soak: the fall monitor and the recorder fed for minutes at 1 kHz with 1 % malformed input.
 
 A standing robot (the measurement of ``test/test_recorder_crash.py`` with a 1 mm, 0.5 Hz CoM
-sway) is published at 1 kHz of wall time, sample times following wall time, into two node
+sway) is published at 1 kHz of wall time, stamped in ROS time (wall time), into two node
 processes: ``fall_monitor`` (``config/monitor.yaml``, the shipped model) and ``recorder_node``.
 After 1 % of the valid samples (chosen at random, seeded) one malformed message is published
 as well, in turn: a value out of the plausibility bounds (CoM height 5 m), a NaN (linear
-momentum), a wrong size (two values short) and an out-of-order stamp (a valid measurement
-0.5 s older than the last). Every valid sample time is published exactly once.
+momentum), a base orientation that is no rotation (the zero quaternion) and an out-of-order stamp
+(a valid measurement 0.5 s older than the last). Every valid sample time is published exactly
+once, as a ``fall_predictor/msg/Measurement``.
 
 Reported: the node processes' pids and exit codes (never restarted: same pids throughout, each
 alive until stopped, exit code 0); per valid sample whether its state arrived, and the nodes'
@@ -21,8 +22,8 @@ minute, or the first 10 s of a run shorter than 3 minutes).
 from __future__ import annotations
 
 import argparse
-import array
 import json
+import math
 import os
 import platform
 import shutil
@@ -38,19 +39,21 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from std_msgs.msg import Float64MultiArray
+from rclpy.serialization import serialize_message
 
 from fall_predictor.data.bagio import read_trajectory
-from fall_predictor.contract.topics import MEASUREMENT, MEASUREMENT_LABEL, STATE
-from fall_predictor.contract.wire import (I_STATE_STATUS, I_STATE_T, I_T, S_COM, S_COP, S_LIN_MOM,
-                                      pack_measurement)
+from fall_predictor.contract import messages
+from fall_predictor.contract.topics import MEASUREMENT, ODOM_FRAME, STATE
 from fall_predictor.monitor.records import Measurement
 from fall_predictor.ros.bringup import ros_environment, start_process, stop_nodes
 from fall_predictor.ros.endpoints import create_publisher, create_subscription
-from fall_predictor.ros.conversions import float64_array_msg
+from fall_predictor.msg import FallState, Measurement as MeasurementMsg
+from fall_predictor.ros import conversions as ros_qos
+
+from pacing import wait_until                   # noqa: E402  (benchmarks/ is on the path)
 
 REPO = Path(__file__).resolve().parents[1]
-KINDS = ('out_of_bounds', 'nan', 'wrong_size', 'out_of_order')
+KINDS = ('out_of_bounds', 'nan', 'not_a_rotation', 'out_of_order')
 RSS_PERIOD_S = 10.0
 
 
@@ -66,41 +69,43 @@ def standing(t: float) -> Measurement:
                        non_foot_contact=False)
 
 
+def measurement_msg(t: float, stamp_ns: int) -> MeasurementMsg:
+    """The ``fall_predictor/msg/Measurement`` of :func:`standing` at sample time ``t``, stamped
+    ``stamp_ns`` (ROS time: the monitor refuses samples older than ``max_sample_age_s``)."""
+    return messages.measurement_msg(ros_qos.TYPES, stamp_ns, ODOM_FRAME, standing(t))
+
+
 class StandingMessages:
-    """Messages of :func:`standing`, built by patching the four values that change into one
-    validated template (``pack_measurement`` costs ~0.3 ms a sample on a loaded machine)."""
+    """Messages of :func:`standing`, built by patching the five values that change into one
+    message (building one costs ~0.1 ms a sample on a loaded machine)."""
 
     def __init__(self) -> None:
-        self.template = pack_measurement(standing(0.0)).copy()
-        self.msg = float64_array_msg(self.template, MEASUREMENT_LABEL)
-        for t in (0.25, 1.0, 7.3):
-            np.testing.assert_array_equal(self.values(t), pack_measurement(standing(t)))
+        self.msg = measurement_msg(0.0, 0)
+        for t, ns in ((0.25, 7), (1.0, 1_795_000_000_123_000_000), (7.3, 12_000_000)):
+            assert serialize_message(self.message(t, ns)) == serialize_message(measurement_msg(t, ns))
 
-    def values(self, t: float) -> np.ndarray:
-        values = self.template.copy()
+    def message(self, t: float, stamp_ns: int) -> MeasurementMsg:
+        msg = self.msg
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
         sway = 0.001 * np.sin(np.pi * t)
-        values[I_T] = t
-        values[S_COM.start] = values[S_COP.start] = sway
-        values[S_LIN_MOM.start] = 42.1 * 0.001 * np.pi * np.cos(np.pi * t)
-        return values
-
-    def message(self, t: float) -> Float64MultiArray:
-        self.msg.data = array.array('d', self.values(t).tobytes())
-        return self.msg
+        msg.com.x = msg.cop.x = float(sway)
+        msg.linear_momentum.x = float(42.1 * 0.001 * np.pi * np.cos(np.pi * t))
+        return msg
 
 
-def malformed(kind: str, t: float) -> np.ndarray:
-    """The values of a malformed measurement of ``kind`` published after sample time ``t``."""
+def malformed(kind: str, t: float, stamp_ns: int) -> MeasurementMsg:
+    """A malformed measurement of ``kind`` published after the sample at ``t`` / ``stamp_ns``."""
     if kind == 'out_of_order':
-        return pack_measurement(standing(t - 0.5))
-    values = pack_measurement(standing(t)).copy()
+        return measurement_msg(t - 0.5, stamp_ns - 500_000_000)
+    msg = measurement_msg(t, stamp_ns)
     if kind == 'out_of_bounds':
-        values[S_COM.start + 2] = 5.0
+        msg.com.z = 5.0
     elif kind == 'nan':
-        values[S_LIN_MOM.start] = np.nan
-    elif kind == 'wrong_size':
-        values = values[:-2]
-    return values
+        msg.linear_momentum.x = math.nan
+    elif kind == 'not_a_rotation':
+        msg.base_orientation.x = msg.base_orientation.y = msg.base_orientation.z = 0.0
+        msg.base_orientation.w = 0.0
+    return msg
 
 
 def rss_mb(pid: int) -> float:
@@ -139,12 +144,12 @@ def soak(minutes: float, seed: int, domain_id: int, work: Path) -> dict[str, obj
     rclpy.init(context=context, domain_id=domain_id)
     sender = Node('soak_robot', context=context)
     receiver = Node('soak_receiver', context=context)
-    publisher = create_publisher(sender, Float64MultiArray, MEASUREMENT)
+    publisher = create_publisher(sender, MeasurementMsg, MEASUREMENT)
     states: dict[int, int] = {}                 # sample time [ms] -> state status
     counters: dict[str, dict[str, str]] = {}
 
-    def on_state(msg: Float64MultiArray) -> None:
-        states.setdefault(round(msg.data[I_STATE_T] * 1000), int(msg.data[I_STATE_STATUS]))
+    def on_state(msg: FallState) -> None:
+        states.setdefault(round(messages.stamp_ns(msg) / 1e6), int(msg.status))
 
     def on_diagnostics(msg: DiagnosticArray) -> None:
         for status in msg.status:
@@ -152,7 +157,7 @@ def soak(minutes: float, seed: int, domain_id: int, work: Path) -> dict[str, obj
             counters[status.name]['level'] = str(status.level[0])
             counters[status.name]['message'] = status.message
 
-    state_sub = create_subscription(receiver, Float64MultiArray, STATE, on_state, lossless=True)
+    state_sub = create_subscription(receiver, FallState, STATE, on_state, lossless=True)
     receiver.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 50)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(receiver)
@@ -197,22 +202,19 @@ def soak(minutes: float, seed: int, domain_id: int, work: Path) -> dict[str, obj
         rss_thread = threading.Thread(target=sample_rss, args=(start,), daemon=True)
         rss_thread.start()
         t0 = 1.0                                # the robot's clock when the soak starts [s]
-        messages = StandingMessages()
+        stamp0_ns = (time.time_ns() // 1_000_000 + 10) * 1_000_000   # its stamp: ROS time, whole ms
+        standing_messages = StandingMessages()
         next_bad = 0
         lag = np.empty(n_valid)
         for k in range(n_valid):
             due = start + 0.001 * k
-            ahead = due - time.monotonic() - 0.0003
-            if ahead > 0.0:
-                time.sleep(ahead)               # releases the CPU and the GIL
-            while time.monotonic() < due:
-                pass
+            wait_until(due)                     # releases the CPU and the GIL meanwhile
             lag[k] = time.monotonic() - due
             t = t0 + 0.001 * k
-            publisher.publish(messages.message(t))
+            stamp_ns = stamp0_ns + 1_000_000 * k
+            publisher.publish(standing_messages.message(t, stamp_ns))
             while next_bad < len(bad_after) and bad_after[next_bad] == k:
-                publisher.publish(float64_array_msg(malformed(bad_kinds[next_bad], t),
-                                                    MEASUREMENT_LABEL))
+                publisher.publish(malformed(bad_kinds[next_bad], t, stamp_ns))
                 next_bad += 1
         wall_s = time.monotonic() - start
         time.sleep(3.0)                         # states in flight, one more diagnostics report
@@ -225,7 +227,7 @@ def soak(minutes: float, seed: int, domain_id: int, work: Path) -> dict[str, obj
         receiver.destroy_node()
         rclpy.try_shutdown(context=context)
         codes = stop_nodes(nodes)
-    keys = [round((t0 + 0.001 * k) * 1000) for k in range(n_valid)]
+    keys = [stamp0_ns // 1_000_000 + k for k in range(n_valid)]
     got = sum(1 for key in keys if key in states)
     statuses: dict[str, int] = {}
     for key in keys:
