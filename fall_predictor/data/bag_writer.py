@@ -27,7 +27,7 @@ from rosbags.rosbag2 import Writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
 from rosbags.rosbag2.storage_mcap import McapWriter
 
-from fall_predictor.contract import cdr_encode, messages
+from fall_predictor.contract import cdr, messages
 from fall_predictor.contract.topics import (FEATURES, HEADING_FRAME, JOINT_STATES, MEASUREMENT,
                                             ODOM_FRAME, PUSH, STATE, TOPICS_BY_NAME, WORLD_FRAME,
                                             QosSpec, time_to_ns, time_to_stamp)
@@ -154,7 +154,7 @@ class BagWriter:
         at ``m.t``. Raises WireFormatError (not BagError) if ``m`` breaks the contract."""
         ns = time_to_ns(m.t)
         messages.check_measurement(m)           # what a reader checks
-        self.write_raw(topic, MEASUREMENT.msg_type, ns, cdr_encode.measurement_cdr(ns, ODOM_FRAME, m))
+        self.write_raw(topic, MEASUREMENT.msg_type, ns, cdr.measurement_cdr(ns, ODOM_FRAME, m))
 
     def write_features(self, t: float, x: ArrayLike, mode: int, base_tilt_rad: float = 0.0) -> None:
         """Features (15 values, contact mode index) at ``t`` [s] on ``/fall_predictor/features``."""

@@ -19,7 +19,7 @@ from typing import Optional, Union
 
 import yaml
 
-from fall_predictor.contract import cdr_encode, messages
+from fall_predictor.contract import cdr, messages
 from fall_predictor.contract.topics import (IMU, LEFT_FOOT_WRENCH, RIGHT_FOOT_WRENCH,
                                             ROBOT_DESCRIPTION, SENSOR_JOINT_STATES,
                                             SENSOR_PARAMS_METADATA_KEY, time_to_ns)
@@ -33,8 +33,8 @@ STREAM_TOPICS = {'joints': SENSOR_JOINT_STATES, 'imu': IMU, 'l': LEFT_FOOT_WRENC
                  'r': RIGHT_FOOT_WRENCH}
 _TOPIC_STREAMS = {spec.name: stream for stream, spec in STREAM_TOPICS.items()}
 #: Each stream's message, serialized (what ``rosbags`` would write for its message object).
-_ENCODERS = {'joints': cdr_encode.joint_state_cdr, 'imu': cdr_encode.imu_cdr,
-             'l': cdr_encode.wrench_cdr, 'r': cdr_encode.wrench_cdr}
+_ENCODERS = {'joints': cdr.joint_state_cdr, 'imu': cdr.imu_cdr,
+             'l': cdr.wrench_cdr, 'r': cdr.wrench_cdr}
 
 
 def write_sensor_params(bag: BagWriter, params: dict) -> None:
