@@ -1,6 +1,6 @@
 """recorder_node on a robot's clock: the monitor's outputs stamped in ROS time (seconds since
 1970, as a robot's drivers stamp the samples they come from) are recorded at those stamps, gaps
-counted, and read back by the package's reader. Fed in process, through the subscriptions'
+counted (not from a staleness report stamped 0), and read back by the package's reader. Fed in process, through the subscriptions'
 own callbacks (the raw bytes DDS hands them), so no DDS discovery is involved."""
 from __future__ import annotations
 
@@ -34,6 +34,9 @@ def test_monitor_outputs_stamped_in_ros_time_are_recorded_at_their_stamps(tmp_pa
             on_measurement = node._queue_callback(MEASUREMENT.name)
             on_state = node._queue_callback(STATE.name)
             on_direction = node._queue_callback(FALL_DIRECTION.name)
+            # The predictor's staleness report before its first input is stamped 0.
+            stale = MonitorState(2, reason='no features received for 1.00 s')
+            on_state(serialize_message(messages.fall_state_msg(ros_qos.TYPES, 0, 'base_footprint', stale)))
             for k, ns in enumerate(stamps):
                 m = measurement(0.0)
                 on_measurement(serialize_message(messages.measurement_msg(ros_qos.TYPES, ns, 'odom', m)))
@@ -52,6 +55,8 @@ def test_monitor_outputs_stamped_in_ros_time_are_recorded_at_their_stamps(tmp_pa
     record = json.loads((run / 'fall_predictor.json').read_text())
     assert record['written'][MEASUREMENT.name] == len(stamps)
     assert record['missing_samples'][MEASUREMENT.name] == len(SKIPPED)
+    assert record['missing_samples'][STATE.name] == len(SKIPPED)
+    assert record['written'][STATE.name] == len(stamps) + 1
     logged = {m.topic: m.t_ns for m in iter_messages(run, [FALL_DIRECTION.name, STATE.name])}
     assert logged[FALL_DIRECTION.name] == stamps[100]       # at the latest measurement's stamp
     assert logged[STATE.name] == stamps[-1]

@@ -226,9 +226,11 @@ class RecorderNode(Node):
                 self._latest_t.pop(topic, None)
             run = self._topic_run[topic]
             latest = self._latest_t.get(topic)
-            if topic in _GAP_PERIOD_S and (latest is None or t > latest):
+            if topic in _GAP_PERIOD_S and stamp_ns > 0 and (latest is None or t > latest):
                 # Gaps against the latest sample time of the run, so that a stray old stamp
                 # (written, but out of order) does not count the samples after it as missing.
+                # A state stamped 0 answers no sample (the predictor's staleness report before
+                # its first input): on a robot's clock the next one would count 1.8e12 missing.
                 period = _GAP_PERIOD_S[topic]
                 gap = 0 if latest is None else max(0, round((t - latest) / period) - 1)
                 self._latest_t[topic] = t
