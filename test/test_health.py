@@ -124,3 +124,37 @@ def test_a_summary_names_another_fault_that_came_and_went_in_between(clock: _Clo
     assert node.logger.lines[-1] == (
         'warning', 'no features received: no prediction (the fault changed 3 times in the last '
                    '1.2 s; also: sample arrived 0.200 s after its stamp)')
+
+
+class _ClockNode:
+    """A node whose clock is rclpy's ROS clock, system time or (``sim_time_ns``) an overridden
+    simulation time, as ``use_sim_time`` sets it from ``/clock``."""
+
+    def __init__(self, sim_time_ns: int | None = None) -> None:
+        from rclpy.clock import ROSClock
+        from rclpy.time import Time
+        self.clock = ROSClock()
+        if sim_time_ns is not None:
+            self.clock._set_ros_time_is_active(True)
+            self.clock.set_ros_time_override(Time(nanoseconds=sim_time_ns))
+
+    def get_clock(self):
+        return self.clock
+
+
+def test_a_sample_ahead_of_a_simulation_clock_is_fresh_not_from_unsynchronised_clocks() -> None:
+    # /clock says 2.500 s; the simulator's sample of 2.794 s got here first.
+    age = health.SampleAge(_ClockNode(sim_time_ns=2_500_000_000))
+    assert age.age_s(2_794_000_000) == 0.0
+    assert health.SampleAge.problem(age.age_s(2_794_000_000), 0.05) is None
+    # Late on the simulation's clock is still late.
+    assert age.age_s(2_400_000_000) == pytest.approx(0.1)
+    assert 'after its stamp' in health.SampleAge.problem(age.age_s(2_400_000_000), 0.05)
+
+
+def test_a_sample_ahead_of_system_time_says_the_clocks_are_not_synchronised() -> None:
+    import time
+    age = health.SampleAge(_ClockNode())
+    ahead = age.age_s(time.time_ns() + 300_000_000)
+    assert ahead == pytest.approx(-0.3, abs=0.05)
+    assert 'not synchronised (chrony/PTP)' in health.SampleAge.problem(ahead, 0.05)

@@ -201,9 +201,17 @@ class SampleAge:
 
     def age_s(self, stamp_ns: int) -> Optional[float]:
         """Seconds since ``stamp_ns`` on the node's clock; None while the clock has no time yet
-        (``use_sim_time`` before the first ``/clock``)."""
+        (``use_sim_time`` before the first ``/clock``).
+
+        Under ``use_sim_time`` a sample stamped ahead of the clock is 0 s old: the clock is the
+        last ``/clock`` this node has taken, and the simulator stamps its samples with its own
+        time, so "ahead" means that ``/clock`` reached this node later than the sample, not that
+        clocks differ (a loaded machine showed 0.3 s, and the monitor said STALE through a fall)."""
         now = self._clock.now().nanoseconds
-        return None if now == 0 else (now - stamp_ns) / 1e9
+        if now == 0:
+            return None
+        age_s = (now - stamp_ns) / 1e9
+        return 0.0 if age_s < 0.0 and self._clock.ros_time_is_active else age_s
 
     @staticmethod
     def problem(age_s: Optional[float], limit_s: float) -> Optional[str]:
@@ -220,4 +228,5 @@ class SampleAge:
 
 MAX_SAMPLE_AGE = ParamSpec(
     'max_sample_age_s', 0.05, 'a sample whose stamp differs from the node\'s ROS clock by more than '
-    'this when it arrives [s] gets a STALE state instead of a prediction (0 = no check)', 0.0, 10.0)
+    'this when it arrives [s] gets a STALE state instead of a prediction (0 = no check; under '
+    'use_sim_time only a late one)', 0.0, 10.0)
