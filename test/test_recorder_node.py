@@ -1,6 +1,7 @@
 """recorder_node on a robot's clock: the monitor's outputs stamped in ROS time (seconds since
 1970, as a robot's drivers stamp the samples they come from) are recorded at those stamps, gaps
-counted (not from a staleness report stamped 0), and read back by the package's reader. Fed in process, through the subscriptions'
+counted (not from a staleness report stamped 0), and read back by the package's reader; the
+robot's own ``/joint_states``, stamped by its drivers on the same clock, likewise. Fed in process, through the subscriptions'
 own callbacks (the raw bytes DDS hands them), so no DDS discovery is involved."""
 from __future__ import annotations
 
@@ -12,9 +13,10 @@ from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 
 from fall_predictor.contract import messages
-from fall_predictor.contract.topics import FALL_DIRECTION, MEASUREMENT, STATE
+from fall_predictor.contract.topics import FALL_DIRECTION, JOINT_STATES, MEASUREMENT, STATE
 from fall_predictor.data.bagio import iter_messages, read_trajectory
 from fall_predictor.monitor.fall_monitor import MonitorState
+from fall_predictor.monitor.sensor_records import JointStateReading
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.ros.recorder_node import RecorderNode
 from test_nodes_support import ros_context, test_domain_id
@@ -34,6 +36,7 @@ def test_monitor_outputs_stamped_in_ros_time_are_recorded_at_their_stamps(tmp_pa
             on_measurement = node._queue_callback(MEASUREMENT.name)
             on_state = node._queue_callback(STATE.name)
             on_direction = node._queue_callback(FALL_DIRECTION.name)
+            on_joints = node._queue_callback(JOINT_STATES.name)     # the robot's own drivers
             # The predictor's staleness report before its first input is stamped 0.
             stale = MonitorState(2, reason='no features received for 1.00 s')
             on_state(serialize_message(messages.fall_state_msg(ros_qos.TYPES, 0, 'base_footprint', stale)))
@@ -44,6 +47,10 @@ def test_monitor_outputs_stamped_in_ros_time_are_recorded_at_their_stamps(tmp_pa
                 on_state(serialize_message(messages.fall_state_msg(ros_qos.TYPES, ns, 'base_footprint', state)))
                 if k == 100:
                     on_direction(serialize_message(ros_qos.fall_direction_msg(ns, (1.0, 0.0))))
+                if k % 10 == 0:
+                    joints = JointStateReading(ns, ('knee', 'hip'), np.array([0.3, -0.1]),
+                                               np.array([0.01, 0.0]), np.array([12.0, -3.5]))
+                    on_joints(serialize_message(messages.joint_state_msg(ros_qos.TYPES, joints)))
         finally:
             node.destroy_node()                 # drains the queue, closes the bags
         summary = node.summary()
@@ -60,4 +67,6 @@ def test_monitor_outputs_stamped_in_ros_time_are_recorded_at_their_stamps(tmp_pa
     logged = {m.topic: m.t_ns for m in iter_messages(run, [FALL_DIRECTION.name, STATE.name])}
     assert logged[FALL_DIRECTION.name] == stamps[100]       # at the latest measurement's stamp
     assert logged[STATE.name] == stamps[-1]
+    assert summary['rejected'][JOINT_STATES.name] == 0
+    assert [m.t_ns for m in iter_messages(run, [JOINT_STATES.name])] == stamps[::10]
     assert np.isclose(recorded.measurements[0].com[2], 0.59)

@@ -439,6 +439,10 @@ def _nan_or(value: float) -> float:
 # Joint states, pushes, controller mode
 # --------------------------------------------------------------------------------------------
 
+#: Stamps [s] a ``builtin_interfaces/Time`` holds: ``sec`` is an int32.
+MAX_STAMP_S = 2.0 ** 31
+
+
 @dataclass(frozen=True, slots=True)
 class JointStateSample:
     """One ``sensor_msgs/JointState``: names, positions [rad], velocities [rad/s], efforts [N m].
@@ -446,14 +450,18 @@ class JointStateSample:
     Velocities and efforts are either empty (not reported) or one per joint.
     """
 
-    t: float                                    #: header stamp, simulation time [s]
+    #: header stamp [s]: simulation time from the simulator, ROS time (seconds since 1970) from a
+    #: robot's drivers
+    t: float
     names: tuple[str, ...]
     position: np.ndarray
     velocity: np.ndarray = field(default_factory=lambda: np.zeros(0))
     effort: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def __post_init__(self) -> None:
-        time_to_ns(self.t)
+        if not (math.isfinite(self.t) and 0.0 <= self.t < MAX_STAMP_S):
+            raise WireFormatError(f'joint state stamp must be finite and within [0, 2^31) s '
+                                  f'(builtin_interfaces/Time), got {self.t!r}')
         n = len(self.names)
         if len(set(self.names)) != n:
             raise WireFormatError(f'joint state names are not unique: {list(self.names)}')

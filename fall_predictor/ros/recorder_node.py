@@ -68,8 +68,8 @@ from fall_predictor.msg import FallEvent, FallState, Features, Measurement
 from fall_predictor.contract.topics import (CONTROLLER_MODE, FALL_DIRECTION, FALL_EVENT, FALLING, FEATURES,
                                         JOINT_COMMANDS, JOINT_STATES, MEASUREMENT, PUSH, STATE,
                                         TopicSpec, WireFormatError, check_controller_mode)
-from fall_predictor.contract.wire import LEVEL_OK, LEVEL_WARN, JointStateSample
-from fall_predictor.contract.topics import ns_to_time, stamp_to_ns, time_to_ns
+from fall_predictor.contract.wire import LEVEL_OK, LEVEL_WARN
+from fall_predictor.contract.topics import stamp_to_ns
 
 NODE_NAME = 'recorder_node'
 #: Recorded topics and their rclpy message classes.
@@ -106,16 +106,13 @@ PARAMS = (
 
 
 def _stamp_ns(topic: str, msg: bagio.RosbagsMsg) -> Optional[int]:
-    """Validate a deserialized message against the wire contract and return its stamp [ns]
-    (None for the unstamped topics, logged at the latest measurement's); raises WireFormatError.
+    """Validate a deserialized message against the wire contract and return its header stamp
+    [ns] as it was sent (None for the unstamped topics, logged at the latest measurement's);
+    raises WireFormatError.
 
-    The monitor's outputs keep their input samples' stamps as they are: on a robot these are ROS
-    time (seconds since 1970), beyond the simulation-time range of the package's own topics."""
-    if topic == JOINT_COMMANDS.name:
-        stamp = msg.header.stamp
-        ns = stamp_to_ns(stamp.sec, stamp.nanosec)
-        JointStateSample(ns_to_time(ns), tuple(msg.name), msg.position, msg.velocity, msg.effort)
-        return ns
+    Stamps are kept whatever clock made them: simulation time from the simulator, ROS time
+    (seconds since 1970, beyond the simulation-time range of the package's records) on a robot,
+    where its drivers stamp ``/joint_states`` and the monitor's outputs keep their samples' stamps."""
     if topic == CONTROLLER_MODE.name:
         check_controller_mode(msg.data)
         return None
@@ -123,18 +120,17 @@ def _stamp_ns(topic: str, msg: bagio.RosbagsMsg) -> Optional[int]:
         if not isinstance(msg.data, bool):
             raise WireFormatError(f'falling must be a bool, got {msg.data!r}')
         return None
-    if topic == FALL_EVENT.name:
-        return None                         # logged at the latest measurement's time
-    if topic == FALL_DIRECTION.name:
+    if topic in (FALL_EVENT.name, FALL_DIRECTION.name):
         return None                         # logged at the latest measurement's time
     if topic == MEASUREMENT.name:             # a measurement that carries a fault is recorded too
-        return messages.measurement_from_msg(msg).stamp_ns
-    if topic == FEATURES.name:
-        return messages.features_from_msg(msg).stamp_ns
-    if topic == STATE.name:
-        return messages.fall_state_from_msg(msg)[0]
-    record = bagio.decode(bagio.BagMessage(topic, '', 0, msg))
-    return time_to_ns(float(record.t))  # type: ignore[attr-defined]
+        messages.measurement_from_msg(msg)
+    elif topic == FEATURES.name:
+        messages.features_from_msg(msg)
+    elif topic == STATE.name:
+        messages.fall_state_from_msg(msg)
+    else:                                   # joint states and commands, the simulator's push
+        bagio.decode(bagio.BagMessage(topic, '', 0, msg))
+    return stamp_to_ns(msg.header.stamp.sec, msg.header.stamp.nanosec)
 
 
 class RecorderNode(Node):
