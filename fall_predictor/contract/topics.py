@@ -201,6 +201,16 @@ def topics_markdown_table(topics: Iterable[TopicSpec] = TOPICS) -> str:
 #: Largest time [s] converted to a stamp: the plausibility bound of sample times (1e7 s);
 #: beyond 2^31 s a ``builtin_interfaces/Time.sec`` would wrap to a negative number.
 MAX_STAMP_TIME_S = MAX_SAMPLE_TIME_S
+#: Stamps [s] a ``builtin_interfaces/Time`` holds (its ``sec`` is an int32): what a robot's
+#: drivers stamp in ROS time (seconds since 1970), beyond the simulation-time bound above.
+MAX_ROS_STAMP_S = 2.0 ** 31
+
+
+def check_stamp_s(t: float, what: str) -> None:
+    """WireFormatError unless ``t`` [s] is a stamp a ``builtin_interfaces/Time`` holds, whatever
+    the clock (simulation or ROS time)."""
+    if not (math.isfinite(t) and 0.0 <= t < MAX_ROS_STAMP_S):
+        raise WireFormatError(f'{what} stamp {t!r} s is not a builtin_interfaces/Time')
 
 
 def time_to_ns(t: float) -> int:

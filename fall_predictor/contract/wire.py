@@ -45,17 +45,13 @@ from typing import NamedTuple, Optional, Protocol
 import numpy as np
 from numpy.typing import ArrayLike
 
-from fall_predictor.contract.topics import WORLD_FRAME, WireFormatError, ns_to_time, time_to_ns
+from fall_predictor.contract.topics import (WORLD_FRAME, WireFormatError, check_stamp_s, ns_to_time,
+                                            time_to_ns)
 from fall_predictor.monitor.plausibility import (JOINT_VALUE_BOUNDS, MAX_PUSH_FORCE_N,
                                                  ImplausibleSample, check_feature_bounds,
                                                  check_measurement_bounds)
 from fall_predictor.monitor.plausibility import check_time as _check_time
-from fall_predictor.monitor.records import (
-    FEATURE_NAMES,
-    N_CONTACT_MODES,
-    N_FEATURES,
-    Measurement,
-)
+from fall_predictor.monitor.records import FEATURE_NAMES, N_CONTACT_MODES, N_FEATURES, Measurement
 
 
 # --------------------------------------------------------------------------------------------
@@ -439,10 +435,6 @@ def _nan_or(value: float) -> float:
 # Joint states, pushes, controller mode
 # --------------------------------------------------------------------------------------------
 
-#: Stamps [s] a ``builtin_interfaces/Time`` holds: ``sec`` is an int32.
-MAX_STAMP_S = 2.0 ** 31
-
-
 @dataclass(frozen=True, slots=True)
 class JointStateSample:
     """One ``sensor_msgs/JointState``: names, positions [rad], velocities [rad/s], efforts [N m].
@@ -450,18 +442,14 @@ class JointStateSample:
     Velocities and efforts are either empty (not reported) or one per joint.
     """
 
-    #: header stamp [s]: simulation time from the simulator, ROS time (seconds since 1970) from a
-    #: robot's drivers
-    t: float
+    t: float                    #: header stamp [s]: simulation time, or ROS time from a robot
     names: tuple[str, ...]
     position: np.ndarray
     velocity: np.ndarray = field(default_factory=lambda: np.zeros(0))
     effort: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.t) and 0.0 <= self.t < MAX_STAMP_S):
-            raise WireFormatError(f'joint state stamp must be finite and within [0, 2^31) s '
-                                  f'(builtin_interfaces/Time), got {self.t!r}')
+        check_stamp_s(self.t, 'joint state')
         n = len(self.names)
         if len(set(self.names)) != n:
             raise WireFormatError(f'joint state names are not unique: {list(self.names)}')

@@ -68,8 +68,8 @@ from fall_predictor.msg import FallEvent, FallState, Features, Measurement
 from fall_predictor.contract.topics import (CONTROLLER_MODE, FALL_DIRECTION, FALL_EVENT, FALLING, FEATURES,
                                         JOINT_COMMANDS, JOINT_STATES, MEASUREMENT, PUSH, STATE,
                                         TopicSpec, WireFormatError, check_controller_mode)
-from fall_predictor.contract.wire import LEVEL_OK, LEVEL_WARN
-from fall_predictor.contract.topics import stamp_to_ns
+from fall_predictor.contract.wire import LEVEL_OK, LEVEL_WARN, JointStateSample
+from fall_predictor.contract.topics import ns_to_time, stamp_to_ns
 
 NODE_NAME = 'recorder_node'
 #: Recorded topics and their rclpy message classes.
@@ -122,15 +122,18 @@ def _stamp_ns(topic: str, msg: bagio.RosbagsMsg) -> Optional[int]:
         return None
     if topic in (FALL_EVENT.name, FALL_DIRECTION.name):
         return None                         # logged at the latest measurement's time
+    stamp_ns = stamp_to_ns(msg.header.stamp.sec, msg.header.stamp.nanosec)
     if topic == MEASUREMENT.name:             # a measurement that carries a fault is recorded too
         messages.measurement_from_msg(msg)
     elif topic == FEATURES.name:
         messages.features_from_msg(msg)
     elif topic == STATE.name:
         messages.fall_state_from_msg(msg)
-    else:                                   # joint states and commands, the simulator's push
-        bagio.decode(bagio.BagMessage(topic, '', 0, msg))
-    return stamp_to_ns(msg.header.stamp.sec, msg.header.stamp.nanosec)
+    elif topic in (JOINT_STATES.name, JOINT_COMMANDS.name):
+        JointStateSample(ns_to_time(stamp_ns), tuple(msg.name), msg.position, msg.velocity, msg.effort)
+    else:
+        bagio.decode(bagio.BagMessage(topic, '', 0, msg))       # the simulator's push
+    return stamp_ns
 
 
 class RecorderNode(Node):
