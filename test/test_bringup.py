@@ -12,7 +12,7 @@ from test_nodes_support import MOMENTUM_THRESHOLD, test_domain_id, write_momentu
 
 from fall_predictor.data.bagio import read_trajectory
 from fall_predictor.cli import build_parser
-from fall_predictor.ros.bringup import run_bringup
+from fall_predictor.ros.bringup import node_overrides, run_bringup
 from fall_predictor.monitor.records import PushSpec
 from fall_predictor.sim.pushes import PushDistribution, trajectory_seed
 
@@ -85,6 +85,21 @@ def test_bringup_arguments() -> None:
     assert args.domain_id is None and args.record is None
     assert args.sensors                 # the estimator in the loop, as on a robot, by default
     assert not build_parser().parse_args(['bringup', '--true-state']).sensors
+
+
+def test_an_unpaced_run_checks_no_sample_age_a_paced_run_does() -> None:
+    """Unpaced, simulated time is not wall time: a predictor lagging /clock on a busy machine
+    would answer STALE by the machine's load (a DDS test run's predictor logged samples
+    0.07-0.13 s late at a push), so the bring-up switches the age check off; paced, it stays
+    on."""
+    for sensors, record in ((False, None), (True, Path('bags'))):
+        names, unpaced = node_overrides(0.0, None, True, sensors, 'robot', 'asimo_like', record)
+        assert set(names) == set(unpaced) and 'predictor_node' in names
+        assert unpaced['predictor_node']['max_sample_age_s'] == '0.0'
+        assert unpaced['simulator_node']['real_time_factor'] == '0.0'
+        _, paced = node_overrides(1.0, None, True, sensors, 'robot', 'asimo_like', record)
+        assert 'max_sample_age_s' not in paced['predictor_node']
+        assert paced['simulator_node']['real_time_factor'] == '1.0'
 
 
 def test_record_live_with_c_bal_throughout_then_import_and_train(tmp_path: Path) -> None:

@@ -209,6 +209,55 @@ def default_domain_id() -> int:
     return 100 + os.getpid() % 100
 
 
+#: The predictor's parameters in an unpaced run (``real_time_factor`` 0). Simulation time then
+#: runs as fast as the lock-stepped simulator and controller go, not with wall time, and the
+#: simulator does not wait for the predictor: on a busy machine the predictor falls tens of
+#: simulated milliseconds behind ``/clock`` (which it takes keep-last 1, so it jumps ahead of the
+#: queued samples) and its sample-age check would answer STALE for samples late only in
+#: simulated time, a fall predicted later or not at all by the machine's load. A paced run
+#: keeps the check: its simulated time is wall time.
+UNPACED_PREDICTOR_PARAMS = {'max_sample_age_s': '0.0'}
+
+
+def node_overrides(real_time_factor: float, model_path: Optional[Path], fall_trigger: bool,
+                   sensors: bool, sensor_timing: str, robot: str, record_dir: Optional[Path]
+                   ) -> tuple[list[str], dict[str, dict[str, str]]]:
+    """The nodes a bring-up starts, in order, and each one's parameter overrides (strings, as
+    on the command line); the arguments are :func:`run_bringup`'s, ``model_path`` resolved."""
+    profile = load_profile(robot)
+    overrides: dict[str, dict[str, str]] = {
+        'simulator_node': {'real_time_factor': repr(float(real_time_factor)),
+                           'autostart': 'false', 'lockstep': 'true'},
+        # Both read the model: the feature node for the feature settings it was trained with.
+        'predictor_node': {'model_path': str(Path(model_path).resolve())} if model_path else {},
+        'feature_node': {'model_path': str(Path(model_path).resolve())} if model_path else {},
+        'controller_node': {} if fall_trigger else {'fall_trigger_enabled': 'false'},
+    }
+    if robot != DEFAULT_ROBOT:
+        for name in ('simulator_node', 'predictor_node', 'controller_node'):
+            overrides[name]['robot'] = robot
+    names = list(PIPELINE_NODES)
+    if sensors:
+        overrides['simulator_node']['publish_sensors'] = 'true'
+        overrides['controller_node']['ground_truth'] = 'true'     # the robot's own controller
+        if sensor_timing == 'robot':            # sim/drivers.DriverTiming.robot(500 Hz, split)
+            overrides['simulator_node'].update(
+                sensor_joint_rate_hz='500.0', sensor_imu_offset_s='0.0003',
+                sensor_wrench_offset_s='0.0004', sensor_split_joints='true')
+            legs = profile.legs_and_upper_body()[0]
+            overrides[ESTIMATOR_NODE] = {'driving_joints': '[' + ', '.join(f'"{j}"' for j in legs) + ']'}
+        overrides.setdefault(ESTIMATOR_NODE, {})
+        if robot != DEFAULT_ROBOT:
+            overrides[ESTIMATOR_NODE]['robot'] = robot
+        names.insert(names.index('simulator_node'), ESTIMATOR_NODE)
+    if record_dir is not None:
+        names.insert(0, RECORDER_NODE)
+        overrides[RECORDER_NODE] = {'bag_path': str(Path(record_dir).resolve())}
+    if real_time_factor == 0.0:
+        overrides['predictor_node'].update(UNPACED_PREDICTOR_PARAMS)
+    return names, overrides
+
+
 def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
                 domain_id: Optional[int] = None, real_time_factor: float = 0.0,
                 model_path: Optional[Path] = None, params_file: Optional[Path] = None,
@@ -220,7 +269,8 @@ def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
     """Start the nodes, push the robot ``pushes`` times, stop everything; see the module docs.
 
     ``real_time_factor`` 0 runs as fast as the lock-stepped pipeline allows (the outcome does
-    not depend on it); ``record_dir`` also runs the recorder (one bag per push run);
+    not depend on it: the predictor's sample-age check is then off,
+    :data:`UNPACED_PREDICTOR_PARAMS`); ``record_dir`` also runs the recorder (one bag per push run);
     ``horizon_s`` is the simulation time [s] watched after a push ends if the robot does not
     fall; node logs go to ``log_dir`` (default: a new temporary directory);
     ``push_distribution`` defaults to method §3's. With ``fall_trigger`` false the predictor
@@ -254,34 +304,8 @@ def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
     log_dir = Path(log_dir) if log_dir else Path(tempfile.mkdtemp(prefix='fall_predictor_bringup_'))
     log_dir.mkdir(parents=True, exist_ok=True)
     params_file = Path(params_file) if params_file else default_params_file()
-    overrides: dict[str, dict[str, str]] = {
-        'simulator_node': {'real_time_factor': repr(float(real_time_factor)),
-                           'autostart': 'false', 'lockstep': 'true'},
-        # Both read the model: the feature node for the feature settings it was trained with.
-        'predictor_node': {'model_path': str(Path(model_path).resolve())} if model_path else {},
-        'feature_node': {'model_path': str(Path(model_path).resolve())} if model_path else {},
-        'controller_node': {} if fall_trigger else {'fall_trigger_enabled': 'false'},
-    }
-    if robot != DEFAULT_ROBOT:
-        for name in ('simulator_node', 'predictor_node', 'controller_node'):
-            overrides[name]['robot'] = robot
-    names = list(PIPELINE_NODES)
-    if sensors:
-        overrides['simulator_node']['publish_sensors'] = 'true'
-        overrides['controller_node']['ground_truth'] = 'true'     # the robot's own controller
-        if sensor_timing == 'robot':            # sim/drivers.DriverTiming.robot(500 Hz, split)
-            overrides['simulator_node'].update(
-                sensor_joint_rate_hz='500.0', sensor_imu_offset_s='0.0003',
-                sensor_wrench_offset_s='0.0004', sensor_split_joints='true')
-            legs = profile.legs_and_upper_body()[0]
-            overrides[ESTIMATOR_NODE] = {'driving_joints': '[' + ', '.join(f'"{j}"' for j in legs) + ']'}
-        overrides.setdefault(ESTIMATOR_NODE, {})
-        if robot != DEFAULT_ROBOT:
-            overrides[ESTIMATOR_NODE]['robot'] = robot
-        names.insert(names.index('simulator_node'), ESTIMATOR_NODE)
-    if record_dir is not None:
-        names.insert(0, RECORDER_NODE)
-        overrides[RECORDER_NODE] = {'bag_path': str(Path(record_dir).resolve())}
+    names, overrides = node_overrides(real_time_factor, model_path, fall_trigger, sensors,
+                                      sensor_timing, robot, record_dir)
 
     context = rclpy.Context()
     with _scoped_environment({'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'}):
