@@ -48,3 +48,32 @@ def test_a_standing_gait_keeps_both_feet_where_they_are():
         assert controller.reflex_event is None
         assert m.left_foot[:2] == pytest.approx(start[0][:2], abs=0.005)
         assert m.right_foot[:2] == pytest.approx(start[1][:2], abs=0.005)
+
+
+def test_a_dataset_draws_each_push_onset_over_one_cycle_of_its_robots_own_gait(monkeypatch):
+    """The G1 walks 0.35 s of single support, a 1.1 s cycle; generation drew its onsets over
+    the default gait's 1.4 s cycle, so the phases of one step in five were drawn twice."""
+    from fall_predictor.data import generation
+    from fall_predictor.sim import trajectory
+    from fall_predictor.sim.pushes import robot_gait
+
+    class Drawn(Exception):
+        pass
+
+    def capture(push, *args, **kwargs):
+        raise Drawn(push)
+
+    monkeypatch.setattr(trajectory, 'run_trajectory', capture)
+    monkeypatch.setattr(generation, '_walk_prefix', lambda config: None)
+    config = generation.GenerationConfig(seed=5, robot='g1', gait_variety=False)
+    gait = robot_gait('g1')
+    cycle_s = PushDistribution().walk_cycle_s(gait)
+    assert (gait.single_support_s, cycle_s) == (0.35, pytest.approx(1.1))
+    onsets = []
+    for index in range(60):
+        with pytest.raises(Drawn) as drawn:
+            generation.simulate_one(config, index)
+        onsets.append(drawn.value.args[0].t_push - config.push_distribution.settle_s)
+    assert 0.0 <= min(onsets) and max(onsets) <= cycle_s
+    assert max(onsets) > 0.9 * cycle_s                  # over the whole cycle
+    assert robot_gait('asimo_like') == GaitConfig()     # the default robot: as before

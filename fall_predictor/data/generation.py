@@ -135,10 +135,13 @@ def _walk_prefix(config: GenerationConfig):
     from fall_predictor.sim.simulator import Simulator
     from fall_predictor.sim.trajectory import WalkPrefix
 
+    from fall_predictor.sim.pushes import robot_gait
+
     dist = config.push_distribution
-    until = dist.settle_s + dist.walk_cycle_s()
+    cycle_s = dist.walk_cycle_s(robot_gait(config.robot))
+    until = dist.settle_s + cycle_s
     record = config.sensor_noise_scale is not None
-    return _WORKER.get(('prefix', config.robot, dist.settle_s, dist.walk_cycle_s(), record),
+    return _WORKER.get(('prefix', config.robot, dist.settle_s, cycle_s, record),
                        lambda: WalkPrefix(Simulator(profile=load_profile(config.robot)), until_s=until,
                                           walk_duration_s=(until + config.horizon_after_push_s
                                                            + config.settle_extension_s + 5.0),
@@ -172,7 +175,7 @@ class SimulatedTrajectory:
 def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
     """Simulate trajectory ``index`` and record it as a bag in a private temporary directory;
     return the bag's bytes. Writes nothing else, so it runs anywhere (a Dask worker included)."""
-    from fall_predictor.sim.pushes import trajectory_seed
+    from fall_predictor.sim.pushes import robot_gait, trajectory_seed
     from fall_predictor.sim.trajectory import run_trajectory
 
     cpu0, wall0 = time.thread_time(), time.perf_counter()
@@ -182,7 +185,7 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
         gait, push = config.push_distribution.sample_with_gait(rng)
         start = {'gait': gait, 'simulator': _worker_simulator(config.robot)}
     else:
-        gait, push = None, config.push_distribution.sample(rng)
+        gait, push = None, config.push_distribution.sample(rng, robot_gait(config.robot))
         start = {'prefix': _walk_prefix(config)}
     t_start = round(push.t_push - config.pre_push_s, 6)
     mass_kg = load_profile(config.robot).total_mass_kg

@@ -287,7 +287,7 @@ def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
     import rclpy
 
     from fall_predictor.ros.observer import Observer
-    from fall_predictor.sim.pushes import PushDistribution, trajectory_seed
+    from fall_predictor.sim.pushes import PushDistribution, robot_gait, trajectory_seed
 
     profile = load_profile(robot)
     if robot != DEFAULT_ROBOT:
@@ -330,7 +330,7 @@ def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
             raise BringupError(f'the nodes did not come up within {startup_timeout_s} s '
                                f'(logs in {log_dir})')
         for index in range(pushes):
-            push = push_distribution.sample(trajectory_seed(seed, index))
+            push = push_distribution.sample(trajectory_seed(seed, index), robot_gait(robot))
             result = observer.run_push(index, push, horizon_s, check_alive)
             result.update(seed=seed, domain_id=domain_id)
             results.append(result)

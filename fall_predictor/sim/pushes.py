@@ -6,7 +6,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from fall_predictor.robot.controllers import GaitConfig
+from fall_predictor.robot.controllers import GaitConfig, controller_configs
 from fall_predictor.monitor.records import PUSH_DURATION_S, PushSpec
 
 
@@ -66,6 +66,13 @@ class PushDistribution:
 
     def onset(self, rng: np.random.Generator, gait: GaitConfig = GaitConfig()) -> float:
         return round(self.settle_s + rng.uniform(0.0, self.walk_cycle_s(gait)), 3)
+
+
+def robot_gait(robot: str) -> GaitConfig:
+    """The gait robot ``robot`` (a profile's name or path) walks when a dataset draws none: its
+    profile's. A push onset is drawn over one cycle of it."""
+    from fall_predictor.profiles import load_profile
+    return controller_configs(load_profile(robot))[0]
 
 
 def trajectory_seed(dataset_seed: int, index: int) -> np.random.Generator:
