@@ -129,13 +129,13 @@ _WORKER = PerThread()
 
 
 def _walk_prefix(config: GenerationConfig):
-    """The unpushed default walk up to the latest possible push onset, simulated once per
-    worker thread (trajectories then start from its snapshots; each depends only on its own push,
-    not on the worker's earlier ones: :meth:`~fall_predictor.sim.simulator.Simulator.restore`)."""
+    """The robot's unpushed walk (its profile's gait) up to the latest possible push onset,
+    simulated once per worker thread (trajectories then start from its snapshots; each depends only
+    on its own push, not on the worker's earlier ones:
+    :meth:`~fall_predictor.sim.simulator.Simulator.restore`)."""
+    from fall_predictor.sim.pushes import robot_gait
     from fall_predictor.sim.simulator import Simulator
     from fall_predictor.sim.trajectory import WalkPrefix
-
-    from fall_predictor.sim.pushes import robot_gait
 
     dist = config.push_distribution
     cycle_s = dist.walk_cycle_s(robot_gait(config.robot))
