@@ -149,7 +149,7 @@ class _Pushes:
     def __init__(self, *pushes: PushSpec):
         self._pushes = iter(pushes)
 
-    def sample(self, rng) -> PushSpec:
+    def sample(self, rng, gait=None) -> PushSpec:
         return next(self._pushes)
 
 
