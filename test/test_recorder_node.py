@@ -1,8 +1,9 @@
 """recorder_node on a robot's clock: the monitor's outputs stamped in ROS time (seconds since
 1970, as a robot's drivers stamp the samples they come from) are recorded at those stamps, gaps
 counted (not from a staleness report stamped 0), and read back by the package's reader; the
-robot's own ``/joint_states``, stamped by its drivers on the same clock, likewise. Fed in process, through the subscriptions'
-own callbacks (the raw bytes DDS hands them), so no DDS discovery is involved."""
+robot's own ``/joint_states``, stamped by its drivers on the same clock, likewise. Fed in
+process, through the subscriptions' own callbacks (the raw bytes DDS hands them), so no DDS
+discovery is involved."""
 from __future__ import annotations
 
 import json

@@ -6,6 +6,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from fall_predictor.profiles import load_profile
 from fall_predictor.robot.controllers import GaitConfig, controller_configs
 from fall_predictor.monitor.records import PUSH_DURATION_S, PushSpec
 
@@ -71,7 +72,6 @@ class PushDistribution:
 def robot_gait(robot: str) -> GaitConfig:
     """The gait robot ``robot`` (a profile's name or path) walks when a dataset draws none: its
     profile's. A push onset is drawn over one cycle of it."""
-    from fall_predictor.profiles import load_profile
     return controller_configs(load_profile(robot))[0]
 
 
