@@ -14,6 +14,10 @@ chosen on all the development folds, evaluated once on the test set; and each fi
 cost per 1 kHz decision (``predict_one``, one sample at a time as the monitor calls it, over
 the test set's samples). Writes JSON (``--out``).
 
+With ``--fixed LEARNER:THRESHOLD,TAU_HIS`` (repeatable), a setting fixed in advance, such as a
+shipped model's own, is reported beside the nested choices: pooled over the folds (no
+selection, so no nesting) and, with ``--test``, held out.
+
 With ``--window``, a third learner, ``boosting_window``: the same boosting on the features and
 their changes over the last 50, 100 and 200 ms (60 inputs; :class:`WindowedBoosting`), selected
 and evaluated alike: what a window of the recent past buys by nested CV. An offline reference:
@@ -36,7 +40,7 @@ from fall_predictor.data.dataset import dataset_guard_com_height_m
 from fall_predictor.learning.crossval import FoldFit, stratified_trajectory_folds
 from fall_predictor.learning.evaluation import evaluation_result_json
 from fall_predictor.learning.metrics import evaluate_atomic
-from fall_predictor.learning.nested import nested_operating_point
+from fall_predictor.learning.nested import fixed_setting, nested_operating_point
 from fall_predictor.learning.training import fit_strided, load_dataset, make_learner
 from fall_predictor.monitor.boosted_trees import BoostedTrees
 from fall_predictor.monitor.records import FALLING, N_CONTACT_MODES
@@ -146,6 +150,17 @@ def cost_us(lists, trajs, n: int = 20000) -> dict:
     return {'per_decision_us': round(best, 2), 'samples': len(samples)}
 
 
+def fixed_arg(text: str) -> tuple[str, tuple[float, float]]:
+    """``LEARNER:THRESHOLD,TAU_HIS`` -> (learner, (threshold, tau_his))."""
+    name, _, setting = text.partition(':')
+    try:
+        threshold, tau_his = (float(v) for v in setting.split(','))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'{text!r}: expected LEARNER:THRESHOLD,TAU_HIS, '
+                                         'e.g. boosting:3.0,0.03 or tree:0,0.06') from None
+    return name, (threshold, tau_his)
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--data', type=Path, required=True, help='development data')
@@ -161,9 +176,19 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument('--window', action='store_true',
                         help='also the boosting learner on the features and their changes over '
                              'the last 50, 100 and 200 ms (an offline reference, not shippable)')
+    parser.add_argument('--fixed', type=fixed_arg, action='append', default=[],
+                        metavar='LEARNER:THRESHOLD,TAU_HIS',
+                        help='a setting fixed in advance (e.g. a shipped model\'s), reported '
+                             'beside the nested choices; repeatable')
     parser.add_argument('--jobs', type=int, default=2)
     parser.add_argument('--out', type=Path, default=None)
     args = parser.parse_args(argv)
+    for name, (threshold, tau_his) in args.fixed:
+        if name not in ('tree', 'boosting') or tau_his not in TAU_HIS_S or (
+                name == 'boosting' and threshold not in args.thresholds) or (name == 'tree' and threshold != 0):
+            parser.error(f'--fixed {name}:{threshold},{tau_his}: not a setting of the grid '
+                         f'(learner tree or boosting, tau_his in {TAU_HIS_S}, thresholds in '
+                         f'{args.thresholds}; the lists: 0)')
     guard_m = dataset_guard_com_height_m(args.data)
     trajs = load_dataset(args.data, jobs=args.jobs, state='estimated').trajectories
     learners = {'tree': make_learner('tree'), 'boosting': make_learner('boosting', dict(args.param))}
@@ -194,7 +219,7 @@ def main(argv: list[str] | None = None) -> dict:
            'window_lags_s': list(WINDOW_LAGS_S) if args.window else None,
            'setting': '(decision_threshold [log-odds], tau_his [s]); the lists: (0, tau_his)',
            'fit_s_per_fold': {n: round(s / args.folds, 1) for n, s in fit_s.items()},
-           'nested': {}, 'test': None}
+           'nested': {}, 'fixed': {}, 'test': None}
     chosen_on_dev = {}
     for name in learners:
         out['nested'][name] = {}
@@ -204,6 +229,10 @@ def main(argv: list[str] | None = None) -> dict:
                                                 'chosen_on_all_folds': point.selected_in_hindsight}
             chosen_on_dev[(name, budget)] = point.selected_in_hindsight
             print(name, budget, out['nested'][name][str(budget)], flush=True)
+    for name, setting in args.fixed:
+        key = f'{name}:{setting[0]},{setting[1]}'
+        out['fixed'][key] = figures(fixed_setting(fits[name], setting))
+        print('fixed', key, out['fixed'][key], flush=True)
     if args.test is not None:
         test = load_dataset(args.test, jobs=args.jobs, state='estimated').trajectories
         test_guard_m = dataset_guard_com_height_m(args.test)
@@ -220,6 +249,11 @@ def main(argv: list[str] | None = None) -> dict:
                 row[str(budget)] = {'decision_threshold': thr, 'tau_his_s': tau_his,
                                     **{k: payload[k] for k in KEEP if k in payload}}
                 print(name, budget, row[str(budget)], flush=True)
+            for fixed_name, (thr, tau_his) in args.fixed:
+                if fixed_name == name:
+                    payload = evaluation_result_json(results[thr][tau_his])
+                    row[f'fixed:{thr},{tau_his}'] = {k: payload[k] for k in KEEP if k in payload}
+                    print(name, 'fixed', (thr, tau_his), row[f'fixed:{thr},{tau_his}'], flush=True)
             out['test']['learners'][name] = row
     text = json.dumps(out, indent=1, default=float)
     if args.out:
