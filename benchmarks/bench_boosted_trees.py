@@ -18,10 +18,12 @@ With ``--fixed LEARNER:THRESHOLD,TAU_HIS`` (repeatable), a setting fixed in adva
 shipped model's own, is reported beside the nested choices: pooled over the folds (no
 selection, so no nesting) and, with ``--test``, held out.
 
-With ``--window``, a third learner, ``boosting_window``: the same boosting on the features and
-their changes over the last 50, 100 and 200 ms (60 inputs; :class:`WindowedBoosting`), selected
-and evaluated alike: what a window of the recent past buys by nested CV. An offline reference:
-the onboard monitor computes no such inputs (no cost per decision is given for it).
+With ``--window``, another learner, ``boosting_window``: the same boosting on the features and
+their changes over the last 50, 100 and 200 ms (60 inputs; :class:`ExtraInputsBoosting`),
+selected and evaluated alike: what a window of the recent past buys by nested CV. With
+``--imu``, ``boosting_imu``: the same on the features and the IMU tilt detector's four signals
+(19 inputs; :class:`ImuInputs`): what features from the IMU buy. Offline references: the onboard
+monitor computes no such inputs (no cost per decision is given for them).
 
     .venv/bin/python benchmarks/bench_boosted_trees.py --data data/g1_dev1000 \\
         --test data/g1_test400 --folds 5 --out docs/boosted_trees/g1.json
@@ -74,7 +76,7 @@ def fold_results(lists, trajs, kind: str, thresholds, guard_m: float) -> dict:
     if kind == 'tree':
         atomic = [lists.predict(t.X, t.mode) == FALLING for t in trajs]
         return {0.0: evaluate_atomic(trajs, atomic, TAU_HIS_S, 0.001, guard_m)}
-    if isinstance(lists, WindowedBoosting):
+    if isinstance(lists, ExtraInputsBoosting):
         per_traj = [lists.scores(t) for t in trajs]
     else:
         per_traj = [scores(lists, t) for t in trajs]
@@ -82,16 +84,18 @@ def fold_results(lists, trajs, kind: str, thresholds, guard_m: float) -> dict:
             for thr in thresholds}
 
 
-class WindowedBoosting:
-    """The boosting learner on the windowed inputs, per contact mode, as ``fit_strided`` trains it
-    (mirror images made from the 15 features, then windowed). An offline reference: its trees take
-    60 inputs, which the onboard monitor does not compute; scores from scikit-learn's
-    ``decision_function``, which the exported trees equal bit for bit (test_boosting.py)."""
+class ExtraInputsBoosting:
+    """The boosting learner on the 15 features and more inputs (``inputs``: a trajectory -> the
+    trajectory with its inputs as ``X``), per contact mode, as ``fit_strided`` trains it (mirror
+    images made from the 15 features first). An offline reference: its trees take inputs the
+    onboard monitor does not compute; scores from scikit-learn's ``decision_function``, which the
+    exported trees equal bit for bit (test_boosting.py)."""
 
-    def __init__(self, params: dict) -> None:
+    def __init__(self, params: dict, inputs) -> None:
         self.params = params
+        self.inputs = inputs
 
-    def fit(self, trajs, tau_plus_s: float, mirror: bool) -> 'WindowedBoosting':
+    def fit(self, trajs, tau_plus_s: float, mirror: bool) -> 'ExtraInputsBoosting':
         from sklearn.ensemble import HistGradientBoostingClassifier
 
         from fall_predictor.learning.learners import training_set
@@ -101,7 +105,7 @@ class WindowedBoosting:
             from fall_predictor.learning.mirror import with_mirror_images
             trajs = with_mirror_images(trajs)
         stride = DEFAULT_SAMPLE_STRIDE
-        X, y, w, modes, _ = training_set([subsample(windowed(t), stride) for t in trajs],
+        X, y, w, modes, _ = training_set([subsample(self.inputs(t), stride) for t in trajs],
                                               tau_plus_s, BALANCED_WEIGHT * stride,
                                               FALLING_WEIGHT * stride)
         hp = make_learner('boosting', self.params)      # its validated hyper-parameters
@@ -123,12 +127,47 @@ class WindowedBoosting:
 
     def scores(self, traj) -> np.ndarray:
         out = np.full(len(traj.mode), -np.inf)          # a mode without falling samples: balanced
-        X = windowed(traj).X
+        X = self.inputs(traj).X
         for mode, model in self.models.items():
             rows = traj.mode == mode
             if rows.any():
                 out[rows] = model if isinstance(model, float) else model.decision_function(X[rows])
         return out
+
+
+#: Under the left-right reflection (learning/mirror.py) the IMU's fused roll and roll rate
+#: change sign, its pitch and pitch rate do not.
+IMU_MIRROR_SIGNS = np.array([-1.0, 1.0, -1.0, 1.0])
+MIRROR_SUFFIX = '-mirror'
+
+
+class ImuInputs:
+    """The 15 features and the IMU tilt detector's four signals (fused roll and pitch [rad], roll
+    and pitch rate [rad/s]; NaN where the IMU has no sample) at each feature sample, by
+    trajectory id; a mirror image takes its original's signals reflected."""
+
+    def __init__(self) -> None:
+        self.signals: dict[str, np.ndarray] = {}
+
+    def add(self, data_dir: Path, trajs, jobs: int) -> None:
+        from fall_predictor.learning.tilt_detector import imu_signals_cached
+        signals = imu_signals_cached(data_dir, trajs, jobs=jobs, progress=True)
+        if signals is None:
+            raise SystemExit(f'{data_dir}: recorded without the sensor topics, no IMU to read')
+        repeated = [t.trajectory_id for t in trajs if t.trajectory_id in self.signals]
+        if repeated:
+            raise ValueError(f'{data_dir}: trajectory ids already read from another dataset, e.g. '
+                             f'{repeated[0]}: one ImuInputs per dataset')
+        self.signals.update({t.trajectory_id: s for t, s in zip(trajs, signals)})
+
+    def __call__(self, traj):
+        import dataclasses
+        tid = traj.trajectory_id
+        if tid.endswith(MIRROR_SUFFIX):
+            imu = self.signals[tid[:-len(MIRROR_SUFFIX)]] * IMU_MIRROR_SIGNS
+        else:
+            imu = self.signals[tid]
+        return dataclasses.replace(traj, X=np.hstack([traj.X, imu]))
 
 
 def figures(pooled) -> dict:
@@ -176,6 +215,10 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument('--window', action='store_true',
                         help='also the boosting learner on the features and their changes over '
                              'the last 50, 100 and 200 ms (an offline reference, not shippable)')
+    parser.add_argument('--imu', action='store_true',
+                        help='also the boosting learner on the features and the IMU tilt '
+                             'detector\'s four signals (fused roll and pitch, their rates): '
+                             'features from the IMU, an offline reference')
     parser.add_argument('--fixed', type=fixed_arg, action='append', default=[],
                         metavar='LEARNER:THRESHOLD,TAU_HIS',
                         help='a setting fixed in advance (e.g. a shipped model\'s), reported '
@@ -193,11 +236,15 @@ def main(argv: list[str] | None = None) -> dict:
     trajs = load_dataset(args.data, jobs=args.jobs, state='estimated').trajectories
     learners = {'tree': make_learner('tree'), 'boosting': make_learner('boosting', dict(args.param))}
     if args.window:
-        learners['boosting_window'] = WindowedBoosting(dict(args.param))
+        learners['boosting_window'] = ExtraInputsBoosting(dict(args.param), windowed)
+    if args.imu:
+        imu = ImuInputs()
+        imu.add(args.data, trajs, args.jobs)
+        learners['boosting_imu'] = ExtraInputsBoosting(dict(args.param), imu)
 
     def fit(learner, train):
-        if isinstance(learner, WindowedBoosting):
-            return WindowedBoosting(learner.params).fit(train, args.tau_plus, args.mirror)
+        if isinstance(learner, ExtraInputsBoosting):
+            return ExtraInputsBoosting(learner.params, learner.inputs).fit(train, args.tau_plus, args.mirror)
         return fit_strided(train, args.tau_plus, learner, mirror=args.mirror)
     folds = stratified_trajectory_folds(trajs, args.folds, args.seed)
     fits = {name: [] for name in learners}
@@ -217,6 +264,7 @@ def main(argv: list[str] | None = None) -> dict:
     out = {'data': str(args.data), 'folds': args.folds, 'seed': args.seed, 'tau_plus_s': args.tau_plus,
            'mirror': args.mirror, 'boosting_params': learners['boosting'].get_params(),
            'window_lags_s': list(WINDOW_LAGS_S) if args.window else None,
+           'imu_inputs': ['fused_roll_rad', 'fused_pitch_rad', 'roll_rate_rad_s', 'pitch_rate_rad_s'] if args.imu else None,
            'setting': '(decision_threshold [log-odds], tau_his [s]); the lists: (0, tau_his)',
            'fit_s_per_fold': {n: round(s / args.folds, 1) for n, s in fit_s.items()},
            'nested': {}, 'fixed': {}, 'test': None}
@@ -236,9 +284,14 @@ def main(argv: list[str] | None = None) -> dict:
     if args.test is not None:
         test = load_dataset(args.test, jobs=args.jobs, state='estimated').trajectories
         test_guard_m = dataset_guard_com_height_m(args.test)
+        if args.imu:                                    # trajectory ids repeat across datasets
+            test_imu = ImuInputs()
+            test_imu.add(args.test, test, args.jobs)
         out['test'] = {'data': str(args.test), 'learners': {}}
         for name, learner in learners.items():
             lists = fit(learner, trajs)
+            if isinstance(getattr(lists, 'inputs', None), ImuInputs):
+                lists.inputs = test_imu                 # the trained model reads the test set's IMU
             kind = 'tree' if name == 'tree' else 'boosting'
             results = fold_results(lists, test, kind, args.thresholds, test_guard_m)
             row = ({'mean_rule_size': lists.mean_rule_size, 'cost': cost_us(lists, test)}
