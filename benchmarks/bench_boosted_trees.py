@@ -31,6 +31,7 @@ monitor computes no such inputs (no cost per decision is given for them).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import time
 from pathlib import Path
@@ -42,6 +43,7 @@ from fall_predictor.data.dataset import dataset_guard_com_height_m
 from fall_predictor.learning.crossval import FoldFit, stratified_trajectory_folds
 from fall_predictor.learning.evaluation import evaluation_result_json
 from fall_predictor.learning.metrics import evaluate_atomic
+from fall_predictor.learning.mirror import MIRROR_ID_SUFFIX
 from fall_predictor.learning.nested import fixed_setting, nested_operating_point
 from fall_predictor.learning.training import fit_strided, load_dataset, make_learner
 from fall_predictor.monitor.boosted_trees import BoostedTrees
@@ -138,7 +140,6 @@ class ExtraInputsBoosting:
 #: Under the left-right reflection (learning/mirror.py) the IMU's fused roll and roll rate
 #: change sign, its pitch and pitch rate do not.
 IMU_MIRROR_SIGNS = np.array([-1.0, 1.0, -1.0, 1.0])
-MIRROR_SUFFIX = '-mirror'
 
 
 class ImuInputs:
@@ -153,7 +154,7 @@ class ImuInputs:
         from fall_predictor.learning.tilt_detector import imu_signals_cached
         signals = imu_signals_cached(data_dir, trajs, jobs=jobs, progress=True)
         if signals is None:
-            raise SystemExit(f'{data_dir}: recorded without the sensor topics, no IMU to read')
+            raise ValueError(f'{data_dir}: recorded without the sensor topics, no IMU to read')
         repeated = [t.trajectory_id for t in trajs if t.trajectory_id in self.signals]
         if repeated:
             raise ValueError(f'{data_dir}: trajectory ids already read from another dataset, e.g. '
@@ -161,10 +162,9 @@ class ImuInputs:
         self.signals.update({t.trajectory_id: s for t, s in zip(trajs, signals)})
 
     def __call__(self, traj):
-        import dataclasses
         tid = traj.trajectory_id
-        if tid.endswith(MIRROR_SUFFIX):
-            imu = self.signals[tid[:-len(MIRROR_SUFFIX)]] * IMU_MIRROR_SIGNS
+        if tid.endswith(MIRROR_ID_SUFFIX):
+            imu = self.signals[tid[:-len(MIRROR_ID_SUFFIX)]] * IMU_MIRROR_SIGNS
         else:
             imu = self.signals[tid]
         return dataclasses.replace(traj, X=np.hstack([traj.X, imu]))

@@ -24,6 +24,8 @@ from fall_predictor.monitor.records import CONTACT_MODE_NAMES, FEATURE_NAMES, Tr
 
 _FLIPPED = ('com_y', 'lin_mom_y', 'd_lin_mom_y', 'ang_mom_x', 'ang_mom_z', 'd_ang_mom_x',
             'd_ang_mom_z')
+#: Appended to a trajectory's id to name its mirror image.
+MIRROR_ID_SUFFIX = '-mirror'
 #: Per feature, +1 or -1 under the left-right reflection.
 MIRROR_SIGNS = np.array([-1.0 if name in _FLIPPED else 1.0 for name in FEATURE_NAMES])
 
@@ -39,11 +41,11 @@ MIRROR_MODES = np.array([CONTACT_MODE_NAMES.index(_mirror_mode_name(n)) for n in
 
 
 def mirror_trajectory(traj: TrajectoryFeatures) -> TrajectoryFeatures:
-    """The left-right mirror image of ``traj`` (id suffixed ``'-mirror'``)."""
+    """The left-right mirror image of ``traj`` (id suffixed :data:`MIRROR_ID_SUFFIX`)."""
     foot_force = traj.foot_force_n
     if foot_force is not None:
         foot_force = np.asarray(foot_force)[:, ::-1].copy()
-    return dataclasses.replace(traj, trajectory_id=f'{traj.trajectory_id}-mirror',
+    return dataclasses.replace(traj, trajectory_id=traj.trajectory_id + MIRROR_ID_SUFFIX,
                                X=np.asarray(traj.X) * MIRROR_SIGNS,
                                mode=MIRROR_MODES[np.asarray(traj.mode)], foot_force_n=foot_force)
 
