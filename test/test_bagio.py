@@ -12,8 +12,8 @@ from fall_predictor.contract.topics import (CONTROLLER_MODE, FEATURES, JOINT_COM
 from fall_predictor.contract.messages import measurement_msg
 from fall_predictor.contract.wire import pack_measurement
 from fall_predictor.data.bag_writer import BagWriter
-from fall_predictor.data.bagio import (LEGACY_ARRAY_TYPE, BagError, decode, iter_messages,
-                                       read_trajectory, typestore)
+from fall_predictor.data.bagio import (LEGACY_ARRAY_TYPE, MAX_TRAILING_BYTES, BagError, decode,
+                                       deserialize_cdr, iter_messages, read_trajectory, typestore)
 from fall_predictor.monitor.fall_monitor import STATUS_OK, MonitorState
 from random_records import make_measurement
 
@@ -290,3 +290,50 @@ def test_writer_refuses_existing_path_and_aborts_on_error(tmp_path, measurements
     assert not (bag / 'metadata.yaml').exists()
     with pytest.raises(BagError, match='metadata'):
         read_trajectory(bag)
+
+
+def _joint_state_as_dds_sends_it(position, velocity, effort, names=('knee', 'hip')) -> bytes:
+    """A ``sensor_msgs/JointState`` serialized by rclpy (rmw_fastrtps), as a robot's driver
+    publishes it and ``ros2 bag`` records it."""
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import JointState
+    msg = JointState(name=list(names), position=position, velocity=velocity, effort=effort)
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 1_795_852_800, 5_000_000
+    return serialize_message(msg)
+
+
+@pytest.mark.parametrize('velocity, effort, unwritten', [([0.1, 0.0], [], 4), ([], [], 8),
+                                                        ([0.1, 0.0], [12.0, -3.5], 0)])
+def test_joint_states_without_efforts_as_fast_dds_sends_them_decode(velocity, effort, unwritten):
+    raw = _joint_state_as_dds_sends_it([0.3, -0.1], velocity, effort)
+    msg = deserialize_cdr(raw, JOINT_STATES.msg_type)
+    assert list(msg.name) == ['knee', 'hip'] and msg.position.tolist() == [0.3, -0.1]
+    assert msg.velocity.tolist() == velocity and msg.effort.tolist() == effort
+    assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (1_795_852_800, 5_000_000)
+    # The bytes after the last member, counted against an independent serializer (rosbags' own,
+    # which writes none): more than the 3 rosbags reads when the arrays end empty.
+    assert len(raw) - len(typestore().serialize_cdr(msg, JOINT_STATES.msg_type)) == unwritten
+
+
+def test_more_bytes_after_a_message_or_a_cut_message_is_refused():
+    from rosbags.serde import SerdeError
+    raw = _joint_state_as_dds_sends_it([0.3, -0.1], [0.1, 0.0], [12.0, -3.5])     # none after it
+    deserialize_cdr(raw + bytes(MAX_TRAILING_BYTES), JOINT_STATES.msg_type)
+    with pytest.raises(SerdeError, match='bytes after its last member'):
+        deserialize_cdr(raw + bytes(MAX_TRAILING_BYTES + 1), JOINT_STATES.msg_type)
+    with pytest.raises(SerdeError):
+        deserialize_cdr(raw[:30], JOINT_STATES.msg_type)
+    with pytest.raises(SerdeError, match='encapsulation'):
+        deserialize_cdr(b'\x07\x07' + raw[2:], JOINT_STATES.msg_type)
+
+
+def test_a_robot_bag_of_joint_states_without_efforts_reads(tmp_path, measurements):
+    """A robot that measures no joint efforts: its recorded ``/joint_states`` read back."""
+    bag = tmp_path / 'robot'
+    with BagWriter(bag) as writer:
+        writer.write_measurement(measurements[0])
+        for k in range(3):
+            writer.write_raw(JOINT_STATES.name, JOINT_STATES.msg_type, k * 10_000_000,
+                             _joint_state_as_dds_sends_it([0.1 * k, 0.0], [0.0, 0.0], []))
+    read = [m.msg for m in iter_messages(bag, [JOINT_STATES.name])]
+    assert [m.position[0] for m in read] == [0.0, 0.1, 0.2] and all(len(m.effort) == 0 for m in read)

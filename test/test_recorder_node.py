@@ -1,7 +1,8 @@
 """recorder_node on a robot's clock: the monitor's outputs stamped in ROS time (seconds since
 1970, as a robot's drivers stamp the samples they come from) are recorded at those stamps, gaps
 counted (not from a staleness report stamped 0), and read back by the package's reader; the
-robot's own ``/joint_states``, stamped by its drivers on the same clock, likewise. Fed in
+robot's own ``/joint_states``, stamped by its drivers on the same clock, likewise, and those of a
+robot that measures no joint efforts, as Fast DDS sends them (4 bytes after the message). Fed in
 process, through the subscriptions' own callbacks (the raw bytes DDS hands them), so no DDS
 discovery is involved."""
 from __future__ import annotations
@@ -71,3 +72,27 @@ def test_monitor_outputs_stamped_in_ros_time_are_recorded_at_their_stamps(tmp_pa
     assert summary['rejected'][JOINT_STATES.name] == 0
     assert [m.t_ns for m in iter_messages(run, [JOINT_STATES.name])] == stamps[::10]
     assert np.isclose(recorded.measurements[0].com[2], 0.59)
+
+
+def test_joint_states_of_a_robot_without_effort_sensing_are_recorded(tmp_path: Path) -> None:
+    """Fast DDS sends a ``JointState`` whose ``effort`` is empty with 4 bytes after its last member,
+    which rosbags' own decoding refuses: the recorder rejected every such message before."""
+    bags = tmp_path / 'bags'
+    stamps = [ROBOT_EPOCH_NS + 2_000_000 * k for k in range(50)]
+    with ros_context(test_domain_id(176)) as context:
+        node = RecorderNode(context=context, parameter_overrides=[Parameter('bag_path', value=str(bags))])
+        try:
+            on_joints = node._queue_callback(JOINT_STATES.name)
+            for ns in stamps:
+                joints = JointStateReading(ns, ('knee', 'hip'), np.array([0.3, -0.1]),
+                                           np.array([0.01, 0.0]), np.array([0.0, 0.0]))
+                msg = messages.joint_state_msg(ros_qos.TYPES, joints)
+                msg.effort = []                 # the robot measures no joint efforts
+                on_joints(serialize_message(msg))
+        finally:
+            node.destroy_node()
+        summary = node.summary()
+    assert summary['rejected'][JOINT_STATES.name] == 0 and summary['written'][JOINT_STATES.name] == 50
+    recorded = list(iter_messages(bags / 'run_000', [JOINT_STATES.name]))
+    assert [m.t_ns for m in recorded] == stamps
+    assert all(len(m.msg.effort) == 0 and m.msg.position.tolist() == [0.3, -0.1] for m in recorded)

@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Optional, Union
 
 from fall_predictor.data.bag_writer import BagWriter
-from fall_predictor.data.bagio import BagError, typestore
+from fall_predictor.data.bagio import BagError, deserialize_cdr
 
 if sys.version_info >= (3, 14):
     from compression import zstd
@@ -269,7 +269,6 @@ def needs_repair(bag: Path) -> bool:
 
 
 def _write_recovered(source: Path, target: Path, report: RepairReport, result: ScanResult) -> None:
-    store = typestore()
     schemas: dict[int, McapSchema] = {}
     channels: dict[int, tuple[str, str]] = {}
     data = source.read_bytes()           # parts are bounded; a whole file is read at once
@@ -283,7 +282,7 @@ def _write_recovered(source: Path, target: Path, report: RepairReport, result: S
             else:
                 topic, msg_type = channels.get(record.channel_id, ('', ''))
                 try:
-                    store.deserialize_cdr(record.data, msg_type)
+                    deserialize_cdr(record.data, msg_type)
                 except Exception:           # unknown channel or type, or damaged bytes
                     name = topic or f'channel {record.channel_id}'
                     report.undecodable[name] = report.undecodable.get(name, 0) + 1

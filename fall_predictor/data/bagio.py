@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import heapq
 import os
+import struct
 import warnings
 from collections.abc import Collection, Iterator
 from contextlib import ExitStack, contextmanager
@@ -24,6 +25,7 @@ from typing import Any, Literal, NamedTuple, Optional, cast
 
 import numpy as np
 from rosbags.rosbag2 import Reader
+from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
@@ -59,6 +61,39 @@ def typestore() -> Typestore:
         types.update(get_types_from_msg(text, name))
     store.register(types)
     return store
+
+
+#: Bytes a message may carry after its last member. rmw_fastrtps sends a message in a buffer it
+#: sized beforehand, counting the alignment of an 8-byte array's elements even where the array is
+#: empty: a ``sensor_msgs/msg/JointState`` without efforts (a robot that measures none) arrives
+#: with 4 unwritten bytes after its last member, one without velocities and efforts with 8.
+#: rosbags' ``Typestore.deserialize_cdr`` refuses more than 3. A message that does not decode
+#: whole is refused whatever follows it.
+MAX_TRAILING_BYTES = 16
+
+
+def deserialize_cdr(raw: bytes | memoryview, msg_type: str) -> RosbagsMsg:
+    """A message in CDR, as a publisher sent it, as a rosbags message object of ``msg_type``.
+
+    rosbags' own decoding (``Typestore.deserialize_cdr``), except that up to
+    :data:`MAX_TRAILING_BYTES` after the last member are accepted, so that what Fast DDS sends is
+    read. Raises rosbags' ``SerdeError`` for anything else that does not decode as ``msg_type``,
+    and rosbags' ``TypesysError`` for a type the store lacks.
+    """
+    store = typestore()
+    if len(raw) < 4 or bytes(raw[:2]) not in (b'\x00\x00', b'\x00\x01'):
+        raise SerdeError('Invalid or unsupported CDR encapsulation.')
+    msgdef = store.get_msgdef(msg_type)
+    decode = msgdef.deserialize_cdr_le if raw[1] else msgdef.deserialize_cdr_be
+    try:
+        message, end = decode(raw[4:], 0, msgdef.cls, store)
+    except (struct.error, UnicodeDecodeError, ValueError) as exc:
+        raise SerdeError(f'Could not deserialize {msg_type!r}: {exc}') from exc
+    trailing = len(raw) - 4 - end
+    if trailing > MAX_TRAILING_BYTES:
+        raise SerdeError(f'{msg_type}: {trailing} bytes after its last member (at most '
+                         f'{MAX_TRAILING_BYTES})')
+    return message
 
 
 def describe(exc: BaseException) -> str:
@@ -100,7 +135,6 @@ def _messages(reader: Reader, path: Path,
     connections = [c for c in reader.connections if topics is None or c.topic in topics]
     if not connections:
         return
-    store = typestore()
     raw_messages = reader.messages(connections=connections)
     while True:
         try:
@@ -110,7 +144,7 @@ def _messages(reader: Reader, path: Path,
         except Exception as exc:
             raise BagError(f'{path}: damaged bag: {describe(exc)}') from exc
         try:
-            msg = store.deserialize_cdr(raw, connection.msgtype)
+            msg = deserialize_cdr(raw, connection.msgtype)
         except Exception as exc:
             raise BagError(f'{path}: {connection.topic} message at {t_ns} ns does not decode '
                            f'as {connection.msgtype}: {describe(exc)}') from exc

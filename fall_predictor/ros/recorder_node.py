@@ -210,7 +210,7 @@ class RecorderNode(Node):
         """Decode, validate, find the run of one message and write it to that run's bag."""
         msg_type = self._types[topic]
         try:
-            msg = bagio.typestore().deserialize_cdr(raw, msg_type)
+            msg = bagio.deserialize_cdr(raw, msg_type)
             stamp_ns = _stamp_ns(topic, msg)
         except Exception as error:  # noqa: BLE001 - whatever does not decode is rejected
             self.rejected[topic] += 1
