@@ -15,6 +15,10 @@ rest goes, over the first ``--trajectories`` bags of a dataset made with ``gener
   hull costs; the rest is estimation;
 - the most frequent (true, estimated) mode pairs.
 
+``--estimator KEY=VALUE`` (repeatable) runs the estimator with those settings of
+:class:`~fall_predictor.monitor.estimator.EstimatorConfig` instead of its defaults (e.g.
+``contact_force_n=20``), to see what a setting does to the agreement.
+
     .venv/bin/python benchmarks/bench_contact_mode_agreement.py --data data/g1_test400 \\
         --trajectories 40 --out docs/g1_gait/contact_mode_agreement.json
 """
@@ -32,6 +36,7 @@ from joblib import Parallel, delayed
 
 from fall_predictor.data.dataset import dataset_robot, read_index
 from fall_predictor.data.estimation import POST_PUSH_WINDOW_S, estimate_bag
+from fall_predictor.monitor.estimator import EstimatorConfig
 from fall_predictor.monitor.contact_modes import classify_contact_mode
 from fall_predictor.monitor.records import CONTACT_MODE_NAMES, SoleGeometry
 from fall_predictor.profiles import load_profile
@@ -67,9 +72,9 @@ def phase(t: float, row) -> str:
     return 'post_push_0.5_s' if t <= row.t_push + POST_PUSH_WINDOW_S else 'later'
 
 
-def one_bag(data: Path, row, robot: str) -> dict:
+def one_bag(data: Path, row, robot: str, config: EstimatorConfig) -> dict:
     soles = load_profile(robot).sensor_layout().soles
-    b = estimate_bag(data / row.bag, robot=robot)
+    b = estimate_bag(data / row.bag, config, robot=robot)
     phases: Counter = Counter()
     counts = Counter()
     pairs: Counter = Counter()
@@ -104,12 +109,21 @@ def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--data', type=Path, required=True, help='dataset made with --sensor-noise')
     parser.add_argument('--trajectories', type=int, default=40, help='the first N bags')
+    parser.add_argument('--estimator', action='append', default=[], metavar='KEY=VALUE',
+                        help='an EstimatorConfig setting (a number), repeatable')
     parser.add_argument('--jobs', type=int, default=2)
     parser.add_argument('--out', type=Path, default=None)
     args = parser.parse_args(argv)
+    settings = {}
+    for item in args.estimator:
+        key, _, value = item.partition('=')
+        if key not in EstimatorConfig.__dataclass_fields__:
+            parser.error(f'--estimator {item}: EstimatorConfig has no {key!r}')
+        settings[key] = float(value)
+    config = replace(EstimatorConfig(), **settings)
     robot = dataset_robot(args.data)
     rows = read_index(args.data)[:args.trajectories]
-    results = Parallel(n_jobs=args.jobs)(delayed(one_bag)(args.data, row, robot) for row in rows)
+    results = Parallel(n_jobs=args.jobs)(delayed(one_bag)(args.data, row, robot, config) for row in rows)
     phases, counts, pairs = Counter(), Counter(), Counter()
     for r in results:
         phases.update(r['phases'])
@@ -121,6 +135,7 @@ def main(argv: list[str] | None = None) -> dict:
     def name(k: int) -> str:
         return CONTACT_MODE_NAMES[k] if k >= 0 else 'unclassifiable'
     out = {'data': str(args.data), 'robot': robot, 'trajectories': len(rows), 'samples': n,
+           'estimator_settings': settings,
            'agreement': counts['agree'] / n,
            'agreement_with_truth_on_modelled_sole': counts['agree_with_modelled_sole'] / n,
            'of_all_samples': {k: counts[k] / n for k in ('support_differs', 'truth_both_estimate_one',
