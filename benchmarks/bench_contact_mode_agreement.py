@@ -35,21 +35,14 @@ import numpy as np
 from joblib import Parallel, delayed
 
 from fall_predictor.data.dataset import dataset_robot, read_index
-from fall_predictor.data.estimation import POST_PUSH_WINDOW_S, estimate_bag
+from fall_predictor.data.estimation import (POST_PUSH_WINDOW_S, contact_mode_or_unclassified as mode,
+                                           estimate_bag)
 from fall_predictor.monitor.estimator import EstimatorConfig
-from fall_predictor.monitor.contact_modes import classify_contact_mode
 from fall_predictor.monitor.records import CONTACT_MODE_NAMES, SoleGeometry
 from fall_predictor.profiles import load_profile
 
 #: The window before the robot counts as fallen that is its own phase [s].
 BEFORE_FALLEN_S = 0.5
-
-
-def mode(m) -> int:
-    try:
-        return classify_contact_mode(m)
-    except ValueError:
-        return -1
 
 
 def on_rectangle(contacts: np.ndarray, sole_pose, sole: SoleGeometry) -> np.ndarray:

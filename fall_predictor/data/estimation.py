@@ -125,7 +125,9 @@ def estimate_bag(path: str | os.PathLike[str], config: EstimatorConfig = Estimat
     return BagEstimate(np.array(t), est, tru)
 
 
-def _mode(m: Measurement) -> int:
+def contact_mode_or_unclassified(m: Measurement) -> int:
+    """The contact mode index of ``m``, or -1 where its contacts cannot be classified (the
+    comparison with the truth then counts a disagreement, not an error)."""
     try:
         return classify_contact_mode(m)
     except ValueError:
@@ -141,7 +143,8 @@ def error_samples(b: BagEstimate, t_push: float) -> dict[str, np.ndarray]:
                              for i in ok])
     t = b.t[ok]
     out['post_push'] = (t >= t_push - 1e-9) & (t <= t_push + POST_PUSH_WINDOW_S + 1e-9)
-    out['mode_agree'] = np.array([_mode(b.estimated[i]) == _mode(b.truth[i]) for i in ok])
+    out['mode_agree'] = np.array([contact_mode_or_unclassified(b.estimated[i])
+                                  == contact_mode_or_unclassified(b.truth[i]) for i in ok])
     return out
 
 
