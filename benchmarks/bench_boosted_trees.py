@@ -23,7 +23,10 @@ their changes over the last 50, 100 and 200 ms (60 inputs; :class:`ExtraInputsBo
 selected and evaluated alike: what a window of the recent past buys by nested CV. With
 ``--imu``, ``boosting_imu``: the same on the features and the IMU tilt detector's four signals
 (19 inputs; :class:`ImuInputs`): what features from the IMU buy. Offline references: the onboard
-monitor computes no such inputs (no cost per decision is given for them).
+monitor computes no such inputs (no cost per decision is given for them). With ``--attitude``,
+``boosting_attitude``: the package's own boosted trees on the features and the base's attitude
+from the estimated state (method §8c, ``train --attitude``), which the monitor does compute (its
+cost per decision is given).
 
     .venv/bin/python benchmarks/bench_boosted_trees.py --data data/g1_dev1000 \\
         --test data/g1_test400 --folds 5 --out docs/boosted_trees/g1.json
@@ -45,9 +48,9 @@ from fall_predictor.learning.evaluation import evaluation_result_json
 from fall_predictor.learning.metrics import evaluate_atomic
 from fall_predictor.learning.mirror import MIRROR_ID_SUFFIX
 from fall_predictor.learning.nested import fixed_setting, nested_operating_point
-from fall_predictor.learning.training import fit_strided, load_dataset, make_learner
+from fall_predictor.learning.training import fit_strided, load_dataset, make_learner, model_inputs
 from fall_predictor.monitor.boosted_trees import BoostedTrees
-from fall_predictor.monitor.records import FALLING, N_CONTACT_MODES
+from fall_predictor.monitor.records import ATTITUDE_NAMES, FALLING, N_CONTACT_MODES
 
 # --window: the features and their changes over these lags, as the temporal-window benchmark
 # makes them (this directory is on the path when a benchmark runs as a script).
@@ -219,6 +222,9 @@ def main(argv: list[str] | None = None) -> dict:
                         help='also the boosting learner on the features and the IMU tilt '
                              'detector\'s four signals (fused roll and pitch, their rates): '
                              'features from the IMU, an offline reference')
+    parser.add_argument('--attitude', action='store_true',
+                        help='also the boosting learner on the features and the base\'s attitude '
+                             '(method §8c): what `train --attitude` ships')
     parser.add_argument('--fixed', type=fixed_arg, action='append', default=[],
                         metavar='LEARNER:THRESHOLD,TAU_HIS',
                         help='a setting fixed in advance (e.g. a shipped model\'s), reported '
@@ -241,6 +247,12 @@ def main(argv: list[str] | None = None) -> dict:
         imu = ImuInputs()
         imu.add(args.data, trajs, args.jobs)
         learners['boosting_imu'] = ExtraInputsBoosting(dict(args.param), imu)
+    if args.attitude:
+        learners['boosting_attitude'] = make_learner('boosting', dict(args.param))
+
+    def inputs(name, ts):
+        """The trajectories as learner ``name`` reads them (the attitude's: 19 inputs)."""
+        return model_inputs(ts, name == 'boosting_attitude')
 
     def fit(learner, train):
         if isinstance(learner, ExtraInputsBoosting):
@@ -254,17 +266,19 @@ def main(argv: list[str] | None = None) -> dict:
         test = [trajs[i] for i in test_index]
         for name, learner in learners.items():
             start = time.perf_counter()
-            lists = fit(learner, train)
+            lists = fit(learner, inputs(name, train))
             fit_s[name] += time.perf_counter() - start
             kind = 'tree' if name == 'tree' else 'boosting'
             sizes = (lists.rule_sizes, lists.depths) if hasattr(lists, 'rule_sizes') else ((), ())
-            for thr, results in fold_results(lists, test, kind, args.thresholds, guard_m).items():
+            for thr, results in fold_results(lists, inputs(name, test), kind, args.thresholds,
+                                             guard_m).items():
                 fits[name].append(FoldFit(k, thr, None, len(train), *sizes, 0.0, results))
         print(f'fold {k} done', flush=True)
     out = {'data': str(args.data), 'folds': args.folds, 'seed': args.seed, 'tau_plus_s': args.tau_plus,
            'mirror': args.mirror, 'boosting_params': learners['boosting'].get_params(),
            'window_lags_s': list(WINDOW_LAGS_S) if args.window else None,
            'imu_inputs': ['fused_roll_rad', 'fused_pitch_rad', 'roll_rate_rad_s', 'pitch_rate_rad_s'] if args.imu else None,
+           'attitude_inputs': list(ATTITUDE_NAMES) if args.attitude else None,
            'setting': '(decision_threshold [log-odds], tau_his [s]); the lists: (0, tau_his)',
            'fit_s_per_fold': {n: round(s / args.folds, 1) for n, s in fit_s.items()},
            'nested': {}, 'fixed': {}, 'test': None}
@@ -289,12 +303,12 @@ def main(argv: list[str] | None = None) -> dict:
             test_imu.add(args.test, test, args.jobs)
         out['test'] = {'data': str(args.test), 'learners': {}}
         for name, learner in learners.items():
-            lists = fit(learner, trajs)
+            lists = fit(learner, inputs(name, trajs))
             if isinstance(getattr(lists, 'inputs', None), ImuInputs):
                 lists.inputs = test_imu                 # the trained model reads the test set's IMU
             kind = 'tree' if name == 'tree' else 'boosting'
-            results = fold_results(lists, test, kind, args.thresholds, test_guard_m)
-            row = ({'mean_rule_size': lists.mean_rule_size, 'cost': cost_us(lists, test)}
+            results = fold_results(lists, inputs(name, test), kind, args.thresholds, test_guard_m)
+            row = ({'mean_rule_size': lists.mean_rule_size, 'cost': cost_us(lists, inputs(name, test))}
                    if hasattr(lists, 'mean_rule_size') else {})
             for budget in BUDGETS:
                 thr, tau_his = chosen_on_dev[(name, budget)]

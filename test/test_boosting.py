@@ -60,3 +60,24 @@ def test_it_is_a_scikit_learn_estimator():
     assert learner.get_params()['decision_threshold'] == 1.5
     with pytest.raises(RuntimeError, match='not fitted'):
         learner.classifier_
+
+
+def test_trees_over_the_features_and_the_attitude_read_input_17_and_export_19_inputs():
+    """Falling decided by the base's roll rate (input 17 of the 19): the trees learn it, read
+    19 inputs, and score as scikit-learn does; the decision-list learners take 15 only."""
+    from fall_predictor.learning.learners import TreeListLearner
+    rng = np.random.default_rng(7)
+    X = rng.normal(size=(4000, 19))
+    y = np.where(X[:, 17] > 0.8, FALLING, BALANCED).astype(np.int8)
+    learner = BoostedTreesLearner(max_iter=20, max_depth=2).fit(X, y)
+    trees = learner.classifier_
+    assert trees.n_inputs == 19 and all(t.n_inputs == 19 for t in trees.trees)
+    assert {f for t in trees.trees for f in t.feature if f != -1} >= {17}
+    X_test = rng.normal(size=(500, 19))
+    assert np.array_equal(trees.score(X_test), learner.estimator_.decision_function(X_test))
+    assert np.array_equal([trees.score_one(list(x)) for x in X_test], trees.score(X_test))
+    assert (trees.predict(X_test) == np.where(X_test[:, 17] > 0.8, FALLING, BALANCED)).mean() > 0.97
+    with pytest.raises(ValueError, match=r'shape \(N, 19\)'):
+        trees.score(X_test[:, :15])
+    with pytest.raises(ValueError, match=r'shape \(N, 15\)'):
+        TreeListLearner().fit(X, y)

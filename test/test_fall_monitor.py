@@ -139,3 +139,28 @@ def test_a_model_with_a_learned_direction_reports_it():
     assert state.falling and event.kind == EVENT_FALLING
     assert state.fall_direction == pytest.approx((math.cos(0.5), math.sin(0.5)))
     assert event.direction == state.fall_direction
+
+
+def test_a_model_reading_the_attitude_says_degraded_without_it_and_predicts_with_it():
+    """Boosted trees on the base's roll rate (input 17): falling when it exceeds 1 rad/s. Fed
+    the 15 features only, or the attitude as NaN (a measurement without a base orientation),
+    each sample is DEGRADED with the reason; fed the 19 inputs, the trees decide."""
+    from fall_predictor.monitor.boosted_trees import BoostedTrees
+    from fall_predictor.monitor.fall_monitor import NO_ATTITUDE, STATUS_DEGRADED, STATUS_OK
+    from fall_predictor.monitor.time_to_fall import RegressionTree
+    tree = RegressionTree((17, -1, -1), (1.0, 0.0, 0.0), (1, -1, -1), (2, -1, -1), (0.0, -5.0, 5.0),
+                          n_inputs=19)
+    lists = PerModeDecisionLists(tuple(BoostedTrees((tree,), 0.0) for _ in range(N_CONTACT_MODES)))
+    m = FallMonitor(lists, 0.005, FallenConfig(0.33, 0.48), DT, 0.48, 42.1)
+    assert m.n_inputs == 19
+    state, _ = m.step(0.0, features(), INSIDE)
+    assert state.status == STATUS_DEGRADED and state.reason == NO_ATTITUDE
+    state, _ = m.step(0.001, np.concatenate([features(), [0.1, 0.0, np.nan, np.nan]]), INSIDE)
+    assert state.status == STATUS_DEGRADED and 'no base orientation' in state.reason
+    steady = np.concatenate([features(), [0.1, 0.0, 0.2, 0.0]])
+    tipping = np.concatenate([features(), [0.1, 0.0, 1.5, 0.0]])
+    states = [m.step(0.002 + k * DT, steady, INSIDE)[0] for k in range(10)]
+    assert all(s.status == STATUS_OK and not s.falling for s in states)
+    states = [m.step(0.012 + k * DT, tipping, INSIDE)[0] for k in range(10)]
+    assert [s.falling for s in states] == [False] * 5 + [True] * 5     # after the 5 ms window
+    assert states[-1].latched

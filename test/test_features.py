@@ -243,3 +243,69 @@ class TestFeatureSettings:
         extractor = FeatureSettings(rate_window_s=0.02, sample_period_s=0.002,
                                     edge_tolerance_m=0.005).extractor()
         assert (extractor.rate_window_s, extractor.dt_s, extractor.edge_tolerance_m) == (0.02, 0.002, 0.005)
+
+
+def _rotation(yaw: float, pitch: float, roll: float) -> np.ndarray:
+    """Rz(yaw) Ry(pitch) Rx(roll), base to world."""
+    cy, sy, cp, sp, cr, sr = (math.cos(yaw), math.sin(yaw), math.cos(pitch), math.sin(pitch),
+                              math.cos(roll), math.sin(roll))
+    rz = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
+    ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+    return rz @ ry @ rx
+
+
+def test_the_attitude_follows_the_features_heading_free_with_its_rates():
+    """A base tipping at a constant 0.5 rad/s about its own x axis (roll) while pitched 0.1 rad
+    and facing 2 rad: the fused roll grows at 0.5 rad/s and the fused pitch stays, whatever the
+    heading (the world z axis seen from the base); the first sample has zero rates; the 15
+    features are those of an extractor without the attitude."""
+    traj = random_trajectory(60, seed=3)
+    for k, m in enumerate(traj):
+        m.torso_rotation = _rotation(2.0, 0.1, 0.05 + 0.5 * k * DT)
+    with_attitude = FeatureExtractor(attitude=True)
+    plain = FeatureExtractor()
+    assert with_attitude.n_outputs == 19 and plain.n_outputs == 15
+    for k, m in enumerate(traj):
+        x, mode = with_attitude.update(m)
+        x15, mode15 = plain.update(m)
+        assert x.shape == (19,) and mode == mode15
+        np.testing.assert_array_equal(x[:15], x15)
+        # Rz Ry Rx: R[2, 1] = cos(pitch) sin(roll), R[2, 0] = -sin(pitch).
+        roll = math.asin(math.cos(0.1) * math.sin(0.05 + 0.5 * k * DT))
+        assert x[15] == pytest.approx(roll, abs=1e-12)
+        assert x[16] == pytest.approx(0.1, abs=1e-12)
+        if k == 0:
+            assert x[17] == 0.0 and x[18] == 0.0
+        elif k >= 10:        # over the 10 ms window: d/dt asin(cos(p) sin(r)) with r' = 0.5
+            r = 0.05 + 0.5 * (k - 5) * DT
+            expected = math.cos(0.1) * math.cos(r) * 0.5 / math.sqrt(1 - (math.cos(0.1) * math.sin(r)) ** 2)
+            assert x[17] == pytest.approx(expected, rel=1e-4)
+            assert abs(x[18]) < 1e-12
+
+
+def test_without_a_base_orientation_the_attitude_is_nan_and_its_rates_wait_for_one():
+    traj = random_trajectory(30, seed=4)
+    for k, m in enumerate(traj):
+        m.torso_rotation = None if k < 10 else _rotation(0.0, 0.0, 0.2)
+    extractor = FeatureExtractor(attitude=True)
+    out = np.array([extractor.update(m)[0] for m in traj])
+    assert np.isnan(out[:10, 15:]).all()
+    assert np.isfinite(out[:, :15]).all()
+    # From sample 10 the angles are known; a rate needs a reference with an attitude (the
+    # window's oldest sample, 10 ms back), so the rates come back once that one has one.
+    assert np.isfinite(out[10:, 15:17]).all()
+    assert np.isnan(out[10:20, 17:]).all() and np.allclose(out[21:, 17:], 0.0)
+
+
+def test_extract_features_with_the_attitude_is_the_streaming_extractor():
+    traj = random_trajectory(50, seed=5)
+    for k, m in enumerate(traj):
+        m.torso_rotation = _rotation(0.3 * k * DT, -0.2, 0.01 * k)
+    X, mode = extract_features(traj, attitude=True)
+    extractor = FeatureSettings().extractor(attitude=True)
+    for k, m in enumerate(traj):
+        x, mk = extractor.update(m)
+        np.testing.assert_array_equal(X[k], x)
+        assert mode[k] == mk
+    assert X.shape == (50, 19)

@@ -83,3 +83,28 @@ def test_train_mirror_option_gives_lists_that_agree_with_their_mirror_image(tmp_
         return float(np.mean(a[either] == b[either]))
     assert agreement(lists) >= 0.99
     assert agreement(load_model(plain)[0]) < 0.9       # not symmetric without the option
+
+
+def test_the_attitude_mirrors_with_roll_and_roll_rate_flipped():
+    """Reflecting y: a base rolled to its left (about +x) is rolled to its right in the mirror,
+    its pitch unchanged (the fused roll asin(R[2, 1]) flips with R's y row and column)."""
+    import dataclasses
+    from fall_predictor.learning.mirror import ATTITUDE_MIRROR_SIGNS
+    from fall_predictor.monitor.geometry import fused_roll_pitch_of_rotation
+    roll, pitch = 0.3, -0.2
+    cr, sr, cp, sp = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch)
+    rotation = (np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+                @ np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]]))
+    reflect = np.diag([1.0, -1.0, 1.0])
+    mirrored = fused_roll_pitch_of_rotation(reflect @ rotation @ reflect)
+    np.testing.assert_allclose(mirrored, np.array(fused_roll_pitch_of_rotation(rotation))
+                               * ATTITUDE_MIRROR_SIGNS[:2])
+    np.testing.assert_array_equal(ATTITUDE_MIRROR_SIGNS, [-1.0, 1.0, -1.0, 1.0])
+    traj = make_dataset(1, 0, seed=0)[0]
+    attitude = np.tile([0.1, 0.2, 0.3, 0.4], (len(traj.t), 1))
+    traj = dataclasses.replace(traj, attitude=attitude)
+    image = mirror_trajectory(traj)
+    np.testing.assert_array_equal(image.attitude, attitude * [-1, 1, -1, 1])
+    wide = mirror_trajectory(traj.with_attitude_inputs())
+    np.testing.assert_array_equal(wide.X[:, 15:], attitude * [-1, 1, -1, 1])
+    np.testing.assert_array_equal(wide.X[:, :15], image.X)

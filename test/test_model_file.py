@@ -206,7 +206,7 @@ def test_boosted_trees_round_trip_beside_lists(tmp_path):
         load_model(path)
     # A version-3 file has no boosted entries (nor a learned direction).
     document['schema_version'] = 3
-    del document['fall_direction']
+    del document['fall_direction'], document['input_names']
     path.write_text(json.dumps(document))
     with pytest.raises(ModelFileError, match=r'lists\[3\]'):
         load_model(path)
@@ -224,13 +224,55 @@ def test_a_learned_fall_direction_round_trips_and_version_4_files_still_load(tmp
     _, metadata = load_model(path)
     assert metadata.fall_direction == learned
     document = json.loads(path.read_text())
-    assert document['schema_version'] == SCHEMA_VERSION == 5
+    assert document['schema_version'] == SCHEMA_VERSION == 6
     document['fall_direction']['trees'][0]['value'][1] = 'x'
     path.write_text(json.dumps(document))
     with pytest.raises(ModelFileError, match=r'fall_direction\.trees\[0\]'):
         load_model(path)
     # Version 4 has no learned direction: the monitor then gives the momentum's.
-    del document['fall_direction']
+    del document['fall_direction'], document['input_names']
     document['schema_version'] = 4
     path.write_text(json.dumps(document))
     assert load_model(path)[1].fall_direction is None
+
+
+def test_a_model_reading_the_attitude_names_its_19_inputs_and_older_files_read_15(tmp_path):
+    """Version 6: ``input_names`` says what the classifiers read. Trees over the 19 inputs (the
+    features, then the base's attitude) round-trip with them; a file whose names and trees
+    disagree, or that names other inputs, is refused; a version-5 file reads the 15 features."""
+    from fall_predictor.monitor.boosted_trees import BoostedTrees
+    from fall_predictor.monitor.records import FEATURE_NAMES, INPUT_NAMES_WITH_ATTITUDE
+    from fall_predictor.monitor.time_to_fall import RegressionTree
+    reads_roll_rate = RegressionTree((17, -1, -1), (1.5, 0.0, 0.0), (1, -1, -1), (2, -1, -1),
+                                     (0.0, -0.5, 2.5), n_inputs=19)
+    lists = list(example_lists().lists)
+    lists[3] = BoostedTrees((reads_roll_rate,), bias=-1.0, decision_threshold=0.0)
+    lists = PerModeDecisionLists(tuple(lists))
+    assert lists.n_inputs == 19 and example_lists().n_inputs == 15
+    path = tmp_path / 'attitude.json'
+    save_model(path, lists, example_metadata())
+    loaded, _ = load_model(path)
+    assert loaded == lists and loaded.n_inputs == 19
+    document = json.loads(path.read_text())
+    assert document['input_names'] == list(INPUT_NAMES_WITH_ATTITUDE)
+    # The same trees declared over the 15 features: input 17 is not there.
+    document['input_names'] = list(FEATURE_NAMES)
+    path.write_text(json.dumps(document))
+    with pytest.raises(ModelFileError, match=r'lists\[3\]\.boosted_trees.*17'):
+        load_model(path)
+    document['input_names'] = list(FEATURE_NAMES) + ['imu_yaw']
+    path.write_text(json.dumps(document))
+    with pytest.raises(ModelFileError, match='input_names'):
+        load_model(path)
+    # Lists that read the 15 features, declared over 19: the names belong to another model.
+    plain = tmp_path / 'plain.json'
+    save_model(plain, example_lists(), example_metadata())
+    document = json.loads(plain.read_text())
+    document['input_names'] = list(INPUT_NAMES_WITH_ATTITUDE)
+    plain.write_text(json.dumps(document))
+    with pytest.raises(ModelFileError, match='input_names: 19 inputs'):
+        load_model(plain)
+    document['schema_version'] = 5
+    del document['input_names']
+    plain.write_text(json.dumps(document))
+    assert load_model(plain)[0].n_inputs == 15

@@ -103,7 +103,7 @@ def test_features_state_event_and_sensor_round_trips(rng):
     f = messages.features_from_msg(through_the_wire(
         messages.features_msg(ros_qos.TYPES, EPOCH_NS, x, 7, 0.2), Features))
     assert (f.stamp_ns, f.fault, f.mode, f.base_tilt_rad) == (EPOCH_NS, '', 7, 0.2)
-    assert np.array_equal(f.x, x)
+    assert np.array_equal(f.x[:15], x) and np.isnan(f.x[15:]).all()     # sent without an attitude
     for state in (MonitorState(STATUS_OK, '', True, True, True, False, 9, 0.2, (0.0, -1.0), 0.06),
                   MonitorState(STATUS_DEGRADED, 'joint l_knee_pitch never received', latched=True,
                                tau_his_s=0.06)):
@@ -196,3 +196,21 @@ def test_conversions_pass_rclpy_strict_field_checks():
     result = subprocess.run([sys.executable, '-c', _STRICT_SCRIPT], env=env,
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
+
+
+def test_features_carry_the_attitude_through_the_wire():
+    """19 values (the features, then the base's attitude) arrive as sent; 15 arrive with the
+    attitude NaN (no base orientation); an attitude no base can have is refused."""
+    x = np.concatenate([np.zeros(15), [0.1, -0.2, 1.5, -0.5]])
+    x[2] = 0.6
+    sent = messages.features_msg(ros_qos.TYPES, EPOCH_NS, x, 3, 0.2)
+    decoded = messages.features_from_msg(deserialize_message(serialize_message(sent), Features))
+    np.testing.assert_array_equal(decoded.x, x)
+    plain = messages.features_from_msg(messages.features_msg(ros_qos.TYPES, EPOCH_NS, x[:15], 3))
+    assert plain.x.shape == (19,) and np.isnan(plain.x[15:]).all()
+    np.testing.assert_array_equal(plain.x[:15], x[:15])
+    sent.base_attitude[0] = 2.0             # a fused roll lies in [-pi/2, pi/2]
+    with pytest.raises(WireFormatError, match='base_attitude'):
+        messages.features_from_msg(sent)
+    with pytest.raises(WireFormatError, match=r'\(15,\) or \(19,\)'):
+        messages.features_msg(ros_qos.TYPES, EPOCH_NS, x[:17], 3)

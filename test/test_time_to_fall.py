@@ -83,7 +83,8 @@ def test_model_file_v3_round_trip_and_v2_still_loads(tmp_path):
     # A version-2 file (no mass, no time to fall) still loads, with both None.
     document = json.loads(path.read_text())
     document['schema_version'] = 2
-    del document['robot_mass_kg'], document['time_to_fall'], document['fall_direction']
+    del (document['robot_mass_kg'], document['time_to_fall'], document['fall_direction'],
+         document['input_names'])
     old = tmp_path / 'v2.json'
     old.write_text(json.dumps(document))
     _, v2 = load_model(old)

@@ -25,15 +25,16 @@ def cmd_train(args) -> int:
                                       args.stride, jobs=args.jobs,
                                       recommended_tau_his_s=args.tau_his_recommended,
                                       skip_unreadable=args.skip_unreadable, progress=not args.json,
-                                      state=state, mirror=args.mirror)
+                                      state=state, mirror=args.mirror, attitude=args.attitude)
         save_model(args.out, lists, metadata)
-    except (DatasetError, ModelFileError) as error:
+    except (DatasetError, ModelFileError, ValueError) as error:
         return _fail('train', error)
     wall = time.perf_counter() - start
     payload = {'model': str(args.out), 'tau_plus_s': metadata.tau_plus_s,
                'recommended_tau_his_s': metadata.recommended_tau_his_s,
                'learner': {'name': metadata.learner_name, 'params': metadata.learner_params},
                'sample_stride': args.stride, 'state': metadata.state, 'mirror': metadata.mirror,
+               'n_inputs': lists.n_inputs,
                'guard_com_height_m': metadata.feature_settings.guard_com_height_m,
                'dataset_fingerprint': metadata.dataset_fingerprint,
                'mean_rule_size': lists.mean_rule_size, 'rule_sizes': list(lists.rule_sizes),
@@ -193,6 +194,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--mirror', action='store_true',
                    help='also learn from each trajectory\'s left-right mirror image (modes, y components '
                         'and signs mirrored)')
+    p.add_argument('--attitude', action='store_true',
+                   help='the classifiers also read the floating base\'s attitude (fused roll and '
+                        'pitch, their rates: method §8c); boosted trees only')
     p.add_argument('--tau-his-recommended', type=argtypes.nonnegative, default=None,
                    help='history window [s] to store as the model\'s run-time default')
     p.add_argument('--jobs', type=argtypes.positive_int, default=1, help='processes loading features')

@@ -22,7 +22,11 @@ from fall_predictor.contract.topics import WireFormatError
 from fall_predictor.monitor.fall_monitor import STATUS_NAMES, MonitorState
 from fall_predictor.monitor import plausibility
 from fall_predictor.monitor.plausibility import ImplausibleSample, check_feature_bounds
-from fall_predictor.monitor.records import N_CONTACT_MODES, N_FEATURES, Measurement
+from fall_predictor.monitor.records import (INPUT_NAMES_WITH_ATTITUDE, N_CONTACT_MODES, N_FEATURES,
+                                            Measurement)
+
+#: A features sample with the base's attitude: the 15 features, then the attitude's 4 values.
+N_INPUTS = len(INPUT_NAMES_WITH_ATTITUDE)
 from fall_predictor.monitor.sensor_records import ImuReading, JointStateReading, WrenchReading
 from fall_predictor.monitor.timeline import NS_PER_S
 
@@ -244,7 +248,9 @@ def measurement_from_msg(msg: Any) -> StampedMeasurement:
 # --------------------------------------------------------------------------------------------
 
 class StampedFeatures(NamedTuple):
-    """A decoded ``fall_predictor/msg/Features``; ``x`` is None when ``fault`` is set."""
+    """A decoded ``fall_predictor/msg/Features``; ``x`` is None when ``fault`` is set, else the
+    15 features, or the 15 features and the base's attitude (19 values, the attitude maybe NaN;
+    decoded from a message, always 19)."""
 
     stamp_ns: int
     fault: str
@@ -255,16 +261,21 @@ class StampedFeatures(NamedTuple):
 
 def features_msg(types: MessageTypes, ns: int, x: Optional[Sequence[float]], mode: Optional[int],
                  base_tilt_rad: float = 0.0, fault: str = '') -> Any:
-    """A ``fall_predictor/msg/Features`` at stamp ``ns``; ``x`` None with a ``fault``."""
+    """A ``fall_predictor/msg/Features`` at stamp ``ns``; ``x`` None with a ``fault``, else the 15
+    features, or 19 values with the base's attitude (else the attitude is NaN)."""
     if x is None and not fault:
         raise WireFormatError('a features message without features needs a fault')
-    values = np.full(N_FEATURES, np.nan) if x is None else np.asarray(x, dtype=float)
-    if values.shape != (N_FEATURES,):
-        raise WireFormatError(f'features must have shape ({N_FEATURES},), got {values.shape}')
+    values = np.full(N_INPUTS, np.nan)
+    if x is not None:
+        given = np.asarray(x, dtype=float)
+        if given.shape not in ((N_FEATURES,), (N_INPUTS,)):
+            raise WireFormatError(f'features must have shape ({N_FEATURES},) or ({N_INPUTS},) with '
+                                  f'the attitude, got {given.shape}')
+        values[:len(given)] = given
     return types['fall_predictor/msg/Features'](
-        header=header(types, ns), fault=fault, features=values,
+        header=header(types, ns), fault=fault, features=values[:N_FEATURES],
         contact_mode=CONTACT_MODE_UNKNOWN if mode is None else int(mode),
-        base_tilt=float(base_tilt_rad))
+        base_tilt=float(base_tilt_rad), base_attitude=values[N_FEATURES:])
 
 
 def check_features(f: StampedFeatures) -> None:
@@ -275,8 +286,12 @@ def check_features(f: StampedFeatures) -> None:
     if f.fault:
         return
     x = f.x
-    if x is None or x.shape != (N_FEATURES,) or not np.isfinite(x).all():
+    if x is None or x.shape not in ((N_FEATURES,), (N_INPUTS,)) or not np.isfinite(x[:N_FEATURES]).all():
         raise WireFormatError(f'features must be {N_FEATURES} finite values (and no fault)')
+    roll_pitch, rates = x[N_FEATURES:N_FEATURES + 2], x[N_FEATURES + 2:]
+    if (np.abs(roll_pitch) > math.pi / 2).any() or np.isinf(rates).any():
+        raise WireFormatError(f'features.base_attitude: fused roll and pitch must lie in [-pi/2, '
+                              f'pi/2] rad and the rates be finite (or NaN), got {x[N_FEATURES:].tolist()}')
     if f.mode is None or not 0 <= f.mode < N_CONTACT_MODES:
         raise WireFormatError(f'features.contact_mode must be < {N_CONTACT_MODES}, got {f.mode}')
     if not 0.0 <= f.base_tilt_rad <= math.pi:
@@ -294,8 +309,9 @@ def features_from_msg(msg: Any) -> StampedFeatures:
     fault = str(msg.fault)
     if fault:
         return StampedFeatures(ns, fault, None, None, math.nan)
-    decoded = StampedFeatures(ns, '', np.asarray(msg.features, dtype=float), int(msg.contact_mode),
-                              float(msg.base_tilt))
+    x = np.concatenate([np.asarray(msg.features, dtype=float),
+                        np.asarray(msg.base_attitude, dtype=float)])
+    decoded = StampedFeatures(ns, '', x, int(msg.contact_mode), float(msg.base_tilt))
     check_features(decoded)
     return decoded
 

@@ -36,12 +36,13 @@ from fall_predictor.data.cache import bag_fingerprint, cached_arrays
 from fall_predictor.data.outcomes import unsettled_at_horizon
 from fall_predictor.monitor.features import FeatureSettings, extract_features
 from fall_predictor.monitor.fileio import atomic_output
-from fall_predictor.monitor.records import FEATURE_NAMES, PushSpec, TrajectoryFeatures
+from fall_predictor.monitor.records import FEATURE_NAMES, N_FEATURES, PushSpec, TrajectoryFeatures
 
 FORMAT = 'fall_predictor/dataset/v1'
 #: Feature columns of the horizontal momentum (whether a trajectory settled, data/outcomes.py).
 LIN_MOM_X, LIN_MOM_Y = FEATURE_NAMES.index('lin_mom_x'), FEATURE_NAMES.index('lin_mom_y')
-CACHE_FORMAT = 'fall_predictor/features-cache/v4'  # v3: LR lateral edges fold FRONT/BACK; v4: + cp
+# v3: LR lateral edges fold FRONT/BACK; v4: + cp; v5: + the base's attitude
+CACHE_FORMAT = 'fall_predictor/features-cache/v5'
 #: The robot's URDF of an imported robot dataset whose bags hold no /robot_description.
 ROBOT_URDF_FILE = 'robot.urdf'
 #: Where features can come from (module docs); the CLI default is ``'estimated'``.
@@ -237,9 +238,10 @@ def _total_mass_or_none(out: Path) -> Optional[float]:
 def cached_feature_arrays(out: Path, row: IndexRow, settings: FeatureSettings = FeatureSettings(),
                           state: str = 'true') -> tuple[dict[str, np.ndarray], bool]:
     """The derived arrays of one trajectory (from its cache entry when up to date) and whether
-    they were computed now: ``t`` [s], features ``X``, contact ``mode``, ``foot_force_n`` and the
-    capture point's signed distance to the support polygon ``cp_distance_m`` (NaN when the
-    dataset gives no robot mass), all from the same ``state``. Raises OSError or BagError."""
+    they were computed now: ``t`` [s], features ``X``, contact ``mode``, the base's ``attitude``
+    (method §8c), ``foot_force_n`` and the capture point's signed distance to the support polygon
+    ``cp_distance_m`` (NaN when the dataset gives no robot mass), all from the same ``state``.
+    Raises OSError or BagError."""
     from fall_predictor.monitor.capture_point import capture_point_distances
 
     bag = out / row.bag
@@ -248,12 +250,13 @@ def cached_feature_arrays(out: Path, row: IndexRow, settings: FeatureSettings = 
         ms = _measurements(bag, state)
         if not ms:
             raise BagError(f'{bag}: no {state} state to compute features from')
-        X, mode = extract_features(ms, settings.rate_window_s,
-                                   settings.sample_period_s, settings.edge_tolerance_m)
+        inputs, mode = extract_features(ms, settings.rate_window_s, settings.sample_period_s,
+                                        settings.edge_tolerance_m, attitude=True)
         foot_force = np.array([[m.left_contacts[:, 2].sum(), m.right_contacts[:, 2].sum()] for m in ms])
         mass = _total_mass_or_none(out)
         cp = capture_point_distances(ms, mass) if mass is not None else np.full(len(ms), np.nan)
-        return {'t': np.array([m.t for m in ms]), 'X': X, 'mode': mode,
+        return {'t': np.array([m.t for m in ms]), 'X': inputs[:, :N_FEATURES], 'mode': mode,
+                'attitude': inputs[:, N_FEATURES:],
                 'foot_force_n': foot_force.reshape(len(ms), 2), 'cp_distance_m': cp}
 
     # Features computed with other settings are another kind of derived data.
@@ -274,7 +277,7 @@ def _load_or_build(out: Path, row: IndexRow, settings: FeatureSettings, state: s
         return None, str(exc), False
     return TrajectoryFeatures(row.trajectory_id, arrays['t'], arrays['X'], arrays['mode'], row.fallen,
                               row.t_push, row.t_force_end, row.t_fallen, row.t_height_drop,
-                              arrays['foot_force_n']), None, built
+                              arrays['foot_force_n'], arrays['attitude']), None, built
 
 
 def load_features(data_dir: str | os.PathLike, jobs: int = 1, progress: bool = True,

@@ -21,7 +21,7 @@ import numpy as np
 from fall_predictor.learning.learners import RuleListLearner, _check_float, _check_int
 from fall_predictor.monitor.boosted_trees import BoostedTrees
 from fall_predictor.monitor.decision_list import DecisionList
-from fall_predictor.monitor.records import BALANCED, FALLING, N_FEATURES
+from fall_predictor.monitor.records import BALANCED, FALLING, INPUT_NAMES_WITH_ATTITUDE, N_FEATURES
 from fall_predictor.monitor.time_to_fall import RegressionTree
 
 
@@ -53,7 +53,10 @@ class BoostedTreesLearner(RuleListLearner):
     ``random_state`` as in scikit-learn; ``decision_threshold`` [log-odds]: falling when the
     score exceeds it (0: the weighted classes' even odds; higher: fewer false alarms, less lead).
     Samples of one class only give a constant classifier: an empty list with that class.
+    ``X`` holds the 15 features, or the 19 inputs with the base's attitude (method §8c).
     """
+
+    input_sizes = (N_FEATURES, len(INPUT_NAMES_WITH_ATTITUDE))
 
     def __init__(self, max_iter: int = 50, max_depth: Optional[int] = 3, learning_rate: float = 0.1,
                  min_samples_leaf: int = 20, l2_regularization: float = 0.0, max_bins: int = 255,
@@ -86,7 +89,7 @@ class BoostedTreesLearner(RuleListLearner):
         return self.trees_
 
     def predict(self, X: np.ndarray) -> np.ndarray:
-        """Classes (int8, (N,)) of the rows of ``X`` (N, 15) by the exported trees."""
+        """Classes (int8, (N,)) of the rows of ``X`` (N, 15 or 19) by the exported trees."""
         return self.classifier_.predict(X)
 
     def _fit_model(self, X: np.ndarray, y: np.ndarray, w: np.ndarray,
@@ -104,5 +107,5 @@ class BoostedTreesLearner(RuleListLearner):
             max_bins=self.max_bins, early_stopping=False, random_state=self.random_state)
         model.fit(X, falling, sample_weight=w)
         self.estimator_ = model
-        bias, trees = exported_trees(model)
+        bias, trees = exported_trees(model, X.shape[1])
         self.trees_ = BoostedTrees(trees, bias, float(self.decision_threshold))

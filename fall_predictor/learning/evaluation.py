@@ -24,7 +24,7 @@ from fall_predictor.data.dataset import DatasetError, dataset_guard_com_height_m
 from fall_predictor.learning.baselines import (CurvePoint, capture_point_curve, com_height_curve,
                                                momentum_curve, pareto_front)
 from fall_predictor.learning.metrics import EvaluationResult, evaluate_lists
-from fall_predictor.learning.training import PathLike, load_dataset
+from fall_predictor.learning.training import PathLike, load_dataset, model_inputs
 from fall_predictor.monitor.decision_list import PerModeDecisionLists
 from fall_predictor.monitor.records import GUARD_COM_HEIGHT_M, TrajectoryFeatures
 
@@ -203,6 +203,8 @@ def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: f
     (:func:`~fall_predictor.data.dataset.dataset_guard_com_height_m`), the one a model trained on
     that dataset records. The baselines and the triggers use the same guard.
 
+    A model that reads the base's attitude (method §8c) gets it after the features.
+
     No cross-validation: use a dataset the model was not trained on (or
     :func:`~fall_predictor.learning.sweep.compute_sweep`).
     """
@@ -211,7 +213,7 @@ def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: f
     guard = (dataset_guard_com_height_m(data_dir) if guard_com_height_m is None
              else float(guard_com_height_m))
     report = load_dataset(data_dir, jobs, skip_unreadable, progress, state)
-    trajectories = report.trajectories
+    trajectories = model_inputs(report.trajectories, lists)
     result = evaluate_lists(trajectories, lists, (tau_his_s,),
                             guard_com_height_m=guard)[float(tau_his_s)]
     curves = None

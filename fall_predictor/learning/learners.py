@@ -56,6 +56,9 @@ class RuleListLearner(ClassifierMixin, BaseEstimator):
     Subclasses implement :meth:`check_params` and :meth:`_learn_rules`.
     """
 
+    #: Widths of ``X`` a learner takes: the 15 features (decision lists read only those).
+    input_sizes: tuple[int, ...] = (N_FEATURES,)
+
     def fit(self, X: np.ndarray, y: np.ndarray, sample_weight: Optional[np.ndarray] = None,
             groups: Optional[np.ndarray] = None) -> RuleListLearner:
         """Learn a decision list for FALLING (default BALANCED).
@@ -68,8 +71,9 @@ class RuleListLearner(ClassifierMixin, BaseEstimator):
         self.check_params()
         X = np.asarray(X, dtype=float)
         y = np.asarray(y)
-        if X.ndim != 2 or X.shape[1] != N_FEATURES:
-            raise ValueError(f'X must have shape (N, {N_FEATURES}), got {X.shape}')
+        if X.ndim != 2 or X.shape[1] not in self.input_sizes:
+            raise ValueError(f'X must have shape (N, {" or ".join(map(str, self.input_sizes))}), '
+                             f'got {X.shape}')
         if y.shape != (X.shape[0],):
             raise ValueError(f'y must have shape ({X.shape[0]},), got {y.shape}')
         if X.shape[0] == 0:
@@ -86,7 +90,7 @@ class RuleListLearner(ClassifierMixin, BaseEstimator):
         keep = w > 0                  # zero-weight samples carry no information
         if not keep.any():
             raise ValueError('every sample has zero weight')
-        self.n_features_in_ = N_FEATURES
+        self.n_features_in_ = X.shape[1]
         self.classes_ = np.array([BALANCED, FALLING])
         self._fit_model(X[keep], y[keep].astype(np.int8), w[keep],
                         None if groups is None else np.asarray(groups)[keep])

@@ -30,7 +30,8 @@ from fall_predictor.learning.learners import (CoveringListLearner, RuleListLearn
                                               fit_predictor)
 from fall_predictor.monitor.decision_list import PerModeDecisionLists
 from fall_predictor.monitor.model_file import ModelMetadata
-from fall_predictor.monitor.records import CONTACT_MODE_NAMES, TrajectoryFeatures
+from fall_predictor.monitor.records import (CONTACT_MODE_NAMES, INPUT_NAMES_WITH_ATTITUDE, N_FEATURES,
+                                            TrajectoryFeatures)
 
 PathLike = str | os.PathLike
 
@@ -97,8 +98,19 @@ def subsample(traj: TrajectoryFeatures, sample_stride: int) -> TrajectoryFeature
     sample_stride = check_sample_stride(sample_stride)
     if sample_stride == 1:
         return traj
+    attitude = None if traj.attitude is None else traj.attitude[::sample_stride]
     return dataclasses.replace(traj, t=traj.t[::sample_stride], X=traj.X[::sample_stride],
-                               mode=traj.mode[::sample_stride])
+                               mode=traj.mode[::sample_stride], attitude=attitude)
+
+
+def model_inputs(trajectories: Sequence[TrajectoryFeatures], lists_or_attitude: Any
+                 ) -> list[TrajectoryFeatures]:
+    """The trajectories as a model sees them: with the base's attitude after the features
+    (:meth:`~fall_predictor.monitor.records.TrajectoryFeatures.with_attitude_inputs`, method §8c)
+    when ``lists_or_attitude`` is True or a model that reads it, else unchanged."""
+    attitude = (lists_or_attitude if isinstance(lists_or_attitude, bool)
+                else lists_or_attitude.n_inputs > N_FEATURES)
+    return [t.with_attitude_inputs() for t in trajectories] if attitude else list(trajectories)
 
 
 def fit_strided(trajectories: Sequence[TrajectoryFeatures], tau_plus_s: float,
@@ -168,8 +180,8 @@ def train_model(data_dir: PathLike, tau_plus_s: float, learner_name: str = 'tree
                 learner_params: Optional[Mapping[str, Any]] = None,
                 sample_stride: int = DEFAULT_SAMPLE_STRIDE, jobs: int = 1,
                 recommended_tau_his_s: Optional[float] = None, skip_unreadable: bool = False,
-                progress: bool = False, state: str = 'true', mirror: bool = False
-                ) -> tuple[PerModeDecisionLists, ModelMetadata]:
+                progress: bool = False, state: str = 'true', mirror: bool = False,
+                attitude: bool = False) -> tuple[PerModeDecisionLists, ModelMetadata]:
     """Train one decision list per contact mode on every trajectory of ``data_dir``.
 
     ``tau_plus_s`` [s] withholds falling states before ``t_height_drop + tau_plus_s``;
@@ -178,7 +190,8 @@ def train_model(data_dir: PathLike, tau_plus_s: float, learner_name: str = 'tree
     ``recommended_tau_his_s`` [s] is stored in the metadata as the run-time default;
     ``state`` is the state the features come from (stored in the metadata as the one actually
     used, see :func:`~fall_predictor.data.dataset.resolve_state`); with ``mirror`` the lists
-    also learn from every trajectory's left-right mirror image (:func:`fit_strided`).
+    also learn from every trajectory's left-right mirror image (:func:`fit_strided`); with
+    ``attitude``, the classifiers also read the base's attitude (method §8c; boosted trees only).
 
     The model's feature settings are those the features were computed with, and the CoM guard of
     the dataset's robot (:func:`~fall_predictor.data.dataset.dataset_guard_com_height_m`): the
@@ -193,7 +206,11 @@ def train_model(data_dir: PathLike, tau_plus_s: float, learner_name: str = 'tree
     sample_stride = check_sample_stride(sample_stride)
     report = load_dataset(data_dir, jobs, skip_unreadable, progress, state)
     require_outcomes(report.trajectories, data_dir, need_balanced=False)
-    lists = fit_strided(report.trajectories, tau_plus_s, learner, sample_stride, mirror=mirror)
+    if attitude and len(INPUT_NAMES_WITH_ATTITUDE) not in learner.input_sizes:
+        raise ValueError(f'{learner_name}: this learner reads the 15 features only; the base\'s '
+                         'attitude needs boosted trees (--learner boosting)')
+    lists = fit_strided(model_inputs(report.trajectories, attitude), tau_plus_s, learner,
+                        sample_stride, mirror=mirror)
     # the time-to-fall trees and the robot mass (fall direction) ship in the model.
     from fall_predictor.data.dataset import dataset_guard_com_height_m, robot_total_mass_kg
     from fall_predictor.learning.time_to_fall_training import fit_time_to_fall

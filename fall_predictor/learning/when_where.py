@@ -143,7 +143,8 @@ def direction_samples(data_dir: PathLike, trajectories: Sequence[TrajectoryFeatu
     rows, actual = [], []
     for traj, k, a in zip(trajectories, triggers, actual_directions(data_dir, trajectories, triggers)):
         if a is not None:
-            rows.append(np.asarray(traj.X[k], dtype=float))
+            rows.append(np.asarray(traj.X[k, :N_FEATURES], dtype=float))   # a model's inputs may
+                                                                            # go on (the attitude)
             actual.append(a)
     return DirectionSamples(np.array(rows, dtype=float).reshape(len(rows), N_FEATURES),
                             np.array(actual, dtype=float).reshape(len(actual), 2))

@@ -50,7 +50,8 @@ def compile_tree_sum(trees: Sequence[RegressionTree], bias: float, n_inputs: int
     back bit for bit)::
 
         def score_one(x):
-            x0, x1, ..., x14 = x
+            x3 = x[3]
+            ...
             s = -2.31
             if x3 <= 0.12:
                 s += 0.08
@@ -58,8 +59,11 @@ def compile_tree_sum(trees: Sequence[RegressionTree], bias: float, n_inputs: int
                 ...
             return s
     """
+    used = sorted({f for tree in trees for f in tree.feature if f != -1})
+    if used and used[-1] >= n_inputs:
+        raise BoostedTreesError(f'a tree reads input {used[-1]} of {n_inputs}')
     lines = ['def score_one(x):',
-             '    ' + ''.join(f'x{i}, ' for i in range(n_inputs)) + '= x',
+             *(f'    x{i} = x[{i}]' for i in used),        # only the inputs the trees read
              f'    s = {float(bias)!r}']
     for tree in trees:
         _tree_source(tree, 0, '    ', lines)
@@ -74,6 +78,8 @@ class BoostedTrees:
     """One contact mode's boosted trees: falling when ``bias + sum(trees(x)) > decision_threshold``.
 
     ``rule_size`` counts comparisons (internal nodes), as a list's does; ``depth`` counts trees.
+    The trees read ``n_inputs`` values (their ``n_inputs``: the 15 features, or the 19 inputs of
+    a model that also reads the base's attitude, method §8c).
     """
 
     trees: tuple[RegressionTree, ...]
@@ -92,7 +98,10 @@ class BoostedTrees:
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise BoostedTreesError(f'{name} must be a finite number, got {value!r}')
             object.__setattr__(self, name, float(value))
-        object.__setattr__(self, '_score_one', compile_tree_sum(self.trees, self.bias))
+        sizes = {tree.n_inputs for tree in self.trees}
+        if len(sizes) > 1:
+            raise BoostedTreesError(f'trees over different numbers of inputs: {sorted(sizes)}')
+        object.__setattr__(self, '_score_one', compile_tree_sum(self.trees, self.bias, self.n_inputs))
         object.__setattr__(self, '_arrays', tuple(
             tuple(np.asarray(getattr(tree, k)) for k in ('feature', 'threshold', 'left', 'right', 'value'))
             for tree in self.trees))
@@ -100,6 +109,11 @@ class BoostedTrees:
     def __reduce__(self):
         # The compiled function is not picklable; it is made again from the trees.
         return BoostedTrees, (self.trees, self.bias, self.decision_threshold)
+
+    @property
+    def n_inputs(self) -> int:
+        """Length of the input vector the trees read."""
+        return self.trees[0].n_inputs if self.trees else N_FEATURES
 
     @property
     def rule_size(self) -> int:
@@ -112,7 +126,7 @@ class BoostedTrees:
         return len(self.trees)
 
     def score_one(self, x: Sequence[float]) -> float:
-        """The log-odds of falling for one feature vector (15 values)."""
+        """The log-odds of falling for one input vector (:attr:`n_inputs` values)."""
         return self._score_one(x)
 
     def predict_one(self, x: Sequence[float]) -> int:
@@ -120,10 +134,10 @@ class BoostedTrees:
         return FALLING if self._score_one(x) > self.decision_threshold else BALANCED
 
     def score(self, X: np.ndarray) -> np.ndarray:
-        """The log-odds of the rows of ``X`` (N, 15), (N,) floats."""
+        """The log-odds of the rows of ``X`` (N, :attr:`n_inputs`), (N,) floats."""
         X = np.asarray(X, dtype=float)
-        if X.ndim != 2 or X.shape[1] != N_FEATURES:
-            raise ValueError(f'X must have shape (N, {N_FEATURES}), got {X.shape}')
+        if X.ndim != 2 or X.shape[1] != self.n_inputs:
+            raise ValueError(f'X must have shape (N, {self.n_inputs}), got {X.shape}')
         rows = np.arange(X.shape[0])
         total = np.full(X.shape[0], self.bias)
         for feature, threshold, left, right, value in self._arrays:
@@ -138,7 +152,7 @@ class BoostedTrees:
         return total
 
     def predict(self, X: np.ndarray) -> np.ndarray:
-        """Classes (int8, (N,)) of the rows of ``X`` (N, 15)."""
+        """Classes (int8, (N,)) of the rows of ``X`` (N, :attr:`n_inputs`)."""
         return np.where(self.score(X) > self.decision_threshold, FALLING, BALANCED).astype(np.int8)
 
     def format(self, feature_names: Sequence[str] = FEATURE_NAMES, mode_name: str | None = None) -> str:
@@ -154,8 +168,9 @@ class BoostedTrees:
                 'trees': [tree.to_json() for tree in self.trees]}
 
     @classmethod
-    def from_json(cls, value: Any) -> BoostedTrees:
-        """Validated: raises :class:`BoostedTreesError` naming the offending field."""
+    def from_json(cls, value: Any, n_inputs: int = N_FEATURES) -> BoostedTrees:
+        """Validated, trees over ``n_inputs`` inputs: raises :class:`BoostedTreesError` naming the
+        offending field."""
         if not isinstance(value, dict) or set(value) != {'bias', 'decision_threshold', 'trees'}:
             raise BoostedTreesError('expected an object with keys bias, decision_threshold, trees')
         if not isinstance(value['trees'], list):
@@ -163,7 +178,7 @@ class BoostedTrees:
         trees = []
         for index, raw in enumerate(value['trees']):
             try:
-                trees.append(RegressionTree.from_json(raw, f'trees[{index}]'))
+                trees.append(RegressionTree.from_json(raw, f'trees[{index}]', n_inputs))
             except TimeToFallError as error:
                 raise BoostedTreesError(str(error)) from error
         try:

@@ -17,7 +17,7 @@ from typing import Optional, Union
 from fall_predictor.monitor.fall_monitor import FallEvent, FallMonitor, MonitorState
 from fall_predictor.monitor.features import FeatureSettings
 from fall_predictor.monitor.plausibility import ImplausibleSample
-from fall_predictor.monitor.records import Measurement
+from fall_predictor.monitor.records import N_FEATURES, Measurement
 from fall_predictor.monitor.sensor_pipeline import Estimate, SensorPipeline
 from fall_predictor.monitor.sensor_records import ImuReading, JointStateReading, WrenchReading
 
@@ -45,7 +45,8 @@ class OnboardChain:
     def __init__(self, pipeline: SensorPipeline, settings: FeatureSettings,
                  monitor: FallMonitor) -> None:
         self.pipeline = pipeline
-        self.extractor = settings.extractor()
+        # The base's attitude after the features when the model reads it (method §8c).
+        self.extractor = settings.extractor(attitude=monitor.n_inputs > N_FEATURES)
         self.monitor = monitor
 
     def add(self, stream: str, reading: Reading) -> list[ChainOutput]:

@@ -144,14 +144,15 @@ class DecisionList:
         return len(self.rules)
 
     def predict_one(self, x: Sequence[float]) -> int:
-        """Class of one feature vector ``x`` (15 values; a list of floats is fastest)."""
+        """Class of one feature vector ``x`` (15 values, or more: a model's inputs begin with the
+        15 features; a list of floats is fastest)."""
         return self._predict_one(x)
 
     def predict(self, X: np.ndarray) -> np.ndarray:
-        """Classes of the rows of ``X`` (N, 15) as an int8 array (N,)."""
+        """Classes of the rows of ``X`` (N, 15 or more: the 15 features first) as an int8 array (N,)."""
         X = np.asarray(X, dtype=float)
-        if X.ndim != 2 or X.shape[1] != N_FEATURES:
-            raise ValueError(f'X must have shape (N, {N_FEATURES}), got {X.shape}')
+        if X.ndim != 2 or X.shape[1] < N_FEATURES:
+            raise ValueError(f'X must have shape (N, {N_FEATURES} or more), got {X.shape}')
         out = np.full(X.shape[0], self.default, dtype=np.int8)
         undecided = np.ones(X.shape[0], dtype=bool)
         for rule in self.rules:
@@ -187,7 +188,8 @@ def _compile_predict_one(rules: Sequence[Rule], default: int) -> Callable[[Seque
     """The list as one Python function, an ``if`` per rule on the features unpacked into locals:
 
         def predict_one(x):
-            x0, x1, ..., x14 = x
+            x2 = x[2]
+            x9 = x[9]
             if x2 <= 0.5123 and x9 > -1.25: return 1
             ...
             return 0
@@ -201,8 +203,11 @@ def _compile_predict_one(rules: Sequence[Rule], default: int) -> Callable[[Seque
     for rule in rules:
         test = ' and '.join(f'x{c.feature} {c.op} {float(c.threshold)!r}' for c in rule.conditions)
         tests.append(f'    if {test or "True"}: return {int(rule.label)}')
+    # Only the features the rules read, by index: faster than unpacking all 15, and a longer
+    # input vector (a model's inputs begin with the 15 features) reads the same.
+    used = sorted({c.feature for rule in rules for c in rule.conditions})
     source = '\n'.join(['def predict_one(x):',
-                        '    ' + ', '.join(f'x{i}' for i in range(N_FEATURES)) + ' = x',
+                        *(f'    x{i} = x[{i}]' for i in used),
                         *tests, f'    return {int(default)}'])
     namespace: dict = {}
     exec(compile(source, '<decision list>', 'exec'), namespace)     # numbers only: see above
@@ -233,6 +238,12 @@ class PerModeDecisionLists:
         for decision_list in self.lists:
             if not isinstance(decision_list, (DecisionList, BoostedTrees)):
                 raise TypeError(f'expected DecisionList or BoostedTrees, got {decision_list!r}')
+
+    @property
+    def n_inputs(self) -> int:
+        """Length of the input vector the classifiers read: 15 (the features), or 19 when boosted
+        trees also read the base's attitude (method §8c)."""
+        return max((c.n_inputs for c in self.lists if isinstance(c, BoostedTrees)), default=N_FEATURES)
 
     @property
     def boosted(self) -> bool:

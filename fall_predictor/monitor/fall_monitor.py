@@ -37,6 +37,7 @@ from fall_predictor.monitor.decision_list import PerModeDecisionLists
 from fall_predictor.monitor.fall_direction import LearnedDirection, momentum_direction
 from fall_predictor.monitor.contact_modes import ContactMode
 from fall_predictor.monitor.predictor import COM_HEIGHT_FEATURE, OnlinePredictor
+from fall_predictor.monitor.records import N_FEATURES
 
 #: ``MonitorState.status`` values (``fall_predictor/msg/FallState`` STATUS_*).
 STATUS_OK, STATUS_DEGRADED, STATUS_STALE, STATUS_DISABLED, STATUS_FALLEN = range(5)
@@ -47,6 +48,9 @@ EVENT_NAMES = ('falling', 'fallen', 'standing', 'reset')
 _OUTSIDE = int(ContactMode.OUTSIDE)
 #: Largest time to fall reported [s].
 MAX_TIME_TO_FALL_S = 1e3
+#: Why a sample without the base's attitude is not predicted by a model that reads it.
+NO_ATTITUDE = ('the model reads the base\'s attitude (method §8c) and this measurement has none '
+               '(no base orientation, or no earlier one to take its rate from)')
 _NAN2 = (math.nan, math.nan)
 
 
@@ -122,6 +126,7 @@ class FallMonitor:
                  ) -> None:
         kwargs = {} if guard_com_height_m is None else {'guard_com_height_m': guard_com_height_m}
         self.predictor = OnlinePredictor(lists, tau_his_s, dt_s, **kwargs)
+        self._n_inputs = lists.n_inputs     # another decision threshold keeps the trees' inputs
         self.fallen_config = fallen
         self.mass_kg = float(mass_kg)
         self.time_to_fall = time_to_fall
@@ -189,10 +194,21 @@ class FallMonitor:
         return MonitorState(STATUS_STALE if stale else STATUS_DEGRADED, reason,
                             latched=self._latched, tau_his_s=self.predictor.tau_his_s)
 
+    @property
+    def n_inputs(self) -> int:
+        """Length of the input vector the model reads: 15 features, or 19 with the attitude."""
+        return self.predictor.lists.n_inputs
+
     def step(self, t: float, x: Sequence[float], mode: int, base_tilt_rad: float = 0.0
              ) -> tuple[MonitorState, Optional[FallEvent]]:
-        """One sample at run time ``t`` [s]: features ``x`` (15), contact mode, base tilt [rad]."""
+        """One sample at run time ``t`` [s]: inputs ``x`` (the 15 features, then the base's
+        attitude for a model that reads it: :attr:`n_inputs`), contact mode, base tilt [rad].
+        A model that reads the attitude gives a DEGRADED state for a sample without it."""
         values = x.tolist() if hasattr(x, 'tolist') else list(x)
+        if self._n_inputs > N_FEATURES and not (
+                len(values) >= self._n_inputs
+                and all(v == v for v in values[N_FEATURES:self._n_inputs])):     # NaN != NaN
+            return self.unusable(NO_ATTITUDE), None
         if t - self._last_t > self.max_gap_s:
             self.predictor.reset()              # a hole in the input: the window starts over
         self._last_t = t

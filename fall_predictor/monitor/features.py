@@ -26,7 +26,8 @@ import numpy as np
 
 from fall_predictor.monitor.contact_modes import ContactMode, classify_contact_mode_and_cop, float_list
 from fall_predictor.monitor.plausibility import ContinuityCheck
-from fall_predictor.monitor.records import GUARD_COM_HEIGHT_M, N_FEATURES, Measurement
+from fall_predictor.monitor.geometry import fused_roll_pitch_of_rotation
+from fall_predictor.monitor.records import GUARD_COM_HEIGHT_M, N_ATTITUDE, N_FEATURES, Measurement
 
 _OUTSIDE = int(ContactMode.OUTSIDE)
 
@@ -84,9 +85,11 @@ class FeatureSettings:
                                           'to adopt the model\'s value, or retrain)')
         return self
 
-    def extractor(self) -> 'FeatureExtractor':
-        """A fresh :class:`FeatureExtractor` computing features with these settings."""
-        return FeatureExtractor(self.rate_window_s, self.sample_period_s, self.edge_tolerance_m)
+    def extractor(self, attitude: bool = False) -> 'FeatureExtractor':
+        """A fresh :class:`FeatureExtractor` computing features with these settings (and, with
+        ``attitude``, the base's attitude after them)."""
+        return FeatureExtractor(self.rate_window_s, self.sample_period_s, self.edge_tolerance_m,
+                                attitude)
 
 
 def _finite_vector3(a: object, name: str) -> list[float]:
@@ -107,19 +110,28 @@ class FeatureExtractor:
     serves; with none (the first sample, a long gap) the rates are zero. ``dt_s`` [s] is
     the nominal sample period (jitter tolerance only) and ``edge_tolerance_m`` [m] is passed to the
     contact mode classification. Call :meth:`reset` before feeding a new trajectory.
+
+    With ``attitude`` each output also holds, after the 15 features, the base's attitude
+    (:data:`~fall_predictor.monitor.records.ATTITUDE_NAMES`, method §8c): the fused roll and
+    pitch of ``m.torso_rotation`` and their rates, differenced over the same reference sample as
+    the momenta; all four NaN for a measurement without a base orientation, the rates NaN when
+    the reference sample had none.
     """
 
     def __init__(self, rate_window_s: float = 0.01, dt_s: float = 0.001,
-                 edge_tolerance_m: float = 0.01) -> None:
+                 edge_tolerance_m: float = 0.01, attitude: bool = False) -> None:
         if not dt_s > 0.0 or not rate_window_s >= dt_s:
             raise ValueError(f'need 0 < dt_s <= rate_window_s, got dt_s={dt_s}, '
                              f'rate_window_s={rate_window_s}')
         self.rate_window_s = rate_window_s
         self.dt_s = dt_s
         self.edge_tolerance_m = edge_tolerance_m
+        self.attitude = bool(attitude)
+        #: Length of each output: the 15 features, and the attitude's 4 with ``attitude``.
+        self.n_outputs = N_FEATURES + (N_ATTITUDE if self.attitude else 0)
         self._window_s = rate_window_s + 0.25 * dt_s
         # Past samples within the window as (t, world linear momentum xyz, world angular
-        # momentum xyz), oldest first.
+        # momentum xyz, base roll, base pitch), oldest first.
         self._history: deque[tuple[float, ...]] = deque()
         #: Rejects samples that jump further than physics allows (glitches), see
         #: :mod:`fall_predictor.monitor.plausibility`.
@@ -131,7 +143,8 @@ class FeatureExtractor:
         self.continuity.reset()
 
     def update(self, m: Measurement) -> tuple[np.ndarray, int]:
-        """Features (15,) in :data:`FEATURE_NAMES` order and the contact mode index of ``m``.
+        """Features (15,) in :data:`FEATURE_NAMES` order (then the attitude's 4 values, with
+        ``attitude``) and the contact mode index of ``m``.
 
         Raises ValueError, leaving the extractor unchanged, if the CoM, momenta, heading or
         time are not finite or have wrong shapes, if the contacts are malformed, or if the
@@ -169,14 +182,19 @@ class FeatureExtractor:
                 reference = history[1]
             elif t - history[0][0] <= 2.0 * self._window_s:
                 reference = history[0]
+        roll = pitch = math.nan
+        if self.attitude and m.torso_rotation is not None:
+            roll, pitch = fused_roll_pitch_of_rotation(m.torso_rotation)
         if reference is not None:
-            t0, px0, py0, pz0, lx0, ly0, lz0 = reference
+            t0, px0, py0, pz0, lx0, ly0, lz0, roll0, pitch0 = reference
             inv = 1.0 / (t - t0)
             fx, fy, fz = (px - px0) * inv, (py - py0) * inv, (pz - pz0) * inv
             mx, my, mz = (lx - lx0) * inv, (ly - ly0) * inv, (lz - lz0) * inv
+            roll_rate, pitch_rate = (roll - roll0) * inv, (pitch - pitch0) * inv
         else:
             fx = fy = fz = mx = my = mz = 0.0
-        history.append((t, px, py, pz, lx, ly, lz))
+            roll_rate, pitch_rate = roll - roll, pitch - pitch     # 0, or NaN without an attitude
+        history.append((t, px, py, pz, lx, ly, lz, roll, pitch))
 
         # World -> heading frame: x' = c x + s y, y' = -s x + c y, z unchanged.
         c, s = math.cos(heading), math.sin(heading)
@@ -187,17 +205,18 @@ class FeatureExtractor:
             c * lx + s * ly, -s * lx + c * ly, lz,
             c * fx + s * fy, -s * fx + c * fy, fz,
             c * mx + s * my, -s * mx + c * my, mz,
-        ))
+        ) + ((roll, pitch, roll_rate, pitch_rate) if self.attitude else ()))
         return features, mode
 
 
 def extract_features(measurements: Sequence[Measurement], rate_window_s: float = 0.01,
-                     dt_s: float = 0.001, edge_tolerance_m: float = 0.01
+                     dt_s: float = 0.001, edge_tolerance_m: float = 0.01, attitude: bool = False
                      ) -> tuple[np.ndarray, np.ndarray]:
-    """Features ``X`` (N, 15) and contact modes (N,) of one trajectory, by running a fresh
-    :class:`FeatureExtractor` over it (so exactly what the live node computes)."""
-    extractor = FeatureExtractor(rate_window_s, dt_s, edge_tolerance_m)
-    X = np.empty((len(measurements), N_FEATURES))
+    """Features ``X`` (N, 15), or (N, 19) with ``attitude``, and contact modes (N,) of one
+    trajectory, by running a fresh :class:`FeatureExtractor` over it (so exactly what the live
+    node computes)."""
+    extractor = FeatureExtractor(rate_window_s, dt_s, edge_tolerance_m, attitude)
+    X = np.empty((len(measurements), extractor.n_outputs))
     mode = np.empty(len(measurements), dtype=np.int64)
     for i, m in enumerate(measurements):
         X[i], mode[i] = extractor.update(m)

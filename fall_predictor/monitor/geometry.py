@@ -183,6 +183,13 @@ def to_yaw_frame(x: float, y: float, yaw: float) -> Point:
     return c * x + s * y, -s * x + c * y
 
 
+def fused_roll_pitch_of_rotation(rotation) -> tuple[float, float]:
+    """Fused roll and pitch [rad] of one orientation given as its rotation matrix (3, 3), body to
+    world: :func:`fused_roll_pitch`'s angles, ``roll = asin(R[2, 1])``, ``pitch = asin(-R[2, 0])``."""
+    r20, r21 = float(rotation[2][0]), float(rotation[2][1])
+    return math.asin(min(1.0, max(-1.0, r21))), math.asin(min(1.0, max(-1.0, -r20)))
+
+
 def fused_roll_pitch(quat_xyzw: np.ndarray) -> np.ndarray:
     """Fused roll and pitch [rad] (n, 2) of orientations (n, 4): the world z axis seen from the
     body, ``roll = asin(R[2, 1])``, ``pitch = asin(-R[2, 0])`` (R body to world)."""

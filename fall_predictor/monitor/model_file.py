@@ -1,11 +1,13 @@
 """The model file: a learned predictor's decision lists and provenance as plain JSON.
 
-Layout (schema ``fall_predictor.decision_lists``, version 5)::
+Layout (schema ``fall_predictor.decision_lists``, version 6)::
 
     {
       "schema": "fall_predictor.decision_lists",
-      "schema_version": 4,
+      "schema_version": 6,
       "feature_names": ["com_x", ..., "d_ang_mom_z"],          # must equal FEATURE_NAMES
+      "input_names": ["com_x", ..., "d_ang_mom_z"],            # FEATURE_NAMES, or with the
+                                                              # attitude after them (version 6)
       "contact_mode_names": ["LR-INSIDE", ..., "OUTSIDE"],    # must equal CONTACT_MODE_NAMES
       "lists": [                                              # one per contact mode, in order
         {"mode": "LR-INSIDE", "default": "balanced",
@@ -26,6 +28,9 @@ Layout (schema ``fall_predictor.decision_lists``, version 5)::
       "fall_direction": {"inputs": [...8 names], "bias": 0.0, "trees": [tree, ...]}  # or null (5)
     }
 
+Version 6 added ``input_names``: what a classifier reads, the 15 features or the 19 inputs
+:data:`~fall_predictor.monitor.records.INPUT_NAMES_WITH_ATTITUDE` (the features, then the base's
+attitude, method §8c; boosted trees only); older files read the 15 features.
 Version 5 added ``fall_direction``: a learned fall direction
 (:class:`~fall_predictor.monitor.fall_direction.LearnedDirection`, returned as
 ``metadata.fall_direction``; None: the monitor gives the momentum's direction).
@@ -66,13 +71,17 @@ from fall_predictor.monitor.boosted_trees import BoostedTrees, BoostedTreesError
 from fall_predictor.monitor.fall_direction import FallDirectionError, LearnedDirection
 from fall_predictor.monitor.time_to_fall import TimeToFallError, TimeToFallRegressor
 from fall_predictor.monitor.records import (BALANCED, CLASS_NAMES, CONTACT_MODE_NAMES, FALLING,
-                                    FEATURE_NAMES, N_CONTACT_MODES, N_FEATURES)
+                                    FEATURE_NAMES, INPUT_NAMES_WITH_ATTITUDE, N_CONTACT_MODES,
+                                    N_FEATURES)
 
 SCHEMA_NAME = 'fall_predictor.decision_lists'
-SCHEMA_VERSION = 5
+SCHEMA_VERSION = 6
 #: Older versions this reader still accepts (version 2: no robot mass, no time to fall;
-#: version 3: decision lists only; version 4: no learned fall direction).
-SUPPORTED_SCHEMA_VERSIONS = (2, 3, 4, 5)
+#: version 3: decision lists only; version 4: no learned fall direction; version 5: the 15
+#: features as the only inputs).
+SUPPORTED_SCHEMA_VERSIONS = (2, 3, 4, 5, 6)
+#: The input vectors a model may read, by length.
+INPUT_NAMES = {N_FEATURES: FEATURE_NAMES, len(INPUT_NAMES_WITH_ATTITUDE): INPUT_NAMES_WITH_ATTITUDE}
 #: Values of ``training.state`` (optional; absent = 'true').
 TRAINING_STATES = ('true', 'estimated')
 _CLASS_BY_NAME = {CLASS_NAMES[BALANCED]: BALANCED, CLASS_NAMES[FALLING]: FALLING}
@@ -138,6 +147,7 @@ def _model_document(lists: PerModeDecisionLists, metadata: ModelMetadata) -> dic
         'schema': SCHEMA_NAME,
         'schema_version': SCHEMA_VERSION,
         'feature_names': list(FEATURE_NAMES),
+        'input_names': list(INPUT_NAMES[lists.n_inputs]),
         'contact_mode_names': list(CONTACT_MODE_NAMES),
         'lists': [_classifier_document(mode_name, classifier)
                   for mode_name, classifier in zip(CONTACT_MODE_NAMES, lists.lists)],
@@ -265,7 +275,8 @@ def _parse_model(text: str, path: Path) -> tuple[PerModeDecisionLists, ModelMeta
                                          'contact_mode_names', 'lists', 'features', 'training',
                                          'recommended_tau_his_s', 'dataset_fingerprint', 'created')
                 + (('robot_mass_kg', 'time_to_fall') if version >= 3 else ())
-                + (('fall_direction',) if version >= 5 else ()))
+                + (('fall_direction',) if version >= 5 else ())
+                + (('input_names',) if version >= 6 else ()))
     mass = document.get('robot_mass_kg')
     if mass is not None:
         mass = read.number(mass, 'robot_mass_kg')
@@ -285,6 +296,11 @@ def _parse_model(text: str, path: Path) -> tuple[PerModeDecisionLists, ModelMeta
             raise read.fail('fall_direction', str(error)) from error
     if document['feature_names'] != list(FEATURE_NAMES):
         raise read.fail('feature_names', f'expected {list(FEATURE_NAMES)}, got {document["feature_names"]!r}')
+    input_names = document.get('input_names', list(FEATURE_NAMES))
+    n_inputs = next((n for n, names in INPUT_NAMES.items() if input_names == list(names)), None)
+    if n_inputs is None:
+        raise read.fail('input_names', f'expected the 15 feature names, or them followed by '
+                                       f'{list(INPUT_NAMES_WITH_ATTITUDE[N_FEATURES:])}, got {input_names!r}')
     if document['contact_mode_names'] != list(CONTACT_MODE_NAMES):
         raise read.fail('contact_mode_names',
                         f'expected {list(CONTACT_MODE_NAMES)}, got {document["contact_mode_names"]!r}')
@@ -302,7 +318,7 @@ def _parse_model(text: str, path: Path) -> tuple[PerModeDecisionLists, ModelMeta
             raise read.fail(f'{where}.mode', f'expected {CONTACT_MODE_NAMES[mode]!r}, got {raw_list["mode"]!r}')
         if boosted:
             try:
-                lists.append(BoostedTrees.from_json(raw_list['boosted_trees']))
+                lists.append(BoostedTrees.from_json(raw_list['boosted_trees'], n_inputs))
             except BoostedTreesError as error:
                 raise read.fail(f'{where}.boosted_trees', str(error)) from error
             continue
@@ -373,4 +389,9 @@ def _parse_model(text: str, path: Path) -> tuple[PerModeDecisionLists, ModelMeta
         package_version=read.string(created['package_version'], 'created.package_version'),
         robot_mass_kg=mass, time_to_fall=time_to_fall, state=state, mirror=mirror,
         fall_direction=fall_direction)
-    return PerModeDecisionLists(tuple(lists)), metadata
+    model = PerModeDecisionLists(tuple(lists))
+    if model.n_inputs != n_inputs:
+        raise read.fail('input_names', f'{len(input_names)} inputs, but no classifier reads beyond '
+                                       f'the {model.n_inputs} features (write input_names with '
+                                       f'the model it belongs to)')
+    return model, metadata

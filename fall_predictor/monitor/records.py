@@ -7,6 +7,7 @@ Conventions: SI units, world frame z up, the ground plane at z = 0.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Optional
 
@@ -23,6 +24,18 @@ FEATURE_NAMES: tuple[str, ...] = (
     'd_ang_mom_x', 'd_ang_mom_y', 'd_ang_mom_z',    # rate of angular momentum about the CoM [N m]
 )
 N_FEATURES = len(FEATURE_NAMES)
+
+#: The floating base's attitude beside the 15 features (method §8c): its fused roll and pitch
+#: (the world z axis seen from the base, so that the heading does not enter) and their rates
+#: (backward differences over the momentum rates' window). A model may read them after the 15
+#: features, as inputs 15-18 (:data:`INPUT_NAMES_WITH_ATTITUDE`).
+ATTITUDE_NAMES: tuple[str, ...] = (
+    'base_roll', 'base_pitch',                      # fused roll and pitch of the base [rad]
+    'base_roll_rate', 'base_pitch_rate',            # their rates [rad/s]
+)
+N_ATTITUDE = len(ATTITUDE_NAMES)
+#: A model's inputs when it reads the attitude: the 15 features, then the attitude.
+INPUT_NAMES_WITH_ATTITUDE = FEATURE_NAMES + ATTITUDE_NAMES
 
 #: The 16 foot contact modes of method §7, in index order (the index is what data files store).
 CONTACT_MODE_NAMES: tuple[str, ...] = (
@@ -146,8 +159,20 @@ class TrajectoryFeatures:
     t_height_drop: Optional[float] = None
     #: (N, 2) vertical ground force under the left and right sole [N], when known.
     foot_force_n: Optional[np.ndarray] = None
+    #: (N, 4) the base's attitude (:data:`ATTITUDE_NAMES`) at each sample, when known.
+    attitude: Optional[np.ndarray] = None
 
     @property
     def com_height(self) -> np.ndarray:
         """CoM height above the ground [m] (the frame origin lies on the ground)."""
         return self.X[:, 2]
+
+    def with_attitude_inputs(self) -> 'TrajectoryFeatures':
+        """This trajectory with ``X`` (N, 19): the features, then the base's attitude, the inputs
+        of a model that reads it (method §8c). ValueError when the attitude is not known."""
+        if self.attitude is None:
+            raise ValueError(f'trajectory {self.trajectory_id}: no base attitude (features computed '
+                             'before it was recorded with them: load the dataset again)')
+        if self.X.shape[1] != N_FEATURES:
+            return self
+        return dataclasses.replace(self, X=np.hstack([self.X, self.attitude]))

@@ -102,7 +102,8 @@ class FeatureNode(MonitorLifecycleNode):
         p = self._params
         _, _, self._settings = load_model_for(self, str(p['model_path']),
                                               {k: p[k] for k in SETTINGS}, int(p['max_model_bytes']))
-        self._extractor = self._settings.extractor()
+        # Always with the base's attitude: the message carries it for a model that reads it (§8c).
+        self._extractor = self._settings.extractor(attitude=True)
         self._timeline.reset()
         self._rate_problem = None
         self._accepted = 0

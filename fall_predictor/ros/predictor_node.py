@@ -52,6 +52,7 @@ from fall_predictor.contract.wire import LEVEL_OK, LEVEL_STALE, LEVEL_WARN
 from fall_predictor.monitor.decision_list import NO_DECISION_THRESHOLD
 from fall_predictor.monitor.fall_monitor import (EVENT_FALLING, EVENT_NAMES, FallEvent, FallMonitor,
                                                  MonitorState)
+from fall_predictor.monitor.records import N_FEATURES
 from fall_predictor.monitor.timeline import Stamp, StampTimeline
 from fall_predictor.msg import FallEvent as FallEventMsg
 from fall_predictor.msg import FallState, Features
@@ -171,8 +172,10 @@ class PredictorNode(MonitorLifecycleNode):
                                     float(mass_kg), getattr(metadata, 'time_to_fall', None),
                                     fall_direction=getattr(metadata, 'fall_direction', None))
         self._timeline.reset()
+        reads = '' if lists.n_inputs == N_FEATURES else ", reads the base's attitude"
         self._model_description = (f'{p["model_path"] or "the shipped model"} (mean rule size '
-                                   f'{lists.mean_rule_size:.1f}, tau_plus {metadata.tau_plus_s} s)')
+                                   f'{lists.mean_rule_size:.1f}, tau_plus {metadata.tau_plus_s} s'
+                                   f'{reads})')
         self.get_logger().info(f'predictor ready: model {self._model_description}, '
                                f'tau_his_s={tau_his_s}, robot mass {mass_kg:.1f} kg')
 
