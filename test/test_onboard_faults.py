@@ -228,3 +228,45 @@ def test_sporadic_faults_are_holes_that_do_not_delay_the_alarm() -> None:
     assert degraded >= clean_degraded + 0.9 * (run.t_fallen - 1.0) / 0.040
     assert clean_s < run.t_fallen - 0.3
     assert late_s == pytest.approx(clean_s, abs=0.010)
+
+
+
+def test_a_model_reading_the_attitude_gets_it_from_the_robots_streams(messages):
+    """Boosted trees over the 19 inputs (method §8c), run on the robot's own streams: the chain
+    computes the base's attitude from the estimated base orientation, so every estimate is OK;
+    the inputs the monitor got are the offline path's (extract_features over the same
+    measurements) and those of a robot standing upright (fused roll and pitch within 3 deg)."""
+    from fall_predictor.monitor.boosted_trees import BoostedTrees
+    from fall_predictor.monitor.decision_list import PerModeDecisionLists
+    from fall_predictor.monitor.features import extract_features
+    from fall_predictor.monitor.records import N_CONTACT_MODES
+    from fall_predictor.monitor.time_to_fall import RegressionTree
+    _, metadata = load_model(MODEL)
+    settings = metadata.feature_settings
+    # Falling only when the roll rate (input 17) exceeds 100 rad/s: never, standing.
+    never = RegressionTree((17, -1, -1), (100.0, 0.0, 0.0), (1, -1, -1), (2, -1, -1),
+                           (0.0, -1.0, 1.0), n_inputs=19)
+    lists = PerModeDecisionLists(tuple(BoostedTrees((never,), 0.0) for _ in range(N_CONTACT_MODES)))
+    layout = rm.PROFILE.sensor_layout()
+    pipeline = SensorPipeline(layout.description(rm.URDF_PATH.read_text()), layout.imu_frame,
+                              config=PipelineConfig(driving_joints=LEGS))
+    monitor = FallMonitor(lists, 0.03, FallenConfig(FALLEN_COM_HEIGHT_M, GUARD_COM_HEIGHT_M),
+                          settings.sample_period_s, settings.guard_com_height_m, rm.TOTAL_MASS_KG)
+    chain = OnboardChain(pipeline, settings, monitor)
+    assert chain.extractor.attitude
+    seen, step = [], monitor.step
+
+    def recording_step(t, x, mode, tilt):
+        seen.append((t, np.array(x)))
+        return step(t, x, mode, tilt)
+    monitor.step = recording_step
+    outputs = [o for stream, reading in messages for o in chain.add(stream, reading)]
+    outputs = [o for o in outputs + chain.flush() if o.measurement is not None]  # not the
+    # estimator's start (no loaded sole yet)
+    assert len(outputs) > 1900 and all(o.state.status == STATUS_OK for o in outputs)
+    assert not any(o.state.falling for o in outputs) and len(seen) == len(outputs)
+    X, _ = extract_features([replace(o.measurement, t=t) for o, (t, _) in zip(outputs, seen)],
+                            settings.rate_window_s, settings.sample_period_s,
+                            settings.edge_tolerance_m, attitude=True)
+    np.testing.assert_array_equal(np.array([x for _, x in seen]), X)
+    assert X.shape[1] == 19 and np.all(np.abs(X[:, 15:17]) < np.radians(3.0))

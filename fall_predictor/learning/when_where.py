@@ -41,9 +41,10 @@ def trigger_indices(trajectories: Sequence[TrajectoryFeatures], lists: PerModeDe
                     ) -> list[Optional[int]]:
     """Per trajectory, the sample index of the in-time trigger on a fallen trajectory (first
     falling output in ``[t_push, t_fallen)``, CoM guard on at ``guard_com_height_m`` [m]: the
-    model's), else None."""
+    model's), else None. A model that reads the base's attitude gets it (method §8c)."""
+    from fall_predictor.learning.training import model_inputs
     out: list[Optional[int]] = []
-    for traj in trajectories:
+    for traj in model_inputs(trajectories, lists):
         if not traj.fallen:
             out.append(None)
             continue
