@@ -35,7 +35,7 @@ from fall_predictor.ros.simulated_robot import robot_nodes
 from fall_predictor.sim.trajectory import run_trajectory
 from fall_predictor.ros.feature_node import FeatureNode
 from fall_predictor.ros.predictor_node import PredictorNode
-from fall_predictor.monitor.features import FeatureSettings
+from fall_predictor.monitor.features import FeatureSettings, extract_features
 from fall_predictor.monitor.model_file import load_model, save_model
 from fall_predictor.ros.share import default_model_path
 from fall_predictor.ros.conversions import (MAX_PUSH_HEIGHT_M, push_request_from_msg,
@@ -360,7 +360,8 @@ def test_fall_monitor_hands_each_features_message_to_the_predictor_in_process(tm
     """In ``fall_monitor`` the predictor has no features subscription: the feature node hands
     it every message directly, once and in order (its states equal the library's extractor and
     predictor run offline on the same measurements), and still publishes every features
-    message for other processes (a probe receives them over DDS)."""
+    message for other processes (a probe receives them over DDS), with the base's attitude
+    (method §8c) the library computes offline."""
     model = write_momentum_model(tmp_path / 'model.json')
     measurements = run_trajectory(PushSpec(450.0, 0.0, 0.1, 0.3), 1.2,
                                   stop_when_fallen=False).measurements
@@ -387,8 +388,12 @@ def test_fall_monitor_hands_each_features_message_to_the_predictor_in_process(tm
         statuses: list[int] = []
         create_subscription(probe, FallState, STATE, lambda msg: statuses.append(msg.status),
                             lossless=True)
-        create_subscription(probe, Features, FEATURES,
-                            lambda msg: features.append(messages.stamp_ns(msg)), lossless=True)
+        attitudes: list = []
+
+        def on_features(msg) -> None:
+            features.append(messages.stamp_ns(msg))
+            attitudes.append(np.array(msg.base_attitude))
+        create_subscription(probe, Features, FEATURES, on_features, lossless=True)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(probe)
         try:
@@ -411,6 +416,9 @@ def test_fall_monitor_hands_each_features_message_to_the_predictor_in_process(tm
     assert statuses == [o.status for o in outputs]
     assert features == [ros_qos.sim_ns(m.t) for m in measurements]
     assert predictor.counts['features'] == len(measurements)
+    offline, _ = extract_features(measurements, attitude=True)
+    np.testing.assert_allclose(np.array(attitudes), offline[:, 15:], rtol=1e-9, atol=1e-9)
+    assert np.ptp(offline[:, 15]) > 0.1 or np.ptp(offline[:, 16]) > 0.1    # the base tips over
 
 
 def test_fall_monitor_without_other_subscribers_hands_decoded_samples_and_builds_no_message(

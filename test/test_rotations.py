@@ -57,3 +57,20 @@ def test_about_z_and_normalized():
                                atol=1e-15)
     assert rotations.normalized((0.0, 0.0, 0.0, 3.0)) == (0.0, 0.0, 0.0, 1.0)
     assert rotations.yaw(rotations.about_z(-2.5)) == pytest.approx(-2.5, abs=1e-15)
+
+
+def test_from_matrix_inverts_matrix_to_full_precision_even_near_upright():
+    """Random rotations come back to 1e-15 (sign: w >= 0), every branch of Shepperd's method
+    (each component the largest in turn) included; a rotation of 1e-9 rad about x comes back
+    as 1e-9 rad, where a square root per component would be ~1e-8 off."""
+    rng = np.random.default_rng(11)
+    qs = [tuple(v) for v in rng.normal(size=(200, 4))]
+    qs += [(1.0, 0.01, 0.02, 0.03), (0.01, 1.0, 0.02, 0.03), (0.01, 0.02, 1.0, 0.03),
+           (0.01, 0.02, 0.03, 1.0), (0.0, 0.0, 1.0, 0.0)]
+    for q in qs:
+        q = rotations.normalized(q)
+        expected = np.array(q) * (1.0 if q[3] >= 0.0 else -1.0)
+        np.testing.assert_allclose(rotations.from_matrix(rotations.matrix(q)), expected, atol=1e-15)
+    tiny = rotations.from_rotation_vector(1e-9, 0.0, 0.0)
+    back = rotations.from_matrix(rotations.matrix(tiny))
+    assert np.array(rotations.rotation_vector(back)) == pytest.approx([1e-9, 0.0, 0.0], rel=1e-6, abs=1e-17)

@@ -20,7 +20,7 @@ import numpy as np
 
 from fall_predictor.contract.topics import WireFormatError
 from fall_predictor.monitor.fall_monitor import STATUS_NAMES, MonitorState
-from fall_predictor.monitor import plausibility
+from fall_predictor.monitor import plausibility, rotations
 from fall_predictor.monitor.plausibility import ImplausibleSample, check_feature_bounds
 from fall_predictor.monitor.records import (INPUT_NAMES_WITH_ATTITUDE, N_CONTACT_MODES, N_FEATURES,
                                             Measurement)
@@ -155,15 +155,10 @@ def _sole(types: MessageTypes, foot: Sequence[float], contacts: np.ndarray) -> A
 
 
 def quaternion_xyzw(rot: Optional[np.ndarray]) -> list[float]:
-    """A rotation matrix as a unit quaternion (x, y, z, w); identity for None."""
+    """A rotation matrix as a unit quaternion (x, y, z, w), w >= 0; identity for None."""
     if rot is None:
         return [0.0, 0.0, 0.0, 1.0]
-    m = np.asarray(rot, dtype=float)
-    w = math.sqrt(max(0.0, 1.0 + m[0, 0] + m[1, 1] + m[2, 2])) / 2.0
-    x = math.copysign(math.sqrt(max(0.0, 1.0 + m[0, 0] - m[1, 1] - m[2, 2])) / 2.0, m[2, 1] - m[1, 2])
-    y = math.copysign(math.sqrt(max(0.0, 1.0 - m[0, 0] + m[1, 1] - m[2, 2])) / 2.0, m[0, 2] - m[2, 0])
-    z = math.copysign(math.sqrt(max(0.0, 1.0 - m[0, 0] - m[1, 1] + m[2, 2])) / 2.0, m[1, 0] - m[0, 1])
-    return [x, y, z, w]
+    return list(rotations.from_matrix(rot))
 
 
 def _rotation(q: Any) -> np.ndarray:

@@ -69,6 +69,31 @@ def matrix(q: Sequence[float]) -> np.ndarray:
                      2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]).reshape(3, 3)
 
 
+def from_matrix(r) -> Quaternion:
+    """The unit quaternion (w >= 0) of a rotation matrix, to the matrix's own precision.
+
+    Shepperd's method: the largest of |x|, |y|, |z|, |w| from the diagonal (a square root of a
+    number >= 1), the others from the off-diagonal sums divided by it. Taking each component's
+    own square root instead loses half the digits of the small ones (an error of ~1e-8 where a
+    component is near zero, as for a robot standing upright).
+    """
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = ((float(v) for v in row) for row in r)
+    trace = r00 + r11 + r22
+    if trace >= max(r00, r11, r22):
+        s = 2.0 * math.sqrt(1.0 + trace)                        # s = 4 w
+        q = ((r21 - r12) / s, (r02 - r20) / s, (r10 - r01) / s, 0.25 * s)
+    elif r00 >= r11 and r00 >= r22:
+        s = 2.0 * math.sqrt(max(1.0 + r00 - r11 - r22, 0.0))   # s = 4 x
+        q = (0.25 * s, (r01 + r10) / s, (r02 + r20) / s, (r21 - r12) / s)
+    elif r11 >= r22:
+        s = 2.0 * math.sqrt(max(1.0 - r00 + r11 - r22, 0.0))   # s = 4 y
+        q = ((r01 + r10) / s, 0.25 * s, (r12 + r21) / s, (r02 - r20) / s)
+    else:
+        s = 2.0 * math.sqrt(max(1.0 - r00 - r11 + r22, 0.0))   # s = 4 z
+        q = ((r02 + r20) / s, (r12 + r21) / s, 0.25 * s, (r10 - r01) / s)
+    return normalized(q if q[3] >= 0.0 else tuple(-v for v in q))
+
+
 def yaw(q: Sequence[float]) -> float:
     """The heading [rad] of a unit quaternion: the angle of its x axis seen from above."""
     x, y, z, w = q
