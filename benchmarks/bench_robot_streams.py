@@ -1,6 +1,8 @@
 #!/usr/bin/env python3
 """The monitor on a robot's sensor streams: a generated dataset replayed over DDS into
-``fall_monitor --estimator`` (the shipped model) the way a robot's drivers publish it.
+``fall_monitor --estimator`` (the robot's shipped model, or ``--model``) the way a robot's
+drivers publish it, for any robot profile (``--robot``; a robot without foot force/torque
+sensors publishes no wrenches).
 
 For each trajectory of a dataset made with ``generate --sensor-noise 1`` (made here if missing),
 its sensor samples are published in real time with ROS-time stamps (now, ns since 1970), each
@@ -17,6 +19,7 @@ difference to the same recording through the onboard chain offline with the simu
 message). Writes JSON (``--out``).
 
     python benchmarks/bench_robot_streams.py --trajectories 8 --seed 11 --out docs/robot_streams.json
+    python benchmarks/bench_robot_streams.py --robot g1 --data data/g1_test400 --trajectories 6
 """
 from __future__ import annotations
 
@@ -36,17 +39,19 @@ from fall_predictor.data.sensorbag import read_robot_description, read_sensor_me
 from fall_predictor.monitor.chain import OnboardChain
 from fall_predictor.monitor.fall_monitor import EVENT_FALLING, FallenConfig, FallMonitor
 from fall_predictor.monitor.model_file import load_model
-from fall_predictor.monitor.records import FALLEN_COM_HEIGHT_M, GUARD_COM_HEIGHT_M
 from fall_predictor.monitor.sensor_pipeline import PipelineConfig, SensorPipeline
 from fall_predictor.monitor.sensor_records import SensorSample
-from fall_predictor.profiles import asimo_like_urdf as rm
+from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
 from fall_predictor.sim.drivers import DriverTiming, driver_messages
 
-MODEL = Path(__file__).resolve().parents[1] / 'models' / 'default_model.json'
-LEGS, UPPER = rm.PROFILE.legs_and_upper_body()
-TIMINGS = {'simulator': DriverTiming(),
-           'robot_1khz': DriverTiming.robot(1000.0, (LEGS, UPPER)),
-           'robot_500hz': DriverTiming.robot(500.0, (LEGS, UPPER))}
+MODELS = Path(__file__).resolve().parents[1] / 'models'
+
+
+def timings(profile) -> dict[str, DriverTiming]:
+    legs, upper = profile.legs_and_upper_body()
+    return {'simulator': DriverTiming(),
+            'robot_1khz': DriverTiming.robot(1000.0, (legs, upper)),
+            'robot_500hz': DriverTiming.robot(500.0, (legs, upper))}
 
 
 def samples_of(bag: Path) -> list[SensorSample]:
@@ -58,25 +63,31 @@ def samples_of(bag: Path) -> list[SensorSample]:
     for ns in sorted(rows):
         row = rows[ns]
         j, imu = row['joints'], row['imu']
+        left, right = row.get('l'), row.get('r')          # None: no force/torque sensor
         out.append(SensorSample(t=ns / 1e9, joint_names=j.names, q=j.position, dq=j.velocity,
                                 tau=j.effort, imu_quat_xyzw=imu.orientation_xyzw,
                                 gyro_rad_s=imu.angular_velocity, accel_m_s2=imu.linear_acceleration,
-                                left_wrench=row['l'].wrench, right_wrench=row['r'].wrench,
+                                left_wrench=None if left is None else left.wrench,
+                                right_wrench=None if right is None else right.wrench,
                                 imu_frame=imu.frame_id,
-                                wrench_frames=(row['l'].frame_id, row['r'].frame_id)))
+                                wrench_frames=('' if left is None else left.frame_id,
+                                               '' if right is None else right.frame_id)))
     return out
 
 
-def offline_alarm_s(urdf: str, samples: list[SensorSample]) -> float | None:
-    lists, metadata = load_model(MODEL)
+def offline_alarm_s(profile, model: Path, urdf: str, samples: list[SensorSample]) -> float | None:
+    """The first alarm [s] of the onboard chain offline, simulator-timed (the reference)."""
+    lists, metadata = load_model(model)
     settings = metadata.feature_settings
-    layout = rm.PROFILE.sensor_layout()
+    layout = profile.sensor_layout()
     chain = OnboardChain(
-        SensorPipeline(layout.description(urdf), layout.imu_frame,
-                       config=PipelineConfig(driving_joints=LEGS)), settings,
+        SensorPipeline(layout.description(urdf), layout.imu_frame, layout.force_sensors,
+                       config=PipelineConfig(driving_joints=profile.legs_and_upper_body()[0])),
+        settings,
         FallMonitor(lists, metadata.recommended_tau_his_s,
-                    FallenConfig(FALLEN_COM_HEIGHT_M, GUARD_COM_HEIGHT_M),
-                    settings.sample_period_s, settings.guard_com_height_m, rm.TOTAL_MASS_KG))
+                    FallenConfig(profile.fallen_com_height_m, profile.guard_com_height_m),
+                    settings.sample_period_s, settings.guard_com_height_m, profile.total_mass_kg,
+                    metadata.time_to_fall, fall_direction=metadata.fall_direction))
     for stream, reading in driver_messages(samples):
         for out in chain.add(stream, reading):
             if out.event is not None and out.event.kind == EVENT_FALLING:
@@ -89,8 +100,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--trajectories', type=int, default=8)
     parser.add_argument('--seed', type=int, default=11)
     parser.add_argument('--data', type=Path, default=None, help='dataset (made if missing)')
+    parser.add_argument('--robot', default=DEFAULT_ROBOT, help='robot profile')
+    parser.add_argument('--model', type=Path, default=None,
+                        help="model file (default: the robot profile's shipped model)")
     parser.add_argument('--out', type=Path, default=None)
     args = parser.parse_args(argv)
+    profile = load_profile(args.robot)
+    model = args.model or MODELS / profile.model
+    legs = profile.legs_and_upper_body()[0]
+    TIMINGS = timings(profile)
 
     import rclpy
 
@@ -99,22 +117,24 @@ def main(argv: list[str] | None = None) -> int:
 
     data = args.data or Path(tempfile.mkdtemp(prefix='robot_streams_')) / 'data'
     if not (data / 'dataset.json').exists():
-        assert cli_main(['generate', '--trajectories', str(args.trajectories), '--seed',
-                         str(args.seed), '--out', str(data), '--sensor-noise', '1', '--json']) == 0
+        assert cli_main(['generate', '--robot', args.robot, '--trajectories', str(args.trajectories),
+                         '--seed', str(args.seed), '--out', str(data), '--sensor-noise', '1',
+                         '--json']) == 0
     rows = read_index(data)[:args.trajectories]
     recordings = []
     for row in rows:
         bag = data / row.bag
         samples = samples_of(bag)
         urdf = read_robot_description(bag)
-        recordings.append((row, samples, offline_alarm_s(urdf, samples)))
+        recordings.append((row, samples, offline_alarm_s(profile, model, urdf, samples)))
     urdf = read_robot_description(data / rows[0].bag)
 
     domain = 150 + int(time.time()) % 50
     log_dir = Path(tempfile.mkdtemp(prefix='robot_streams_logs_'))
     monitor = start_process('fall_monitor', [
         sys.executable, '-m', 'fall_predictor.ros.fall_monitor', '--estimator', '--ros-args',
-        '-p', f'model_path:={MODEL}', '-p', f'driving_joints:={list(LEGS)}'.replace("'", '"'),
+        '-p', f'model_path:={model}', '-p', f'robot:={args.robot}',
+        '-p', f'driving_joints:={list(legs)}'.replace("'", '"'),
         '-p', 'start_type_description_service:=false'], ros_environment(domain), log_dir)
     results = {name: [] for name in TIMINGS}
     context = rclpy.Context()
@@ -160,7 +180,7 @@ def main(argv: list[str] | None = None) -> int:
     reference_leads = [r['t_fallen'] - r['reference_alarm_s'] for _, r in
                        ((0, x) for x in results['simulator']) if r['fell'] and r['reference_alarm_s']]
     report = {'dataset': str(data), 'trajectories': len(rows), 'seed': args.seed,
-              'model': str(MODEL.name), 'timings': {k: v.to_dict() for k, v in TIMINGS.items()},
+              'robot': args.robot, 'model': str(model.name), 'timings': {k: v.to_dict() for k, v in TIMINGS.items()},
               'offline_simulator_lead_median_s': round(float(np.median(reference_leads)), 3)
               if reference_leads else None,
               'summary': summary, 'runs': results}

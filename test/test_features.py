@@ -255,11 +255,13 @@ def _rotation(yaw: float, pitch: float, roll: float) -> np.ndarray:
     return rz @ ry @ rx
 
 
-def test_the_attitude_follows_the_features_heading_free_with_its_rates():
-    """A base tipping at a constant 0.5 rad/s about its own x axis (roll) while pitched 0.1 rad
-    and facing 2 rad: the fused roll grows at 0.5 rad/s and the fused pitch stays, whatever the
-    heading (the world z axis seen from the base); the first sample has zero rates; the 15
-    features are those of an extractor without the attitude."""
+def test_the_attitude_follows_the_features_heading_free_with_the_base_angular_velocity():
+    """A base turning at a constant 0.5 rad/s about its own x axis (R = Rz Ry Rx(roll(t)): the
+    body angular velocity is (0.5, 0, 0) exactly) while pitched 0.1 rad and facing 2 rad: the
+    fused roll is asin(cos(pitch) sin(roll)) and the fused pitch stays 0.1, whatever the heading
+    (the world z axis seen from the base); the angular velocity is 0.5 rad/s about x, 0 about y
+    (0 at the first sample, with nothing to turn from); the 15 features are those of an
+    extractor without the attitude."""
     traj = random_trajectory(60, seed=3)
     for k, m in enumerate(traj):
         m.torso_rotation = _rotation(2.0, 0.1, 0.05 + 0.5 * k * DT)
@@ -275,16 +277,25 @@ def test_the_attitude_follows_the_features_heading_free_with_its_rates():
         roll = math.asin(math.cos(0.1) * math.sin(0.05 + 0.5 * k * DT))
         assert x[15] == pytest.approx(roll, abs=1e-12)
         assert x[16] == pytest.approx(0.1, abs=1e-12)
-        if k == 0:
-            assert x[17] == 0.0 and x[18] == 0.0
-        elif k >= 10:        # over the 10 ms window: d/dt asin(cos(p) sin(r)) with r' = 0.5
-            r = 0.05 + 0.5 * (k - 5) * DT
-            expected = math.cos(0.1) * math.cos(r) * 0.5 / math.sqrt(1 - (math.cos(0.1) * math.sin(r)) ** 2)
-            assert x[17] == pytest.approx(expected, rel=1e-4)
-            assert abs(x[18]) < 1e-12
+        expected = (0.0, 0.0) if k == 0 else (0.5, 0.0)
+        assert x[17:] == pytest.approx(expected, abs=1e-9)
 
 
-def test_without_a_base_orientation_the_attitude_is_nan_and_its_rates_wait_for_one():
+def test_the_angular_velocity_is_the_turn_in_the_base_frame_not_the_world_frame():
+    """A base pitched down 0.6 rad turning about the world vertical at 1 rad/s (a yaw rate):
+    seen from the base, that turn is about its own x and z axes, (-sin 0.6, 0, cos 0.6) rad/s;
+    the fused angles do not change."""
+    traj = random_trajectory(30, seed=6)
+    for k, m in enumerate(traj):
+        m.torso_rotation = _rotation(1.0 * k * DT, 0.6, 0.0)
+    extractor = FeatureExtractor(attitude=True)
+    out = np.array([extractor.update(m)[0] for m in traj])
+    np.testing.assert_allclose(out[5:, 17], -math.sin(0.6), atol=1e-9)
+    np.testing.assert_allclose(out[5:, 18], 0.0, atol=1e-9)
+    np.testing.assert_allclose(out[:, 16], 0.6, atol=1e-12)
+
+
+def test_without_a_base_orientation_the_attitude_is_nan_and_its_angular_velocity_waits():
     traj = random_trajectory(30, seed=4)
     for k, m in enumerate(traj):
         m.torso_rotation = None if k < 10 else _rotation(0.0, 0.0, 0.2)
@@ -292,10 +303,10 @@ def test_without_a_base_orientation_the_attitude_is_nan_and_its_rates_wait_for_o
     out = np.array([extractor.update(m)[0] for m in traj])
     assert np.isnan(out[:10, 15:]).all()
     assert np.isfinite(out[:, :15]).all()
-    # From sample 10 the angles are known; a rate needs a reference with an attitude (the
-    # window's oldest sample, 10 ms back), so the rates come back once that one has one.
+    # From sample 10 the angles are known; the angular velocity needs a reference with an
+    # orientation (the window's oldest sample, 10 ms back), so it comes back once that has one.
     assert np.isfinite(out[10:, 15:17]).all()
-    assert np.isnan(out[10:20, 17:]).all() and np.allclose(out[21:, 17:], 0.0)
+    assert np.isnan(out[10:20, 17:]).all() and np.allclose(out[20:, 17:], 0.0)
 
 
 def test_extract_features_with_the_attitude_is_the_streaming_extractor():

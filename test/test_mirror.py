@@ -85,7 +85,7 @@ def test_train_mirror_option_gives_lists_that_agree_with_their_mirror_image(tmp_
     assert agreement(load_model(plain)[0]) < 0.9       # not symmetric without the option
 
 
-def test_the_attitude_mirrors_with_roll_and_roll_rate_flipped():
+def test_the_attitude_mirrors_with_roll_and_angular_velocity_x_flipped():
     """Reflecting y: a base rolled to its left (about +x) is rolled to its right in the mirror,
     its pitch unchanged (the fused roll asin(R[2, 1]) flips with R's y row and column)."""
     import dataclasses

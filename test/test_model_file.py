@@ -243,10 +243,10 @@ def test_a_model_reading_the_attitude_names_its_19_inputs_and_older_files_read_1
     from fall_predictor.monitor.boosted_trees import BoostedTrees
     from fall_predictor.monitor.records import FEATURE_NAMES, INPUT_NAMES_WITH_ATTITUDE
     from fall_predictor.monitor.time_to_fall import RegressionTree
-    reads_roll_rate = RegressionTree((17, -1, -1), (1.5, 0.0, 0.0), (1, -1, -1), (2, -1, -1),
+    reads_angular_velocity_x = RegressionTree((17, -1, -1), (1.5, 0.0, 0.0), (1, -1, -1), (2, -1, -1),
                                      (0.0, -0.5, 2.5), n_inputs=19)
     lists = list(example_lists().lists)
-    lists[3] = BoostedTrees((reads_roll_rate,), bias=-1.0, decision_threshold=0.0)
+    lists[3] = BoostedTrees((reads_angular_velocity_x,), bias=-1.0, decision_threshold=0.0)
     lists = PerModeDecisionLists(tuple(lists))
     assert lists.n_inputs == 19 and example_lists().n_inputs == 15
     path = tmp_path / 'attitude.json'

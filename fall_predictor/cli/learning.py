@@ -196,7 +196,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         'and signs mirrored)')
     p.add_argument('--attitude', action='store_true',
                    help='the classifiers also read the floating base\'s attitude (fused roll and '
-                        'pitch, their rates: method §8c); boosted trees only')
+                        'pitch, its angular velocity about x and y: method §8c); boosted trees only')
     p.add_argument('--tau-his-recommended', type=argtypes.nonnegative, default=None,
                    help='history window [s] to store as the model\'s run-time default')
     p.add_argument('--jobs', type=argtypes.positive_int, default=1, help='processes loading features')

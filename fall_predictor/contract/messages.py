@@ -286,7 +286,8 @@ def check_features(f: StampedFeatures) -> None:
     roll_pitch, rates = x[N_FEATURES:N_FEATURES + 2], x[N_FEATURES + 2:]
     if (np.abs(roll_pitch) > math.pi / 2).any() or np.isinf(rates).any():
         raise WireFormatError(f'features.base_attitude: fused roll and pitch must lie in [-pi/2, '
-                              f'pi/2] rad and the rates be finite (or NaN), got {x[N_FEATURES:].tolist()}')
+                              f'pi/2] rad and the angular velocities be finite (or NaN), got '
+                              f'{x[N_FEATURES:].tolist()}')
     if f.mode is None or not 0 <= f.mode < N_CONTACT_MODES:
         raise WireFormatError(f'features.contact_mode must be < {N_CONTACT_MODES}, got {f.mode}')
     if not 0.0 <= f.base_tilt_rad <= math.pi:

@@ -118,7 +118,7 @@ MEASUREMENT = TopicSpec(
 FEATURES = TopicSpec(
     '/fall_predictor/features', 'fall_predictor/msg/Features', STREAM_QOS, SIM_RATE_HZ,
     '', None, 'the 15 features, the contact mode, the base tilt and the base\'s attitude (fused '
-    'roll, pitch, their rates: method §8c) per sample, or its fault',
+    'roll, pitch, angular velocity about x and y: method §8c) per sample, or its fault',
     SENSOR_SUB_QOS)
 STATE = TopicSpec(
     '/fall_predictor/state', 'fall_predictor/msg/FallState', STREAM_QOS, SIM_RATE_HZ,

@@ -41,8 +41,9 @@ from fall_predictor.monitor.records import FEATURE_NAMES, N_FEATURES, PushSpec, 
 FORMAT = 'fall_predictor/dataset/v1'
 #: Feature columns of the horizontal momentum (whether a trajectory settled, data/outcomes.py).
 LIN_MOM_X, LIN_MOM_Y = FEATURE_NAMES.index('lin_mom_x'), FEATURE_NAMES.index('lin_mom_y')
-# v3: LR lateral edges fold FRONT/BACK; v4: + cp; v5: + the base's attitude
-CACHE_FORMAT = 'fall_predictor/features-cache/v5'
+# v3: LR lateral edges fold FRONT/BACK; v4: + cp; v5: + the base's attitude; v6: its angular
+# velocity from its turn (v5: differenced fused angles)
+CACHE_FORMAT = 'fall_predictor/features-cache/v6'
 #: The robot's URDF of an imported robot dataset whose bags hold no /robot_description.
 ROBOT_URDF_FILE = 'robot.urdf'
 #: Where features can come from (module docs); the CLI default is ``'estimated'``.

@@ -9,7 +9,8 @@ is as plausible as the original. Under the reflection
 * the contact modes swap feet and sides: ``L-FRONT-LEFT <-> R-FRONT-RIGHT``,
   ``L-INSIDE <-> R-INSIDE``; the LR modes and OUTSIDE map to themselves;
 * the left and right foot forces swap;
-* the base's fused roll and its rate flip, its pitch and pitch rate do not (method §8c).
+* the base's fused roll and its angular velocity about x flip, its pitch and angular velocity
+  about y do not (method §8c).
 
 Training on the union gives the sparse single-support modes (e.g. L-INSIDE, which had no rule
 while R-INSIDE had one) the other foot's examples.
@@ -25,7 +26,7 @@ from fall_predictor.monitor.records import (ATTITUDE_NAMES, CONTACT_MODE_NAMES, 
                                             TrajectoryFeatures)
 
 _FLIPPED = ('com_y', 'lin_mom_y', 'd_lin_mom_y', 'ang_mom_x', 'ang_mom_z', 'd_ang_mom_x',
-            'd_ang_mom_z', 'base_roll', 'base_roll_rate')
+            'd_ang_mom_z', 'base_roll', 'base_angular_velocity_x')
 #: Appended to a trajectory's id to name its mirror image.
 MIRROR_ID_SUFFIX = '-mirror'
 #: Per feature, +1 or -1 under the left-right reflection.

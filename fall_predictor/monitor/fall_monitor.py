@@ -50,7 +50,7 @@ _OUTSIDE = int(ContactMode.OUTSIDE)
 MAX_TIME_TO_FALL_S = 1e3
 #: Why a sample without the base's attitude is not predicted by a model that reads it.
 NO_ATTITUDE = ('the model reads the base\'s attitude (method §8c) and this measurement has none '
-               '(no base orientation, or no earlier one to take its rate from)')
+               '(no base orientation, or no earlier one to take its angular velocity from)')
 _NAN2 = (math.nan, math.nan)
 
 
@@ -197,7 +197,7 @@ class FallMonitor:
     @property
     def n_inputs(self) -> int:
         """Length of the input vector the model reads: 15 features, or 19 with the attitude."""
-        return self.predictor.lists.n_inputs
+        return self._n_inputs
 
     def step(self, t: float, x: Sequence[float], mode: int, base_tilt_rad: float = 0.0
              ) -> tuple[MonitorState, Optional[FallEvent]]:

@@ -113,9 +113,10 @@ class FeatureExtractor:
 
     With ``attitude`` each output also holds, after the 15 features, the base's attitude
     (:data:`~fall_predictor.monitor.records.ATTITUDE_NAMES`, method §8c): the fused roll and
-    pitch of ``m.torso_rotation`` and their rates, differenced over the same reference sample as
-    the momenta; all four NaN for a measurement without a base orientation, the rates NaN when
-    the reference sample had none.
+    pitch of ``m.torso_rotation``, and the base's angular velocity about its own x and y axes
+    from its turn since the momenta's reference sample (zero without one); all four NaN for a
+    measurement without a base orientation, the angular velocity NaN when the reference sample
+    had none.
     """
 
     def __init__(self, rate_window_s: float = 0.01, dt_s: float = 0.001,
@@ -131,7 +132,7 @@ class FeatureExtractor:
         self.n_outputs = N_FEATURES + (N_ATTITUDE if self.attitude else 0)
         self._window_s = rate_window_s + 0.25 * dt_s
         # Past samples within the window as (t, world linear momentum xyz, world angular
-        # momentum xyz, base roll, base pitch), oldest first.
+        # momentum xyz, base orientation or None), oldest first.
         self._history: deque[tuple[float, ...]] = deque()
         #: Rejects samples that jump further than physics allows (glitches), see
         #: :mod:`fall_predictor.monitor.plausibility`.
@@ -182,19 +183,22 @@ class FeatureExtractor:
                 reference = history[1]
             elif t - history[0][0] <= 2.0 * self._window_s:
                 reference = history[0]
-        roll = pitch = math.nan
+        roll = pitch = wx = wy = math.nan
+        rotation = None
         if self.attitude and m.torso_rotation is not None:
-            roll, pitch = fused_roll_pitch_of_rotation(m.torso_rotation)
+            rotation = m.torso_rotation.tolist() if hasattr(m.torso_rotation, 'tolist') else m.torso_rotation
+            roll, pitch = fused_roll_pitch_of_rotation(rotation)
+            wx = wy = 0.0                       # until there is a reference to turn from
         if reference is not None:
-            t0, px0, py0, pz0, lx0, ly0, lz0, roll0, pitch0 = reference
+            t0, px0, py0, pz0, lx0, ly0, lz0, rotation0 = reference
             inv = 1.0 / (t - t0)
             fx, fy, fz = (px - px0) * inv, (py - py0) * inv, (pz - pz0) * inv
             mx, my, mz = (lx - lx0) * inv, (ly - ly0) * inv, (lz - lz0) * inv
-            roll_rate, pitch_rate = (roll - roll0) * inv, (pitch - pitch0) * inv
+            if rotation is not None:
+                wx, wy = _body_rates_xy(rotation0, rotation, inv)
         else:
             fx = fy = fz = mx = my = mz = 0.0
-            roll_rate, pitch_rate = roll - roll, pitch - pitch     # 0, or NaN without an attitude
-        history.append((t, px, py, pz, lx, ly, lz, roll, pitch))
+        history.append((t, px, py, pz, lx, ly, lz, rotation))
 
         # World -> heading frame: x' = c x + s y, y' = -s x + c y, z unchanged.
         c, s = math.cos(heading), math.sin(heading)
@@ -205,8 +209,27 @@ class FeatureExtractor:
             c * lx + s * ly, -s * lx + c * ly, lz,
             c * fx + s * fy, -s * fx + c * fy, fz,
             c * mx + s * my, -s * mx + c * my, mz,
-        ) + ((roll, pitch, roll_rate, pitch_rate) if self.attitude else ()))
+        ) + ((roll, pitch, wx, wy) if self.attitude else ()))
         return features, mode
+
+
+def _body_rates_xy(rotation0, rotation, inv_dt: float) -> tuple[float, float]:
+    """The base's mean angular velocity about its own x and y axes [rad/s] from ``rotation0`` to
+    ``rotation`` (base to world) over ``1 / inv_dt`` seconds: the rotation vector of
+    ``rotation0^T rotation``, what a gyro on the base integrates (NaN without ``rotation0``)."""
+    if rotation0 is None:
+        return math.nan, math.nan
+    (a00, a01, a02), (a10, a11, a12), (a20, a21, a22) = rotation0
+    (b00, b01, b02), (b10, b11, b12), (b20, b21, b22) = rotation
+    # Twice the skew part of D = rotation0^T rotation: 2 sin(angle) times the axis.
+    vx = (a02 * b01 + a12 * b11 + a22 * b21) - (a01 * b02 + a11 * b12 + a21 * b22)
+    vy = (a00 * b02 + a10 * b12 + a20 * b22) - (a02 * b00 + a12 * b10 + a22 * b20)
+    vz = (a01 * b00 + a11 * b10 + a21 * b20) - (a00 * b01 + a10 * b11 + a20 * b21)
+    sine = 0.5 * math.sqrt(vx * vx + vy * vy + vz * vz)
+    # angle / sin(angle) (1 for small turns; a window turns a base by well under pi/2)
+    scale = math.asin(min(sine, 1.0)) / sine if sine > 1e-9 else 1.0
+    k = 0.5 * scale * inv_dt
+    return vx * k, vy * k
 
 
 def extract_features(measurements: Sequence[Measurement], rate_window_s: float = 0.01,

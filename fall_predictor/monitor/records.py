@@ -26,12 +26,13 @@ FEATURE_NAMES: tuple[str, ...] = (
 N_FEATURES = len(FEATURE_NAMES)
 
 #: The floating base's attitude beside the 15 features (method §8c): its fused roll and pitch
-#: (the world z axis seen from the base, so that the heading does not enter) and their rates
-#: (backward differences over the momentum rates' window). A model may read them after the 15
-#: features, as inputs 15-18 (:data:`INPUT_NAMES_WITH_ATTITUDE`).
+#: (the world z axis seen from the base, so that the heading does not enter) and its angular
+#: velocity about its own x and y axes (its turn over the momentum rates' window: what a gyro on
+#: it measures). A model may read them after the 15 features, as inputs 15-18
+#: (:data:`INPUT_NAMES_WITH_ATTITUDE`).
 ATTITUDE_NAMES: tuple[str, ...] = (
-    'base_roll', 'base_pitch',                      # fused roll and pitch of the base [rad]
-    'base_roll_rate', 'base_pitch_rate',            # their rates [rad/s]
+    'base_roll', 'base_pitch',                              # fused roll and pitch [rad]
+    'base_angular_velocity_x', 'base_angular_velocity_y',   # about the base's x, y axes [rad/s]
 )
 N_ATTITUDE = len(ATTITUDE_NAMES)
 #: A model's inputs when it reads the attitude: the 15 features, then the attitude.
