@@ -79,5 +79,6 @@ def test_trees_over_the_features_and_the_attitude_read_input_17_and_export_19_in
     assert (trees.predict(X_test) == np.where(X_test[:, 17] > 0.8, FALLING, BALANCED)).mean() > 0.97
     with pytest.raises(ValueError, match=r'shape \(N, 19\)'):
         trees.score(X_test[:, :15])
+    assert 'base_angular_velocity_x' in trees.format(mode_name='L-INSIDE')
     with pytest.raises(ValueError, match=r'shape \(N, 15\)'):
         TreeListLearner().fit(X, y)

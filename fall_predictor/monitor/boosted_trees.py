@@ -24,7 +24,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from fall_predictor.monitor.records import BALANCED, FALLING, FEATURE_NAMES, N_FEATURES
+from fall_predictor.monitor.records import BALANCED, FALLING, INPUT_NAMES_WITH_ATTITUDE, N_FEATURES
 from fall_predictor.monitor.time_to_fall import RegressionTree, TimeToFallError
 
 
@@ -155,8 +155,10 @@ class BoostedTrees:
         """Classes (int8, (N,)) of the rows of ``X`` (N, :attr:`n_inputs`)."""
         return np.where(self.score(X) > self.decision_threshold, FALLING, BALANCED).astype(np.int8)
 
-    def format(self, feature_names: Sequence[str] = FEATURE_NAMES, mode_name: str | None = None) -> str:
-        """A summary (the trees themselves are in the model file)."""
+    def format(self, feature_names: Sequence[str] = INPUT_NAMES_WITH_ATTITUDE,
+               mode_name: str | None = None) -> str:
+        """A summary (the trees themselves are in the model file); the inputs named as a model's
+        (the 15 features first, then the base's attitude)."""
         head = f'if footContactMode = {mode_name} then\n  ' if mode_name is not None else ''
         used = sorted({feature_names[f] for tree in self.trees for f in tree.feature if f != -1})
         return (f'{head}class <- falling if {self.bias:.4g} + the sum of {len(self.trees)} trees '
