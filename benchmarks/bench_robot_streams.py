@@ -141,7 +141,8 @@ def main(argv: list[str] | None = None) -> int:
     rclpy.init(context=context, domain_id=domain)
     try:
         replayer = SensorReplayer(context)
-        if not replayer.spin_until(replayer.connected, 60.0):
+        streams = ('joints', 'imu') + tuple(profile.sensor_layout().force_sensors)
+        if not replayer.spin_until(lambda: replayer.connected(streams), 60.0):
             raise RuntimeError(f'the monitor did not come up:\n{monitor.log_tail()}')
         replayer.publish_description(urdf)
         time.sleep(1.0)

@@ -128,16 +128,18 @@ def test_per_mode_lists_route_by_mode_and_mean_rule_size_counts_empty_modes():
     assert PerModeDecisionLists.empty().mean_rule_size == 0.0
 
 
-def _comparisons(classifier) -> list[Condition]:
-    """Every comparison a mode's classifier makes: a list's conditions, or the trees' splits."""
+def _comparisons(classifier) -> list[tuple[int, float]]:
+    """Every comparison a mode's classifier makes, as (input index, threshold): a list's
+    conditions, or the trees' splits (over 19 inputs for a model reading the attitude)."""
     if isinstance(classifier, BoostedTrees):
-        return [Condition(f, '<=', tree.threshold[i]) for tree in classifier.trees
+        return [(f, tree.threshold[i]) for tree in classifier.trees
                 for i, f in enumerate(tree.feature) if f != -1]
-    return [c for rule in classifier.rules for c in rule.conditions]
+    return [(c.feature, c.threshold) for rule in classifier.rules for c in rule.conditions]
 
 
 @pytest.mark.parametrize('name', ['default_model.json', 'plain_model.json', 'g1_model.json',
-                                  'g1_boosted_model.json', 'boosted_model.json'])
+                                  'g1_boosted_model.json', 'boosted_model.json',
+                                  'g1_attitude_model.json'])
 def test_shipped_lists_compiled_predict_one_equals_predict_at_and_around_every_threshold(name):
     """``predict_one`` runs the rules (or trees) as generated Python code: it must compare exactly as the
     vectorised path, at each threshold itself (a threshold written back wrongly by one ulp flips
@@ -149,12 +151,13 @@ def test_shipped_lists_compiled_predict_one_equals_predict_at_and_around_every_t
         conditions = _comparisons(dl)
         if not conditions:
             continue
-        X = rng.normal(scale=2.0, size=(600, len(FEATURE_NAMES)))
+        X = rng.normal(scale=2.0, size=(600, lists.n_inputs))     # (the attitude's model: 19)
         # Every row sits exactly on (or next to) the thresholds of a few conditions.
         for row in X:
-            for c in rng.choice(conditions, size=4):
-                row[c.feature] = np.nextafter(c.threshold, rng.choice([-np.inf, np.inf])) \
-                    if rng.random() < 0.5 else c.threshold
+            for k in rng.choice(len(conditions), size=4):
+                feature, threshold = conditions[k]
+                row[feature] = np.nextafter(threshold, rng.choice([-np.inf, np.inf])) \
+                    if rng.random() < 0.5 else threshold
         X[rng.random(X.shape) < 0.03] = np.nan
         expected = dl.predict(X).tolist()
         assert [dl.predict_one(row) for row in X.tolist()] == expected
