@@ -22,7 +22,7 @@ from fall_predictor.learning.evaluation import (BaselineGrids, capture_point_dis
                                                 evaluation_result_json)
 from fall_predictor.learning.metrics import evaluate_atomic, evaluate_lists
 from fall_predictor.learning.tilt_detector import imu_signals_cached, threshold_grid, tilt_alarms
-from fall_predictor.learning.training import load_dataset
+from fall_predictor.learning.training import load_dataset, model_inputs
 from fall_predictor.monitor.model_file import load_model
 from fall_predictor.monitor.records import FEATURE_NAMES
 
@@ -95,7 +95,8 @@ def main() -> None:
         lists, metadata = load_model(path)
         tau_his = float(window) if window else (metadata.recommended_tau_his_s or 0.06)
         guard = metadata.feature_settings.guard_com_height_m
-        result = evaluate_lists(sets['test'][1], lists, (tau_his,), guard_com_height_m=guard)[tau_his]
+        result = evaluate_lists(model_inputs(sets['test'][1], lists), lists, (tau_his,),
+                                guard_com_height_m=guard)[tau_his]     # (a model's inputs)
         results['models'].append({'model': path, 'tau_his_s': tau_his, 'guard_com_height_m': guard,
                                   'test': evaluation_result_json(result)})
         print(spec, round(result.fpr, 3), round(result.tau_lead_s, 3), flush=True)
