@@ -477,7 +477,7 @@ def test_recorder_bags_hold_every_published_message(system: System) -> None:
     recorded_runs = [read_trajectory(bag) for bag in bags]
     for recorded in recorded_runs:
         # What the dataset code does with a bag: features from the measurements.
-        X, mode = extract_features(recorded.measurements)
+        X, mode = extract_features(recorded.measurements, attitude=True)   # as the node does
         offline = {m.t: (X[i], mode[i]) for i, m in enumerate(recorded.measurements)}
         # The feature node reads best effort: under load it may skip a sample (counted as
         # missing); each feature it did publish is what the offline code computes... after

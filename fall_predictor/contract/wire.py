@@ -250,7 +250,8 @@ FEATURES_LEN = 2 + N_FEATURES
 
 
 class FeatureSample(NamedTuple):
-    """One features message: time [s], the 15 features, the contact mode index."""
+    """One features message: time [s], the 15 features then the base's attitude (19 values,
+    the attitude NaN when not sent; method §8c), the contact mode index."""
 
     t: float
     x: np.ndarray
