@@ -46,7 +46,7 @@ from fall_predictor.data.dataset import dataset_guard_com_height_m
 from fall_predictor.learning.crossval import FoldFit, stratified_trajectory_folds
 from fall_predictor.learning.evaluation import evaluation_result_json
 from fall_predictor.learning.metrics import evaluate_atomic
-from fall_predictor.learning.mirror import MIRROR_ID_SUFFIX
+from fall_predictor.learning.mirror import ATTITUDE_MIRROR_SIGNS, MIRROR_ID_SUFFIX
 from fall_predictor.learning.nested import fixed_setting, nested_operating_point
 from fall_predictor.learning.training import fit_strided, load_dataset, make_learner, model_inputs
 from fall_predictor.monitor.boosted_trees import BoostedTrees
@@ -142,9 +142,6 @@ class ExtraInputsBoosting:
         return out
 
 
-#: Under the left-right reflection (learning/mirror.py) the IMU's fused roll and roll rate
-#: change sign, its pitch and pitch rate do not.
-IMU_MIRROR_SIGNS = np.array([-1.0, 1.0, -1.0, 1.0])
 
 
 class ImuInputs:
@@ -169,7 +166,7 @@ class ImuInputs:
     def __call__(self, traj):
         tid = traj.trajectory_id
         if tid.endswith(MIRROR_ID_SUFFIX):
-            imu = self.signals[tid[:-len(MIRROR_ID_SUFFIX)]] * IMU_MIRROR_SIGNS
+            imu = self.signals[tid[:-len(MIRROR_ID_SUFFIX)]] * ATTITUDE_MIRROR_SIGNS   # roll and roll rate flip, as the base's
         else:
             imu = self.signals[tid]
         return dataclasses.replace(traj, X=np.hstack([traj.X, imu]))

@@ -95,7 +95,7 @@ def main() -> None:
         lists, metadata = load_model(path)
         tau_his = float(window) if window else (metadata.recommended_tau_his_s or 0.06)
         guard = metadata.feature_settings.guard_com_height_m
-        result = evaluate_lists(model_inputs(sets['test'][1], lists), lists, (tau_his,),
+        result = evaluate_lists(model_inputs(sets['test'][1], lists.reads_attitude), lists, (tau_his,),
                                 guard_com_height_m=guard)[tau_his]     # (a model's inputs)
         results['models'].append({'model': path, 'tau_his_s': tau_his, 'guard_com_height_m': guard,
                                   'test': evaluation_result_json(result)})

@@ -22,11 +22,8 @@ from fall_predictor.contract.topics import WireFormatError
 from fall_predictor.monitor.fall_monitor import STATUS_NAMES, MonitorState
 from fall_predictor.monitor import plausibility, rotations
 from fall_predictor.monitor.plausibility import ImplausibleSample, check_feature_bounds
-from fall_predictor.monitor.records import (INPUT_NAMES_WITH_ATTITUDE, N_CONTACT_MODES, N_FEATURES,
-                                            Measurement)
-
-#: A features sample with the base's attitude: the 15 features, then the attitude's 4 values.
-N_INPUTS = len(INPUT_NAMES_WITH_ATTITUDE)
+from fall_predictor.monitor.records import N_CONTACT_MODES, N_FEATURES, Measurement
+from fall_predictor.monitor.records import N_INPUTS_WITH_ATTITUDE as N_INPUTS
 from fall_predictor.monitor.sensor_records import ImuReading, JointStateReading, WrenchReading
 from fall_predictor.monitor.timeline import NS_PER_S
 

@@ -21,7 +21,7 @@ import numpy as np
 from fall_predictor.learning.learners import RuleListLearner, _check_float, _check_int
 from fall_predictor.monitor.boosted_trees import BoostedTrees
 from fall_predictor.monitor.decision_list import DecisionList
-from fall_predictor.monitor.records import BALANCED, FALLING, INPUT_NAMES_WITH_ATTITUDE, N_FEATURES
+from fall_predictor.monitor.records import BALANCED, FALLING, N_FEATURES, N_INPUTS_WITH_ATTITUDE
 from fall_predictor.monitor.time_to_fall import RegressionTree
 
 
@@ -56,7 +56,7 @@ class BoostedTreesLearner(RuleListLearner):
     ``X`` holds the 15 features, or the 19 inputs with the base's attitude (method §8c).
     """
 
-    input_sizes = (N_FEATURES, len(INPUT_NAMES_WITH_ATTITUDE))
+    input_sizes = (N_FEATURES, N_INPUTS_WITH_ATTITUDE)
 
     def __init__(self, max_iter: int = 50, max_depth: Optional[int] = 3, learning_rate: float = 0.1,
                  min_samples_leaf: int = 20, l2_regularization: float = 0.0, max_bins: int = 255,

@@ -213,7 +213,7 @@ def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: f
     guard = (dataset_guard_com_height_m(data_dir) if guard_com_height_m is None
              else float(guard_com_height_m))
     report = load_dataset(data_dir, jobs, skip_unreadable, progress, state)
-    trajectories = model_inputs(report.trajectories, lists)
+    trajectories = model_inputs(report.trajectories, lists.reads_attitude)
     result = evaluate_lists(trajectories, lists, (tau_his_s,),
                             guard_com_height_m=guard)[float(tau_his_s)]
     curves = None

@@ -30,7 +30,7 @@ from fall_predictor.learning.learners import (CoveringListLearner, RuleListLearn
                                               fit_predictor)
 from fall_predictor.monitor.decision_list import PerModeDecisionLists
 from fall_predictor.monitor.model_file import ModelMetadata
-from fall_predictor.monitor.records import (CONTACT_MODE_NAMES, INPUT_NAMES_WITH_ATTITUDE, N_FEATURES,
+from fall_predictor.monitor.records import (CONTACT_MODE_NAMES, N_INPUTS_WITH_ATTITUDE,
                                             TrajectoryFeatures)
 
 PathLike = str | os.PathLike
@@ -103,13 +103,11 @@ def subsample(traj: TrajectoryFeatures, sample_stride: int) -> TrajectoryFeature
                                mode=traj.mode[::sample_stride], attitude=attitude)
 
 
-def model_inputs(trajectories: Sequence[TrajectoryFeatures], lists_or_attitude: Any
+def model_inputs(trajectories: Sequence[TrajectoryFeatures], attitude: bool
                  ) -> list[TrajectoryFeatures]:
-    """The trajectories as a model sees them: with the base's attitude after the features
-    (:meth:`~fall_predictor.monitor.records.TrajectoryFeatures.with_attitude_inputs`, method §8c)
-    when ``lists_or_attitude`` is True or a model that reads it, else unchanged."""
-    attitude = (lists_or_attitude if isinstance(lists_or_attitude, bool)
-                else lists_or_attitude.n_inputs > N_FEATURES)
+    """The trajectories as a model sees them: with ``attitude`` (a model's ``reads_attitude``),
+    the base's attitude after the features
+    (:meth:`~fall_predictor.monitor.records.TrajectoryFeatures.with_attitude_inputs`, method §8c)."""
     return [t.with_attitude_inputs() for t in trajectories] if attitude else list(trajectories)
 
 
@@ -206,7 +204,7 @@ def train_model(data_dir: PathLike, tau_plus_s: float, learner_name: str = 'tree
     sample_stride = check_sample_stride(sample_stride)
     report = load_dataset(data_dir, jobs, skip_unreadable, progress, state)
     require_outcomes(report.trajectories, data_dir, need_balanced=False)
-    if attitude and len(INPUT_NAMES_WITH_ATTITUDE) not in learner.input_sizes:
+    if attitude and N_INPUTS_WITH_ATTITUDE not in learner.input_sizes:
         raise ValueError(f'{learner_name}: this learner reads the 15 features only; the base\'s '
                          'attitude needs boosted trees (--learner boosting)')
     lists = fit_strided(model_inputs(report.trajectories, attitude), tau_plus_s, learner,

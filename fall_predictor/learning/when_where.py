@@ -44,7 +44,7 @@ def trigger_indices(trajectories: Sequence[TrajectoryFeatures], lists: PerModeDe
     model's), else None. A model that reads the base's attitude gets it (method §8c)."""
     from fall_predictor.learning.training import model_inputs
     out: list[Optional[int]] = []
-    for traj in model_inputs(trajectories, lists):
+    for traj in model_inputs(trajectories, lists.reads_attitude):
         if not traj.fallen:
             out.append(None)
             continue

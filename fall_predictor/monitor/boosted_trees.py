@@ -43,10 +43,10 @@ def _tree_source(tree: RegressionTree, node: int, indent: str, lines: list[str])
     _tree_source(tree, tree.right[node], indent + '    ', lines)
 
 
-def compile_tree_sum(trees: Sequence[RegressionTree], bias: float, n_inputs: int = N_FEATURES
+def compile_tree_sum(trees: Sequence[RegressionTree], bias: float
                      ) -> Callable[[Sequence[float]], float]:
-    """``bias`` plus the trees' leaves for one input vector of ``n_inputs`` values, as one Python
-    function (validated numbers only: feature indices and ``repr`` of finite floats, which read
+    """``bias`` plus the trees' leaves for one input vector (the trees' ``n_inputs`` values; only
+    those the trees read are looked at), as one Python function (validated numbers only: feature indices and ``repr`` of finite floats, which read
     back bit for bit)::
 
         def score_one(x):
@@ -60,8 +60,6 @@ def compile_tree_sum(trees: Sequence[RegressionTree], bias: float, n_inputs: int
             return s
     """
     used = sorted({f for tree in trees for f in tree.feature if f != -1})
-    if used and used[-1] >= n_inputs:
-        raise BoostedTreesError(f'a tree reads input {used[-1]} of {n_inputs}')
     lines = ['def score_one(x):',
              *(f'    x{i} = x[{i}]' for i in used),        # only the inputs the trees read
              f'    s = {float(bias)!r}']
@@ -101,7 +99,7 @@ class BoostedTrees:
         sizes = {tree.n_inputs for tree in self.trees}
         if len(sizes) > 1:
             raise BoostedTreesError(f'trees over different numbers of inputs: {sorted(sizes)}')
-        object.__setattr__(self, '_score_one', compile_tree_sum(self.trees, self.bias, self.n_inputs))
+        object.__setattr__(self, '_score_one', compile_tree_sum(self.trees, self.bias))
         object.__setattr__(self, '_arrays', tuple(
             tuple(np.asarray(getattr(tree, k)) for k in ('feature', 'threshold', 'left', 'right', 'value'))
             for tree in self.trees))

@@ -17,7 +17,7 @@ from typing import Optional, Union
 from fall_predictor.monitor.fall_monitor import FallEvent, FallMonitor, MonitorState
 from fall_predictor.monitor.features import FeatureSettings
 from fall_predictor.monitor.plausibility import ImplausibleSample
-from fall_predictor.monitor.records import N_FEATURES, Measurement
+from fall_predictor.monitor.records import Measurement
 from fall_predictor.monitor.sensor_pipeline import Estimate, SensorPipeline
 from fall_predictor.monitor.sensor_records import ImuReading, JointStateReading, WrenchReading
 
@@ -46,7 +46,7 @@ class OnboardChain:
                  monitor: FallMonitor) -> None:
         self.pipeline = pipeline
         # The base's attitude after the features when the model reads it (method §8c).
-        self.extractor = settings.extractor(attitude=monitor.n_inputs > N_FEATURES)
+        self.extractor = settings.extractor(attitude=monitor.predictor.lists.reads_attitude)
         self.monitor = monitor
 
     def add(self, stream: str, reading: Reading) -> list[ChainOutput]:

@@ -246,6 +246,11 @@ class PerModeDecisionLists:
         return max((c.n_inputs for c in self.lists if isinstance(c, BoostedTrees)), default=N_FEATURES)
 
     @property
+    def reads_attitude(self) -> bool:
+        """Whether the classifiers read the base's attitude after the features (method §8c)."""
+        return self.n_inputs > N_FEATURES
+
+    @property
     def boosted(self) -> bool:
         """Whether any mode's classifier is boosted trees."""
         return any(isinstance(c, BoostedTrees) for c in self.lists)

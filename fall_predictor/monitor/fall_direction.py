@@ -137,8 +137,7 @@ class LearnedDirection:
                 or not math.isfinite(self.bias)):
             raise FallDirectionError(f'bias must be a finite number, got {self.bias!r}')
         object.__setattr__(self, 'bias', float(self.bias))
-        object.__setattr__(self, '_turn', compile_tree_sum(self.trees, self.bias,
-                                                           len(DIRECTION_INPUT_NAMES)))
+        object.__setattr__(self, '_turn', compile_tree_sum(self.trees, self.bias))
 
     def __reduce__(self):
         # The compiled function is not picklable; it is made again from the trees.

@@ -72,7 +72,7 @@ from fall_predictor.monitor.fall_direction import FallDirectionError, LearnedDir
 from fall_predictor.monitor.time_to_fall import TimeToFallError, TimeToFallRegressor
 from fall_predictor.monitor.records import (BALANCED, CLASS_NAMES, CONTACT_MODE_NAMES, FALLING,
                                     FEATURE_NAMES, INPUT_NAMES_WITH_ATTITUDE, N_CONTACT_MODES,
-                                    N_FEATURES)
+                                    N_FEATURES, N_INPUTS_WITH_ATTITUDE)
 
 SCHEMA_NAME = 'fall_predictor.decision_lists'
 SCHEMA_VERSION = 6
@@ -81,7 +81,7 @@ SCHEMA_VERSION = 6
 #: features as the only inputs).
 SUPPORTED_SCHEMA_VERSIONS = (2, 3, 4, 5, 6)
 #: The input vectors a model may read, by length.
-INPUT_NAMES = {N_FEATURES: FEATURE_NAMES, len(INPUT_NAMES_WITH_ATTITUDE): INPUT_NAMES_WITH_ATTITUDE}
+INPUT_NAMES = {N_FEATURES: FEATURE_NAMES, N_INPUTS_WITH_ATTITUDE: INPUT_NAMES_WITH_ATTITUDE}
 #: Values of ``training.state`` (optional; absent = 'true').
 TRAINING_STATES = ('true', 'estimated')
 _CLASS_BY_NAME = {CLASS_NAMES[BALANCED]: BALANCED, CLASS_NAMES[FALLING]: FALLING}

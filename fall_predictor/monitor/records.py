@@ -37,6 +37,7 @@ ATTITUDE_NAMES: tuple[str, ...] = (
 N_ATTITUDE = len(ATTITUDE_NAMES)
 #: A model's inputs when it reads the attitude: the 15 features, then the attitude.
 INPUT_NAMES_WITH_ATTITUDE = FEATURE_NAMES + ATTITUDE_NAMES
+N_INPUTS_WITH_ATTITUDE = len(INPUT_NAMES_WITH_ATTITUDE)
 
 #: The 16 foot contact modes of method §7, in index order (the index is what data files store).
 CONTACT_MODE_NAMES: tuple[str, ...] = (
