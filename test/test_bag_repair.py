@@ -18,13 +18,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from rosbags.rosbag2 import Reader
 from rosbags.rosbag2.storage_mcap import McapReader
 
 from fall_predictor.cli import main
 from fall_predictor.data.bag_repair import BACKUP_SUFFIX, repair_bag
 from fall_predictor.data.bag_writer import BagWriter
 from fall_predictor.data.bagio import BagError, bag_parts, iter_messages, read_trajectory
-from fall_predictor.contract.topics import MEASUREMENT
+from fall_predictor.contract.topics import FEATURES, MEASUREMENT
 from fall_predictor.monitor.records import Measurement
 
 
@@ -119,6 +120,23 @@ def test_intact_bag_is_left_alone_and_garbage_is_refused(intact_bag, tmp_path):
     with pytest.raises(BagError, match='not an MCAP file'):
         repair_bag(junk)
     assert (junk / 'junk.mcap').read_bytes() == b'not an mcap file at all'
+
+
+def test_repair_keeps_messages_recorded_with_an_earlier_definition(tmp_path):
+    from test_bagio import (FEATURES_BEFORE_ATTITUDE, assert_features_before_attitude,
+                            write_features_before_attitude)
+    intact = tmp_path / 'bag'
+    write_features_before_attitude(intact, 400)
+    size = (intact / 'bag.mcap').stat().st_size
+    damaged = damaged_copy(intact, tmp_path / 'killed', size - 8)   # the footer's magic gone
+    report = repair_bag(damaged)
+    assert report.status == 'repaired' and report.undecodable == {}
+    assert report.messages == {FEATURES.name: 400}
+    assert_features_before_attitude(read_trajectory(damaged, required=()).features, 400)
+    # The repaired bag stores the definition the messages were recorded with.
+    with Reader(damaged) as reader:
+        [connection] = reader.connections
+    assert connection.msgdef.data.startswith(FEATURES_BEFORE_ATTITUDE)
 
 
 _WRITER = r'''

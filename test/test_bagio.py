@@ -4,8 +4,10 @@ import os
 import numpy as np
 import pytest
 import yaml
-from rosbags.rosbag2 import Writer
+from rosbags.rosbag2 import Reader, Writer
 from rosbags.rosbag2.enums import StoragePlugin
+from rosbags.serde import SerdeError
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from fall_predictor.contract.topics import (CONTROLLER_MODE, FEATURES, JOINT_COMMANDS, JOINT_STATES,
                                             MEASUREMENT, MEASUREMENT_LABEL, PUSH, STATE)
@@ -13,7 +15,8 @@ from fall_predictor.contract.messages import measurement_msg
 from fall_predictor.contract.wire import pack_measurement
 from fall_predictor.data.bag_writer import BagWriter
 from fall_predictor.data.bagio import (LEGACY_ARRAY_TYPE, MAX_TRAILING_BYTES, BagError, decode,
-                                       deserialize_cdr, iter_messages, read_trajectory, typestore)
+                                       deserialize_cdr, iter_messages, read_trajectory,
+                                       recorded_typestore, typestore)
 from fall_predictor.monitor.fall_monitor import STATUS_OK, MonitorState
 from random_records import make_measurement
 
@@ -239,6 +242,64 @@ def test_bags_recorded_before_the_typed_messages_still_import(tmp_path, measurem
     assert rec.topics == {MEASUREMENT.name: LEGACY_ARRAY_TYPE}
     for got, want in zip(rec.measurements, measurements[:20], strict=True):
         assert pack_measurement(got).tobytes() == pack_measurement(want).tobytes()
+
+
+#: ``fall_predictor/msg/Features`` as bags recorded it before it carried the base's attitude.
+FEATURES_BEFORE_ATTITUDE = """std_msgs/Header header
+string fault
+float64[15] features
+uint8 contact_mode
+float64 base_tilt
+"""
+
+
+def features_before_attitude(k):
+    return np.arange(15.0) * 1e-3 + k * 1e-4
+
+
+def write_features_before_attitude(bag, n):
+    """A bag of ``n`` features messages at 1 kHz in the message's earlier definition, as the
+    recorder wrote them then (the definition stored with the topic)."""
+    store = get_typestore(Stores.ROS2_JAZZY)
+    store.register(get_types_from_msg(FEATURES_BEFORE_ATTITUDE, FEATURES.msg_type))
+    Features, Header, Time = (store.types[name] for name in (
+        FEATURES.msg_type, 'std_msgs/msg/Header', 'builtin_interfaces/msg/Time'))
+    writer = Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP)
+    writer.open()
+    conn = writer.add_connection(FEATURES.name, FEATURES.msg_type, typestore=store)
+    for k in range(n):
+        msg = Features(header=Header(stamp=Time(sec=0, nanosec=k * 1_000_000), frame_id='cop'),
+                       fault='', features=features_before_attitude(k), contact_mode=k % 16,
+                       base_tilt=0.01)
+        writer.write(conn, k * 1_000_000, store.serialize_cdr(msg, FEATURES.msg_type))
+    writer.close()
+
+
+def assert_features_before_attitude(features, n):
+    assert len(features) == n
+    for k, sample in enumerate(features):
+        np.testing.assert_array_equal(sample.x[:15], features_before_attitude(k))
+        assert np.isnan(sample.x[15:]).all() and sample.x.shape == (19,)
+        assert sample.mode == k % 16 and sample.t == k * 1_000_000 / 1e9
+
+
+def test_a_bag_recorded_with_an_earlier_features_definition_decodes_with_it(tmp_path):
+    bag = tmp_path / 'before_attitude'
+    write_features_before_attitude(bag, 50)
+    # The package's current definition does not read these bytes (4 values short) ...
+    with Reader(bag) as reader:
+        _, _, raw = next(reader.messages())
+    with pytest.raises(SerdeError):
+        deserialize_cdr(raw, FEATURES.msg_type)
+    # ... the bag's own does: the 15 features as recorded, the attitude absent (NaN).
+    rec = read_trajectory(bag, required=(FEATURES.name,))
+    assert_features_before_attitude(rec.features, 50)
+    # A recorded definition equal to the package's decodes with the package's own store.
+    own = typestore()
+    assert recorded_typestore(FEATURES.msg_type,
+                              own.generate_msgdef(FEATURES.msg_type)[0]) is own
+    with pytest.raises(BagError, match='does not parse'):
+        recorded_typestore(FEATURES.msg_type, 'float64[ x\n')
 
 
 def test_malformed_message_in_bag_is_reported(tmp_path, measurements):

@@ -295,6 +295,9 @@ def check_features(f: StampedFeatures) -> None:
         raise WireFormatError(f'features: {error}') from None
 
 
+_NO_ATTITUDE = (math.nan,) * (N_INPUTS - N_FEATURES)
+
+
 def features_from_msg(msg: Any) -> StampedFeatures:
     """``fall_predictor/msg/Features`` -> StampedFeatures, checked (WireFormatError;
     :func:`check_features`)."""
@@ -302,8 +305,10 @@ def features_from_msg(msg: Any) -> StampedFeatures:
     fault = str(msg.fault)
     if fault:
         return StampedFeatures(ns, fault, None, None, math.nan)
-    x = np.concatenate([np.asarray(msg.features, dtype=float),
-                        np.asarray(msg.base_attitude, dtype=float)])
+    # A bag recorded before Features carried the attitude decodes without the field (bagio
+    # decodes with each bag's own definition): its samples lack the attitude, as NaN.
+    attitude = getattr(msg, 'base_attitude', _NO_ATTITUDE)
+    x = np.concatenate([np.asarray(msg.features, dtype=float), np.asarray(attitude, dtype=float)])
     decoded = StampedFeatures(ns, '', x, int(msg.contact_mode), float(msg.base_tilt))
     check_features(decoded)
     return decoded

@@ -26,8 +26,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional, Union
 
+from rosbags.typesys.store import Typestore
+
 from fall_predictor.data.bag_writer import BagWriter
-from fall_predictor.data.bagio import BagError, deserialize_cdr
+from fall_predictor.data.bagio import BagError, deserialize_cdr, recorded_typestore
 
 if sys.version_info >= (3, 14):
     from compression import zstd
@@ -268,9 +270,22 @@ def needs_repair(bag: Path) -> bool:
         return f.read(8) != MCAP_MAGIC
 
 
+def _schema_typestore(schema: Optional[McapSchema]) -> Optional[Typestore]:
+    """The type store that decodes a channel of ``schema``: built from its recorded ros2msg
+    definition (:func:`~fall_predictor.data.bagio.recorded_typestore`); the package's own for a
+    schema in another encoding; None for a missing or unparsable one."""
+    if schema is None:
+        return None
+    try:
+        definition = schema.data.decode() if schema.encoding == 'ros2msg' else ''
+        return recorded_typestore(schema.name, definition)
+    except (BagError, UnicodeDecodeError):
+        return None
+
+
 def _write_recovered(source: Path, target: Path, report: RepairReport, result: ScanResult) -> None:
     schemas: dict[int, McapSchema] = {}
-    channels: dict[int, tuple[str, str]] = {}
+    channels: dict[int, tuple[str, str, Optional[Typestore]]] = {}
     data = source.read_bytes()           # parts are bounded; a whole file is read at once
     with BagWriter(target) as writer:
         for record in scan_mcap(data, result):
@@ -278,16 +293,20 @@ def _write_recovered(source: Path, target: Path, report: RepairReport, result: S
                 schemas[record.id] = record
             elif isinstance(record, McapChannel):
                 schema = schemas.get(record.schema_id)
-                channels[record.id] = (record.topic, schema.name if schema else '')
+                channels[record.id] = (record.topic, schema.name if schema else '',
+                                       _schema_typestore(schema))
             else:
-                topic, msg_type = channels.get(record.channel_id, ('', ''))
+                topic, msg_type, store = channels.get(record.channel_id, ('', '', None))
                 try:
-                    deserialize_cdr(record.data, msg_type)
+                    if store is None:
+                        raise BagError(f'no usable schema for channel {record.channel_id}')
+                    deserialize_cdr(record.data, msg_type, store)
                 except Exception:           # unknown channel or type, or damaged bytes
                     name = topic or f'channel {record.channel_id}'
                     report.undecodable[name] = report.undecodable.get(name, 0) + 1
                     continue
-                writer.write_raw(topic, msg_type, record.log_time_ns, record.data)
+                # Written with the definition it was recorded with, so that it reads as before.
+                writer.write_raw(topic, msg_type, record.log_time_ns, record.data, store=store)
                 report.messages[topic] = report.messages.get(topic, 0) + 1
                 report.from_torn_chunk += record.from_torn_chunk
 

@@ -26,6 +26,7 @@ from rosbags.interfaces import (Connection, Qos, QosDurability, QosHistory, QosL
 from rosbags.rosbag2 import Writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
 from rosbags.rosbag2.storage_mcap import McapWriter
+from rosbags.typesys.store import Typestore
 
 from fall_predictor.contract import cdr, messages
 from fall_predictor.contract.topics import (FEATURES, HEADING_FRAME, JOINT_STATES, MEASUREMENT,
@@ -110,11 +111,18 @@ class BagWriter:
         """Write a rosbags message object ``msg`` of ``msg_type`` at log time ``t_ns`` [ns]."""
         self._write(topic, msg_type, t_ns, lambda: typestore().serialize_cdr(msg, msg_type))
 
-    def write_raw(self, topic: str, msg_type: str, t_ns: int, data: bytes) -> None:
-        """Write the CDR-serialized message ``data`` of ``msg_type`` at log time ``t_ns`` [ns]."""
-        self._write(topic, msg_type, t_ns, lambda: data)
+    def write_raw(self, topic: str, msg_type: str, t_ns: int, data: bytes, *,
+                  store: Optional[Typestore] = None) -> None:
+        """Write the CDR-serialized message ``data`` of ``msg_type`` at log time ``t_ns`` [ns].
 
-    def _write(self, topic: str, msg_type: str, t_ns: int, serialized: Callable[[], bytes]) -> None:
+        ``store``: the type store whose definition of ``msg_type`` the bag records for the topic
+        (the package's :func:`~fall_predictor.data.bagio.typestore` by default); a copied
+        message keeps the definition it was recorded with.
+        """
+        self._write(topic, msg_type, t_ns, lambda: data, store)
+
+    def _write(self, topic: str, msg_type: str, t_ns: int, serialized: Callable[[], bytes],
+               store: Optional[Typestore] = None) -> None:
         if self._writer is None:
             raise BagError(f'{self.path}: bag is not open (use BagWriter as a context manager)')
         spec = TOPICS_BY_NAME.get(topic)
@@ -130,7 +138,8 @@ class BagWriter:
             if connection is None:
                 qos = [] if spec is None else [_rosbags_qos(spec.qos)]
                 connection = self._writer.add_connection(
-                    topic, msg_type, typestore=typestore(), offered_qos_profiles=qos)
+                    topic, msg_type, typestore=typestore() if store is None else store,
+                    offered_qos_profiles=qos)
                 self._connections[topic] = connection
             self._writer.write(connection, t_ns, serialized())
         except Exception as exc:

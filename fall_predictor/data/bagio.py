@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any, Literal, NamedTuple, Optional, cast
 
 import numpy as np
+from rosbags.interfaces import MessageDefinitionFormat
 from rosbags.rosbag2 import Reader
 from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
@@ -72,15 +73,17 @@ def typestore() -> Typestore:
 MAX_TRAILING_BYTES = 16
 
 
-def deserialize_cdr(raw: bytes | memoryview, msg_type: str) -> RosbagsMsg:
+def deserialize_cdr(raw: bytes | memoryview, msg_type: str,
+                    store: Optional[Typestore] = None) -> RosbagsMsg:
     """A message in CDR, as a publisher sent it, as a rosbags message object of ``msg_type``.
 
     rosbags' own decoding (``Typestore.deserialize_cdr``), except that up to
     :data:`MAX_TRAILING_BYTES` after the last member are accepted, so that what Fast DDS sends is
-    read. Raises rosbags' ``SerdeError`` for anything else that does not decode as ``msg_type``,
-    and rosbags' ``TypesysError`` for a type the store lacks.
+    read. ``store`` defaults to the package's :func:`typestore`. Raises rosbags' ``SerdeError``
+    for anything else that does not decode as ``msg_type``, and rosbags' ``TypesysError`` for a
+    type the store lacks.
     """
-    store = typestore()
+    store = typestore() if store is None else store
     if len(raw) < 4 or bytes(raw[:2]) not in (b'\x00\x00', b'\x00\x01'):
         raise SerdeError('Invalid or unsupported CDR encapsulation.')
     msgdef = store.get_msgdef(msg_type)
@@ -94,6 +97,32 @@ def deserialize_cdr(raw: bytes | memoryview, msg_type: str) -> RosbagsMsg:
         raise SerdeError(f'{msg_type}: {trailing} bytes after its last member (at most '
                          f'{MAX_TRAILING_BYTES})')
     return message
+
+
+@lru_cache(maxsize=64)
+def recorded_typestore(msg_type: str, definition: str) -> Typestore:
+    """The type store that decodes messages of ``msg_type`` recorded with ``definition``, the
+    message definition a bag stores with each topic (ros2msg text with its dependencies).
+
+    The package's own :func:`typestore` when the bag's definition declares the same fields for
+    every type it names; else a store built from the bag's definition alone, so that a bag recorded
+    with an earlier version of a message (``Features`` before ``base_attitude``) decodes as it was
+    written. An empty definition (a bag that stores none) gives the package's store. Raises
+    :class:`BagError` for a definition rosbags cannot parse.
+    """
+    own = typestore()
+    if not definition.strip():
+        return own
+    try:
+        recorded = get_types_from_msg(definition, msg_type)
+    except Exception as exc:
+        raise BagError(f'the recorded definition of {msg_type} does not parse: '
+                       f'{describe(exc)}') from exc
+    if all(own.fielddefs.get(name) == fields for name, fields in recorded.items()):
+        return own
+    store = get_typestore(Stores.EMPTY)
+    store.register(recorded)
+    return store
 
 
 def describe(exc: BaseException) -> str:
@@ -135,6 +164,12 @@ def _messages(reader: Reader, path: Path,
     connections = [c for c in reader.connections if topics is None or c.topic in topics]
     if not connections:
         return
+    try:
+        stores = {c.id: recorded_typestore(
+            c.msgtype, c.msgdef.data if c.msgdef.format == MessageDefinitionFormat.MSG else '')
+            for c in connections}
+    except BagError as exc:
+        raise BagError(f'{path}: {exc}') from exc
     raw_messages = reader.messages(connections=connections)
     while True:
         try:
@@ -144,7 +179,7 @@ def _messages(reader: Reader, path: Path,
         except Exception as exc:
             raise BagError(f'{path}: damaged bag: {describe(exc)}') from exc
         try:
-            msg = deserialize_cdr(raw, connection.msgtype)
+            msg = deserialize_cdr(raw, connection.msgtype, stores[connection.id])
         except Exception as exc:
             raise BagError(f'{path}: {connection.topic} message at {t_ns} ns does not decode '
                            f'as {connection.msgtype}: {describe(exc)}') from exc
