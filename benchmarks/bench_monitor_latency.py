@@ -12,7 +12,10 @@ time, stamps following ROS time as a robot's do, into the monitor deployed in on
   ``robot_description``, timed by ``--timing``: ``simulator`` (every stream at 1 kHz, one stamp
   per step), ``robot_1khz`` / ``robot_500hz`` (a robot's drivers: joint states split into legs and
   upper body at 1 kHz / 500 Hz, IMU 0.3 ms and foot sensors 0.4 ms after them;
-  :class:`~fall_predictor.sim.drivers.DriverTiming`).
+  :class:`~fall_predictor.sim.drivers.DriverTiming`);
+* ``floor``: ``benchmarks/rclpy_floor_node.py``, fed as ``estimator``: the same subscriptions and
+  state publisher on the same executor, computing nothing. Its CPU is rclpy's share of the
+  estimator deployment's, a floor under any monitor made of rclpy nodes.
 
 The monitor runs with ``config/monitor.yaml`` (REP 2003 QoS: it reads best effort, depth 10) and
 the shipped model. This process publishes each message at its due time (sleeping until 0.3 ms
@@ -77,7 +80,15 @@ DEPLOYMENTS = {
                  {'feature_node': [], 'predictor_node': []}),
     'estimator': ('fall_monitor --estimator: estimator + feature + predictor nodes, one '
                   'process, fed the sensor topics', {'fall_monitor': ['--estimator']}),
+    'floor': ('rclpy floor: the estimator deployment\'s subscriptions and state publisher, '
+              'computing nothing (benchmarks/rclpy_floor_node.py)', {'rclpy_floor': []}),
 }
+#: The deployments fed the robot's sensor topics (the others: measurements).
+SENSOR_DEPLOYMENTS = ('estimator', 'floor')
+#: The node processes that are not the package's own nodes: their scripts.
+SCRIPTS = {'rclpy_floor': Path(__file__).resolve().parent / 'rclpy_floor_node.py'}
+#: How many nodes of each deployment report on /diagnostics (the run waits for all of them).
+REPORTING_NODES = {'single': 2, 'separate': 2, 'estimator': 3, 'floor': 1}
 _SAMPLE_WINDOW_NS = 1_000_000       # sensor messages this soon after a driving stamp: its sample
 
 
@@ -148,15 +159,15 @@ def replay(deployment: str, feed: Feed, domain_id: int,
     env = ros_environment(domain_id)
     ros_args = ['--ros-args', '--params-file', str(REPO / 'config' / 'monitor.yaml'), *node_params]
     executable = 'fall_monitor' if 'fall_monitor' in modules else None
-    nodes = {name: start_process(name, [sys.executable, '-m', f'fall_predictor.ros.{name}',
-                                        *options, *ros_args], env, tmp)
-             for name, options in modules.items()}
+    nodes = {name: start_process(name, [sys.executable, *(
+        [str(SCRIPTS[name])] if name in SCRIPTS else ['-m', f'fall_predictor.ros.{name}']),
+        *options, *ros_args], env, tmp) for name, options in modules.items()}
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     context = rclpy.Context()
     rclpy.init(context=context, domain_id=domain_id)
     sender = Node('bench_robot', context=context)
     receiver = Node('bench_receiver', context=context)
-    sensors = deployment == 'estimator'
+    sensors = deployment in SENSOR_DEPLOYMENTS
     publishers = ({'joints': create_publisher(sender, JointState, SENSOR_JOINT_STATES),
                    'imu': create_publisher(sender, Imu, IMU),
                    'l': create_publisher(sender, WrenchStamped, LEFT_FOOT_WRENCH),
@@ -191,7 +202,8 @@ def replay(deployment: str, feed: Feed, domain_id: int,
                 String(data=rm.URDF_PATH.read_text()))
         deadline = time.monotonic() + 60.0
         while not (all(p.get_subscription_count() >= 1 for p in publishers.values())
-                   and state_sub.get_publisher_count() >= 1 and len(counters) >= 2 + sensors):
+                   and state_sub.get_publisher_count() >= 1
+                   and len(counters) >= REPORTING_NODES[deployment]):
             if time.monotonic() > deadline or any(n.process.poll() is not None
                                                   for n in nodes.values()):
                 raise RuntimeError(f'monitor did not start ({executable}):\n' + '\n'.join(
@@ -254,9 +266,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--seconds', type=float, default=30.0, help='replayed seconds')
     parser.add_argument('--deployment', choices=(*DEPLOYMENTS, 'both', 'all'), default='both',
-                        help='both: single and separate; all: the three')
+                        help='both: single and separate; all: every deployment')
     parser.add_argument('--timing', choices=(*TIMINGS, 'all'), default='simulator',
-                        help='sensor stream timing of the estimator deployment')
+                        help='sensor stream timing of the estimator and floor deployments')
     parser.add_argument('--domain-id', type=int, default=1 + os.getpid() % 100)
     parser.add_argument('--out', type=Path, default=None, help='also write the JSON here')
     args = parser.parse_args()
@@ -266,7 +278,7 @@ def main() -> None:
     timings = tuple(TIMINGS) if args.timing == 'all' else (args.timing,)
     runs = []
     for deployment in deployments:
-        if deployment != 'estimator':
+        if deployment not in SENSOR_DEPLOYMENTS:
             runs.append(replay(deployment, measurement_feed(run), args.domain_id, []))
             continue
         for name in timings:

@@ -9,13 +9,17 @@ import math
 import numpy as np
 import pytest
 from geometry_msgs.msg import WrenchStamped
-from rclpy.serialization import serialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Imu, JointState
 
 from fall_predictor.contract import cdr, messages
 from fall_predictor.contract.topics import WireFormatError
 from fall_predictor.data.bagio import typestore
+from fall_predictor.msg import FallState
+from fall_predictor.monitor.fall_monitor import (STATUS_DEGRADED, STATUS_FALLEN, STATUS_OK,
+                                                 STATUS_STALE, MonitorState)
 from fall_predictor.monitor.records import Measurement
+from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.monitor.sensor_records import ImuReading, JointStateReading, WrenchReading
 
 RNG = np.random.default_rng(7)
@@ -188,3 +192,38 @@ def test_stamps_outside_builtin_time_are_refused_as_the_message_types_refuse_the
         messages.wrench_msg(typestore().types, reading)
     with pytest.raises(WireFormatError, match='outside builtin_interfaces/Time'):
         cdr.wrench_cdr(reading)
+
+
+@pytest.mark.parametrize('frame_id', ['', 'base_footprint', 'heading_frame_x'])
+@pytest.mark.parametrize('state', [
+    MonitorState(STATUS_OK, contact_mode=3, tau_his_s=0.044),
+    MonitorState(STATUS_OK, '', True, True, True, False, 12, 0.41, (0.6, -0.8), 0.08),
+    MonitorState(STATUS_DEGRADED, 'no IMU message for 0.052 s', contact_mode=None),
+    MonitorState(STATUS_FALLEN, 'fallen', False, True, False, True, 15, math.nan, (math.nan, math.nan)),
+    MonitorState(STATUS_STALE, 'x' * 7, tau_his_s=0.2),
+])
+def test_fall_states_are_rclpys_bytes_and_rosbags_bytes(state: MonitorState, frame_id: str) -> None:
+    """The predictor node publishes these bytes in place of the message object: they must be
+    rosbags' serialization of it byte for byte (padding zeroed; rclpy leaves its padding bytes
+    as they were in its buffer, so its bytes are compared as what they decode to)."""
+    data = cdr.fall_state_cdr(123_456_789_012, frame_id, state)
+    assert data == _serialized(messages.fall_state_msg(typestore().types, 123_456_789_012,
+                                                       frame_id, state),
+                               'fall_predictor/msg/FallState')
+    msg = messages.fall_state_msg(ros_qos.TYPES, 123_456_789_012, frame_id, state)
+    decoded = deserialize_message(data, FallState)
+    assert len(data) == len(serialize_message(msg))
+    assert decoded.header == msg.header
+    assert _fields(decoded) == _fields(msg)
+    stamp_ns, back = messages.fall_state_from_msg(decoded)
+    assert stamp_ns == 123_456_789_012 and back.reason == state.reason
+    assert (back.status, back.latched, back.contact_mode) == (state.status, state.latched,
+                                                             state.contact_mode)
+
+
+def _fields(msg: FallState) -> list[object]:
+    """The message's values, NaN as a string (so that equal messages compare equal)."""
+    d = msg.fall_direction
+    values = [msg.status, msg.reason, msg.falling, msg.latched, msg.atomic, msg.guard,
+              msg.contact_mode, msg.time_to_fall, d.x, d.y, d.z, msg.tau_his]
+    return [repr(v) if isinstance(v, float) and math.isnan(v) else v for v in values]

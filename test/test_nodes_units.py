@@ -16,6 +16,7 @@ import rclpy.node
 from geometry_msgs.msg import WrenchStamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
+from rclpy.serialization import deserialize_message
 from test_nodes_support import (MODEL_TAU_HIS_S, MOMENTUM_THRESHOLD, ros_context, test_domain_id,
                                 write_boosted_model, write_momentum_model)
 
@@ -241,7 +242,8 @@ def test_predictor_node_reports_the_models_learned_fall_direction(tmp_path: Path
                 node._on_features(messages.features_msg(ros_qos.TYPES, 10**9 + k * 10**6, x, 0))
         finally:
             node.destroy_node()
-    falling = [messages.fall_state_from_msg(m)[1] for m in states]
+    # The node publishes its states serialized (contract/cdr.fall_state_cdr).
+    falling = [messages.fall_state_from_msg(deserialize_message(m, FallState))[1] for m in states]
     falling = [state for state in falling if state.falling]
     assert falling and all(state.fall_direction == pytest.approx((math.cos(0.5), math.sin(0.5)))
                            for state in falling)

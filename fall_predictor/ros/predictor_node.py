@@ -45,7 +45,7 @@ from rclpy.parameter import Parameter
 from std_msgs.msg import Bool
 from std_srvs.srv import SetBool, Trigger
 
-from fall_predictor.contract import messages
+from fall_predictor.contract import cdr, messages
 from fall_predictor.contract.topics import (ENABLE_SERVICE, FALL_DIRECTION, FALL_EVENT, FALLING,
                                             FEATURES, HEADING_FRAME, MONITOR_RESET_SERVICE, STATE)
 from fall_predictor.contract.wire import LEVEL_OK, LEVEL_STALE, LEVEL_WARN
@@ -299,7 +299,8 @@ class PredictorNode(MonitorLifecycleNode):
         self._publish_state(stamp_ns, self._monitor.unusable(reason, stale))
 
     def _publish_state(self, stamp_ns: int, state: MonitorState) -> None:
-        self._state_pub.publish(messages.fall_state_msg(ros_qos.TYPES, stamp_ns, HEADING_FRAME, state))
+        # Serialized here, not built as a message object (contract/cdr.py: ~20 µs a sample less).
+        self._state_pub.publish(cdr.fall_state_cdr(stamp_ns, HEADING_FRAME, state))
         self.counts['states'] += 1
         key = {1: 'degraded_states', 2: 'stale_states', 4: 'fallen_states'}.get(state.status)
         if key:
