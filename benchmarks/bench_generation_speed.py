@@ -36,37 +36,12 @@ from pathlib import Path
 import numpy as np
 import pybullet
 
+from bare_physics import MAX_POSE_ERROR_M, record_calls, replay
 from fall_predictor.data import generation
 from fall_predictor.data.generation import GenerationConfig, generate_one
 from fall_predictor.robot.controllers import BalanceController, ReflexConfig
-from fall_predictor.sim import simulator as simulator_module
 from fall_predictor.sim.pushes import trajectory_seed
 from fall_predictor.sim.trajectory import run_trajectory
-
-RECORDED = ('setJointMotorControlArray', 'applyExternalForce', 'stepSimulation')
-
-
-class RecordingPyBullet:
-    """pybullet, with the calls that drive the physics recorded (cleared on every reset)."""
-
-    def __init__(self) -> None:
-        self.calls: list[tuple[str, tuple, dict]] = []
-
-    def __getattr__(self, name):
-        real = getattr(pybullet, name)
-        if name == 'resetSimulation':
-            def reset(*args, **kwargs):
-                self.calls.clear()
-                return real(*args, **kwargs)
-            return reset
-        if name not in RECORDED:
-            return real
-
-        def record(*args, **kwargs):
-            self.calls.append((name, args, kwargs))
-            return real(*args, **kwargs)
-        return record
-
 
 def _trajectory(config: GenerationConfig, index: int):
     gait, push = config.push_distribution.sample_with_gait(trajectory_seed(config.seed, index))
@@ -76,34 +51,21 @@ def _trajectory(config: GenerationConfig, index: int):
 def _record(config: GenerationConfig, index: int):
     """The PyBullet calls of trajectory ``index`` and the base pose it ends in."""
     gait, push, duration = _trajectory(config, index)
-    proxy = RecordingPyBullet()
-    simulator_module.pb = proxy
-    try:
+
+    def run():
         sim = generation._worker_simulator()
         run_trajectory(push, duration, gait=gait, simulator=sim)
-    finally:
-        simulator_module.pb = pybullet
-    pose = pybullet.getBasePositionAndOrientation(sim.robot, physicsClientId=sim.client)
-    return proxy.calls, np.concatenate(pose)
+        return sim
+    return record_calls(run)
 
 
 def _replay(config: GenerationConfig, index: int, calls) -> tuple[float, int, np.ndarray]:
     """Bare physics: a fresh world in the trajectory's first posture, the recorded calls only.
     Returns CPU seconds of the stepping loop, steps, and the final base pose."""
     gait, _, duration = _trajectory(config, index)
-    sim = generation._worker_simulator()
-    q0, torso0 = BalanceController(gait, ReflexConfig(), sim.config.dt_s,
-                                   walk_duration_s=duration + 5.0).initial_posture()
-    sim.reset(q0, torso0)
-    functions = {name: getattr(pybullet, name) for name in RECORDED}
-    bound = [(functions[name], args, kwargs) for name, args, kwargs in calls]
-    cpu0 = time.process_time()
-    for function, args, kwargs in bound:
-        function(*args, **kwargs)
-    cpu = time.process_time() - cpu0
-    pose = pybullet.getBasePositionAndOrientation(sim.robot, physicsClientId=sim.client)
-    steps = sum(1 for name, _, _ in calls if name == 'stepSimulation')
-    return cpu, steps, np.concatenate(pose)
+    posture = BalanceController(gait, ReflexConfig(), generation._worker_simulator().config.dt_s,
+                                walk_duration_s=duration + 5.0).initial_posture()
+    return replay(generation._worker_simulator(), *posture, calls)
 
 
 def main() -> None:
@@ -155,7 +117,7 @@ def main() -> None:
             pose_error = max(pose_error, float(np.abs(replayed - pose).max()))
     finally:
         shutil.rmtree(folder, ignore_errors=True)
-    if pose_error > 1e-9:
+    if pose_error > MAX_POSE_ERROR_M:
         raise SystemExit(f'the bare replay did not reproduce the motion (pose error {pose_error:.3g})')
 
     def per_s(cpu: float) -> float:
