@@ -398,3 +398,37 @@ def test_a_robot_bag_of_joint_states_without_efforts_reads(tmp_path, measurement
                              _joint_state_as_dds_sends_it([0.1 * k, 0.0], [0.0, 0.0], []))
     read = [m.msg for m in iter_messages(bag, [JOINT_STATES.name])]
     assert [m.position[0] for m in read] == [0.0, 0.1, 0.2] and all(len(m.effort) == 0 for m in read)
+
+
+def test_split_joint_states_read_as_one_row_per_stamp(tmp_path, measurements):
+    """A robot whose legs' driver publishes at 1 kHz and the upper body's at 500 Hz, the upper
+    body without velocities: one row per stamp, each group in its own columns, NaN where a group
+    sent nothing."""
+    bag = tmp_path / 'split'
+    legs, upper = ('l_knee', 'r_knee'), ('waist', 'neck', 'arm')
+    with BagWriter(bag) as writer:
+        writer.write_measurement(measurements[0])
+        for k in range(6):
+            t = k / 1000.0
+            writer.write_joint_state(t, legs, [k, -k], [10.0 * k, -10.0 * k])
+            if k % 2 == 0:
+                writer.write_joint_state(t, upper, [0.5 * k, 1.0, 2.0])
+    js = read_trajectory(bag).joint_states
+    assert js.names == legs + upper
+    np.testing.assert_array_equal(js.t, [k / 1000.0 for k in range(6)])
+    np.testing.assert_array_equal(js.position[:, :2], [[k, -k] for k in range(6)])
+    np.testing.assert_array_equal(js.position[::2, 2], [0.0, 1.0, 2.0])
+    assert np.isnan(js.position[1::2, 2:]).all()
+    np.testing.assert_array_equal(js.velocity[:, 1], [-10.0 * k for k in range(6)])
+    assert np.isnan(js.velocity[:, 2:]).all() and js.effort.shape == (6, 0)
+
+
+def test_split_joint_states_that_overlap_or_repeat_are_refused(tmp_path, measurements):
+    bag = tmp_path / 'twice'
+    with BagWriter(bag) as writer:
+        writer.write_measurement(measurements[0])
+        writer.write_joint_state(0.0, ('a', 'b'), [0.0, 0.0])
+        writer.write_joint_state(0.0, ('c',), [0.0])
+        writer.write_joint_state(0.0, ('c',), [1.0])
+    with pytest.raises(BagError, match=r'two messages of the same joints at t=0\.0'):
+        read_trajectory(bag)

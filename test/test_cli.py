@@ -184,3 +184,20 @@ def test_generate_takes_the_push_range_and_the_gait_draws_from_the_robot_profile
     assert config.robot == robot
     assert config.gait_variety is gait_variety
     assert tuple(config.push_distribution.force_n) == force_n
+
+
+@pytest.mark.parametrize('robot, legs, upper_body', [('asimo_like', 12, 14), ('g1', 12, 17)])
+def test_generate_with_the_robot_timing_splits_that_robots_own_joints(robot, legs, upper_body):
+    """``--sensor-timing robot`` splits the joint states into the robot's legs and upper body, from
+    its profile (the G1's generation refused its own joints while the ASIMO-like robot's names
+    were written into the command)."""
+    from fall_predictor.cli import build_parser
+    from fall_predictor.cli.dataset import generation_config
+    from fall_predictor.profiles import load_profile
+    config = generation_config(build_parser().parse_args(
+        ['generate', '--trajectories', '2', '--out', 'x', '--robot', robot,
+         '--sensor-noise', '1', '--sensor-timing', 'robot', '--joint-rate-hz', '500']))
+    groups = config.timing().joint_groups
+    assert [len(g) for g in groups] == [legs, upper_body]
+    assert sorted(groups[0] + groups[1]) == sorted(load_profile(robot).joint_names)
+    assert config.timing().joint_rate_hz == 500.0

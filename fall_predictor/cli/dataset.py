@@ -10,16 +10,15 @@ from fall_predictor.cli import args as argtypes
 from fall_predictor.cli.args import add_robot_argument, emit as _emit, fail as _fail
 
 
-def _sensor_timing(args) -> Optional[dict]:
+def _sensor_timing(args, profile) -> Optional[dict]:
     """``--sensor-timing robot``: the drivers of a robot (sim/drivers.py) at ``--joint-rate-hz``,
-    joint states split into legs and upper body, IMU and foot sensors 0.3 / 0.4 ms after them."""
+    joint states split into the robot's legs and upper body (its profile's joint groups), IMU and
+    foot sensors 0.3 / 0.4 ms after them."""
     if args.sensor_timing == 'simulator':
         return None
-    from fall_predictor.profiles import asimo_like_urdf as rm
     from fall_predictor.sim.drivers import DriverTiming
-    legs = tuple(f'{s}_{j}' for s in rm.SIDES for j in rm.LEG_JOINTS)
-    groups = (legs, tuple(n for n in rm.JOINT_NAMES if n not in legs))
-    return DriverTiming.robot(args.joint_rate_hz, groups, clock_offset_ns=0).to_dict()
+    return DriverTiming.robot(args.joint_rate_hz, profile.legs_and_upper_body(),
+                              clock_offset_ns=0).to_dict()
 
 
 def generation_config(args):
@@ -37,7 +36,7 @@ def generation_config(args):
                             settle_extension_s=args.settle_extension,
                             gait_variety=not (args.fixed_gait or standing) and profile.gait_variety,
                             sensor_noise_scale=args.sensor_noise,
-                            sensor_timing=_sensor_timing(args), **extra)
+                            sensor_timing=_sensor_timing(args, profile), **extra)
 
 
 def cmd_generate(args) -> int:

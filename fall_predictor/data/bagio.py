@@ -307,13 +307,20 @@ def decode(message: BagMessage) -> object:
 
 @dataclass(slots=True)
 class JointStateSeries:
-    """All ``/joint_states`` messages of a bag as arrays (N messages, J joints)."""
+    """All ``/joint_states`` messages of a bag as arrays (N rows, J joints).
+
+    One row per message when every message names the same joints. A robot whose drivers publish
+    its joints in groups (split joint states: the legs in one message, the upper body in another,
+    maybe at other rates) gives one row per stamp, each group's values in its own columns and NaN
+    where that group sent nothing at that stamp (also for the velocities or efforts of a group
+    that sends none while another does).
+    """
 
     names: tuple[str, ...]
     t: np.ndarray                   #: (N,) header stamps [s]
     position: np.ndarray            #: (N, J) [rad]
-    velocity: np.ndarray            #: (N, J) [rad/s], or (N, 0) if not recorded
-    effort: np.ndarray              #: (N, J) [N m], or (N, 0) if not recorded
+    velocity: np.ndarray            #: (N, J) [rad/s], or (N, 0) if no message has any
+    effort: np.ndarray              #: (N, J) [N m], or (N, 0) if no message has any
 
 
 @dataclass(slots=True)
@@ -332,24 +339,72 @@ class RecordedTrajectory:
     faults: dict[str, list[Fault]] = dataclasses.field(default_factory=dict)
 
 
+def _joint_groups(path: Path, samples: list[JointStateSample]) -> list[tuple[str, ...]]:
+    """The distinct joint name lists of the messages, in order of appearance: one, or the
+    disjoint groups of split joint states (BagError where a list overlaps an earlier one: a
+    joint renamed, added or reordered during the recording)."""
+    groups: dict[tuple[str, ...], None] = {}
+    seen: set[str] = set()
+    for sample in samples:
+        if sample.names in groups:
+            continue
+        if seen.intersection(sample.names) or len(set(sample.names)) != len(sample.names):
+            raise BagError(f'{path}: {JOINT_STATES.name} joint names change at t={sample.t}')
+        groups[sample.names] = None
+        seen.update(sample.names)
+    return list(groups)
+
+
 def _joint_series(path: Path, samples: list[JointStateSample]) -> JointStateSeries:
     if not samples:
         empty = np.zeros((0, 0))
         return JointStateSeries((), np.zeros(0), empty, empty, empty)
-    names = samples[0].names
-    for what in ('velocity', 'effort'):
-        sizes = {getattr(s, what).size for s in samples}
-        if len(sizes) > 1:
-            raise BagError(f'{path}: {JOINT_STATES.name} {what} sizes vary: {sorted(sizes)}')
-    for s in samples:
-        if s.names != names:
-            raise BagError(f'{path}: {JOINT_STATES.name} joint names change at t={s.t} s')
+    groups = _joint_groups(path, samples)
+    for group in groups:
+        of_group = [s for s in samples if s.names == group]
+        for what in ('velocity', 'effort'):
+            sizes = {getattr(s, what).size for s in of_group}
+            if len(sizes) > 1:
+                raise BagError(f'{path}: {JOINT_STATES.name} {what} sizes vary: {sorted(sizes)}')
+    if len(groups) == 1:
+        return JointStateSeries(
+            names=groups[0],
+            t=np.array([s.t for s in samples]),
+            position=np.stack([s.position for s in samples]),
+            velocity=np.stack([s.velocity for s in samples]),
+            effort=np.stack([s.effort for s in samples]))
+    return _merged_groups(path, groups, samples)
+
+
+def _merged_groups(path: Path, groups: list[tuple[str, ...]],
+                   samples: list[JointStateSample]) -> JointStateSeries:
+    """Split joint states as one row per stamp (see :class:`JointStateSeries`)."""
+    names = tuple(name for group in groups for name in group)
+    column = {group: slice(start, start + len(group)) for group, start in zip(
+        groups, np.cumsum([0, *map(len, groups[:-1])]).tolist())}
+    row: dict[float, int] = {}
+    for sample in samples:
+        row.setdefault(sample.t, len(row))
+    shape = (len(row), len(names))
+    position = np.full(shape, np.nan)
+    arrays = {'velocity': np.full(shape, np.nan), 'effort': np.full(shape, np.nan)}
+    filled = np.zeros(shape, dtype=bool)
+    for sample in samples:
+        k, columns = row[sample.t], column[sample.names]
+        if filled[k, columns].any():
+            raise BagError(f'{path}: {JOINT_STATES.name} has two messages of the same joints '
+                           f'at t={sample.t}')
+        filled[k, columns] = True
+        position[k, columns] = sample.position
+        for what, values in arrays.items():
+            given = getattr(sample, what)
+            if given.size:
+                values[k, columns] = given
+    recorded = {what: any(getattr(s, what).size for s in samples) for what in arrays}
     return JointStateSeries(
-        names=names,
-        t=np.array([s.t for s in samples]),
-        position=np.stack([s.position for s in samples]),
-        velocity=np.stack([s.velocity for s in samples]),
-        effort=np.stack([s.effort for s in samples]))
+        names=names, t=np.array(list(row)), position=position,
+        **{what: values if recorded[what] else np.zeros((shape[0], 0))
+           for what, values in arrays.items()})
 
 
 def read_trajectory(path: str | os.PathLike[str], *,
