@@ -97,3 +97,29 @@ def test_a_recording_without_description_needs_the_urdf(simulated, tmp_path, cap
     assert main(['train', '--data', str(tmp_path / 'b'), '--tau-plus=-0.25', '--out',
                  str(tmp_path / 'm.json'), '--json']) == 0
     assert load_model(tmp_path / 'm.json')[1].state == 'estimated'
+
+
+@pytest.mark.parametrize('robot, wrenches', [('asimo_like', True), ('g1', False)])
+def test_a_recording_the_estimator_cannot_use_is_refused_naming_that_robots_topics(
+        tmp_path, robot, wrenches):
+    """An IMU and a description alone give no estimate: the refusal names the topics this robot
+    needs, the foot wrenches only for a robot with foot F/T sensors (the G1 has none)."""
+    from fall_predictor.contract import cdr
+    from fall_predictor.contract.topics import IMU
+    from fall_predictor.data.robot_import import robot_recording_row
+    from fall_predictor.data.dataset import DatasetError
+    from fall_predictor.data.sensorbag import write_robot_description
+    from fall_predictor.monitor.sensor_records import ImuReading
+    from fall_predictor.profiles import load_profile
+    profile = load_profile(robot)
+    bag = tmp_path / 'imu_only'
+    with BagWriter(bag) as writer:
+        write_robot_description(writer, 0.0, profile.urdf_xml())
+        for k in range(20):
+            reading = ImuReading(k * 1_000_000, profile.imu_frame, (0.0, 0.0, 0.0, 1.0),
+                                 (0.0, 0.0, 0.0), (0.0, 0.0, 9.81))
+            writer.write_raw(IMU.name, IMU.msg_type, k * 1_000_000, cdr.imu_cdr(reading))
+    with pytest.raises(DatasetError, match=f'the {robot} robot needs') as refused:
+        robot_recording_row(bag, 'traj_00000', robot=robot)
+    assert '/joint_states, /imu/data' in str(refused.value)
+    assert ('/left_foot/wrench' in str(refused.value)) is wrenches
