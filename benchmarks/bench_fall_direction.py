@@ -33,6 +33,7 @@ import numpy as np
 
 from fall_predictor.data.dataset import robot_total_mass_kg
 from fall_predictor.learning.direction_training import DIRECTION_LEARNER_PARAMS, fit_learned_direction
+from fall_predictor.learning.time_to_fall_training import time_left_after_triggers
 from fall_predictor.learning.training import load_dataset
 from fall_predictor.learning.when_where import (DirectionSamples, direction_errors_deg,
                                                 direction_samples, trigger_indices)
@@ -49,20 +50,6 @@ VARIANTS = {
     'depth 2': {'max_depth': 2},
     '40 a leaf': {'min_samples_leaf': 40},
 }
-
-
-def time_left_after_triggers(trajectories, triggers, stride: int = 10):
-    """Features (N, 15), contact modes (N,), time left until fallen [s] (N,) and whether the
-    sample is the trigger (N,), at every ``stride``-th sample from each in-time trigger until
-    fallen (the samples the monitor reports a time to fall on)."""
-    rows = []
-    for traj, k in zip(trajectories, triggers):
-        if k is None:
-            continue
-        end = int(np.searchsorted(traj.t, traj.t_fallen))
-        rows += [(traj.X[j], int(traj.mode[j]), traj.t_fallen - traj.t[j], j == k)
-                 for j in range(k, max(end, k + 1), stride)]
-    return tuple(np.array([r[i] for r in rows]) for i in range(4))
 
 
 def time_to_fall_reference(dev, test, regressor) -> dict:

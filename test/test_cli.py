@@ -52,7 +52,7 @@ def test_stats_json_and_exit_code_on_a_damaged_dataset(small_dataset, tmp_path, 
 
 
 SUBCOMMANDS = ('simulate', 'generate', 'stats', 'train', 'rules', 'evaluate', 'fit-direction',
-               'sweep', 'import-bags', 'bringup', 'robustness', 'repair-bag', 'estimation-error')
+               'fit-time-to-fall', 'sweep', 'import-bags', 'bringup', 'robustness', 'repair-bag', 'estimation-error')
 
 #: Makes every ROS 2 Python package unimportable (rclpy, message packages, ament, launch), as
 #: on a machine without ROS; then runs the command line given as JSON on argv[1], one
@@ -109,8 +109,11 @@ def test_every_offline_subcommand_runs_without_ros(small_dataset, tmp_path):
         ['train', '--data', str(data), '--tau-plus', '0', '--out', str(model)],
         ['rules', str(model)],
         ['evaluate', '--data', str(data), '--model', str(model), '--tau-his', '0.01', '--json'],
-        # Eight trajectories hold too few falls to learn a direction from: refused in words.
+        # A model trained without --tau-his-recommended has no triggers to fit a direction or a
+        # time to fall at: refused in words.
         ['fit-direction', '--data', str(data), '--model', str(model), '--out', str(tmp_path / 'm.json')],
+        ['fit-time-to-fall', '--data', str(data), '--model', str(model), '--out',
+         str(tmp_path / 't.json'), '--json'],
         ['sweep', '--data', str(data), '--out', str(tmp_path / 'sweep'), '--folds', '2',
          '--tau-plus', '0', '--tau-his', '0,0.01', '--no-learning-curve', '--no-capture-point'],
         ['import-bags', str(data / 'bags' / 'traj_00000'), '--out', str(tmp_path / 'imported')],
@@ -118,10 +121,11 @@ def test_every_offline_subcommand_runs_without_ros(small_dataset, tmp_path):
         ['robustness', '--impulses', '5', '--phases', '1', '--horizon', '0.2', '--json'],
         ['repair-bag', str(data / 'bags'), '--json'],           # intact bags: nothing to do
     ])
-    assert result['codes'] == [0, 0, 0, 0, 0, 0, 2, 0, 0, 2, 0, 0], result['stderr'][-3000:]
+    assert result['codes'] == [0, 0, 0, 0, 0, 0, 2, 2, 0, 0, 2, 0, 0], result['stderr'][-3000:]
     assert result['ros_modules'] == []
     assert 'bringup needs ROS 2' in result['stderr']
     assert 'fit-direction: ' in result['stderr'] and not (tmp_path / 'm.json').exists()
+    assert 'fit-time-to-fall: ' in result['stderr'] and not (tmp_path / 't.json').exists()
     assert (tmp_path / 'generated' / 'index' / 'traj_00000.json').exists()
     assert (tmp_path / 'sweep' / 'sweep.json').exists() and model.exists()
 
@@ -201,3 +205,27 @@ def test_generate_with_the_robot_timing_splits_that_robots_own_joints(robot, leg
     assert [len(g) for g in groups] == [legs, upper_body]
     assert sorted(groups[0] + groups[1]) == sorted(load_profile(robot).joint_names)
     assert config.timing().joint_rate_hz == 500.0
+
+
+def test_fit_time_to_fall_replaces_the_regressor_and_keeps_the_decisions(small_dataset, tmp_path,
+                                                                          capsys):
+    """``fit-time-to-fall`` writes the model with boosted trees fitted at its triggers (method
+    §8d); its decision lists, settings and direction are the input model's."""
+    from fall_predictor.monitor.boosted_trees import BoostedTimeToFall
+    from fall_predictor.monitor.model_file import load_model
+    from fall_predictor.monitor.time_to_fall import TimeToFallRegressor
+    data = tmp_path / 'data'
+    shutil.copytree(small_dataset, data)
+    model, fitted = tmp_path / 'model.json', tmp_path / 'fitted.json'
+    assert main(['train', '--data', str(data), '--tau-plus', '0', '--tau-his-recommended', '0.01',
+                 '--out', str(model)]) == 0
+    assert main(['fit-time-to-fall', '--data', str(data), '--model', str(model), '--out',
+                 str(fitted), '--json']) == 0
+    report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    lists, before = load_model(model)
+    lists_after, after = load_model(fitted)
+    assert isinstance(before.time_to_fall, TimeToFallRegressor)
+    assert isinstance(after.time_to_fall, BoostedTimeToFall) and report['trees'] == 100
+    assert report['triggers'] >= 1 and report['samples'] >= report['triggers']
+    assert lists_after == lists and after.recommended_tau_his_s == before.recommended_tau_his_s
+    assert after.feature_settings == before.feature_settings

@@ -224,7 +224,7 @@ def test_a_learned_fall_direction_round_trips_and_version_4_files_still_load(tmp
     _, metadata = load_model(path)
     assert metadata.fall_direction == learned
     document = json.loads(path.read_text())
-    assert document['schema_version'] == SCHEMA_VERSION == 6
+    assert document["schema_version"] == SCHEMA_VERSION == 7
     document['fall_direction']['trees'][0]['value'][1] = 'x'
     path.write_text(json.dumps(document))
     with pytest.raises(ModelFileError, match=r'fall_direction\.trees\[0\]'):
@@ -276,3 +276,34 @@ def test_a_model_reading_the_attitude_names_its_19_inputs_and_older_files_read_1
     del document['input_names']
     plain.write_text(json.dumps(document))
     assert load_model(plain)[0].n_inputs == 15
+
+
+def test_a_boosted_time_to_fall_round_trips_and_a_version_6_file_refuses_it(tmp_path):
+    """Version 7: ``time_to_fall`` may be boosted trees over the 15 features (method §8d); a
+    file that says version 6 may not hold them."""
+    import dataclasses
+    from fall_predictor.monitor.boosted_trees import BoostedTimeToFall
+    from fall_predictor.monitor.time_to_fall import RegressionTree
+    # Below a CoM height of 0.45 m: 0.2 s less than the bias says.
+    tree = RegressionTree((2, -1, -1), (0.45, 0.0, 0.0), (1, -1, -1), (2, -1, -1), (0.0, -0.2, 0.05))
+    boosted = BoostedTimeToFall((tree, tree), bias=0.3)
+    path = tmp_path / 'model.json'
+    save_model(path, example_lists(), dataclasses.replace(example_metadata(), time_to_fall=boosted))
+    _, metadata = load_model(path)
+    assert metadata.time_to_fall == boosted
+    x = [0.0] * 15
+    x[2] = 0.40
+    assert metadata.time_to_fall.predict_one(x, 3) == 0.0          # 0.3 - 0.4, never negative
+    x[2] = 0.55
+    assert metadata.time_to_fall.predict_one(x, 3) == pytest.approx(0.4)
+    document = json.loads(path.read_text())
+    assert document['time_to_fall']['kind'] == 'boosted'
+    document['schema_version'] = 6
+    path.write_text(json.dumps(document))
+    with pytest.raises(ModelFileError, match='time_to_fall'):
+        load_model(path)
+    document['schema_version'] = 7
+    document['time_to_fall']['kind'] = 'other'
+    path.write_text(json.dumps(document))
+    with pytest.raises(ModelFileError, match='time_to_fall.*kind'):
+        load_model(path)

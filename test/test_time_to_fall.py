@@ -145,3 +145,36 @@ def test_triggers_come_from_the_given_guard():
     assert trigger_indices(trajectories, empty, 0.0, guard_com_height_m=0.60) == \
         [int(round(T_PUSH_S * 1000)), None]
     assert trigger_indices(trajectories, empty, 0.0) == [None, None]
+
+
+def test_boosted_time_to_fall_at_triggers_recovers_a_learnable_target_and_runs_as_sklearn():
+    """Fitted on the samples from each trigger until fallen (method §8d), on a target that
+    feature 0 carries: errors at held-out triggers well under a constant's, and the exported
+    trees predict what scikit-learn's model predicts."""
+    from sklearn.ensemble import HistGradientBoostingRegressor
+
+    from fall_predictor.learning.time_to_fall_training import (TIME_TO_FALL_LEARNER_PARAMS,
+                                                               fit_time_to_fall_at_triggers,
+                                                               time_left_after_triggers)
+    train = with_time_to_fall_feature(make_dataset(12, 2, seed=5))
+    test = with_time_to_fall_feature(make_dataset(4, 1, seed=6))
+    rng = np.random.default_rng(7)
+    # Triggers anywhere from the push to 0.2 s before the fall; none on the balanced runs.
+    def triggers(trajs):
+        return [int(np.searchsorted(t.t, rng.uniform(T_PUSH_S, T_FALLEN_S - 0.2))) if t.fallen
+                else None for t in trajs]
+    train_triggers, test_triggers = triggers(train), triggers(test)
+    X, _, left, at_trigger = time_left_after_triggers(train, train_triggers)
+    assert at_trigger.sum() == 12 and left.min() > 0.0
+    assert left[at_trigger] == pytest.approx([T_FALLEN_S - t.t[k] for t, k in
+                                              zip(train, train_triggers) if k is not None])
+    boosted = fit_time_to_fall_at_triggers(train, train_triggers)
+    assert len(boosted.trees) == TIME_TO_FALL_LEARNER_PARAMS['max_iter']
+    X_test, _, left_test, at_test = time_left_after_triggers(test, test_triggers)
+    ours = np.array([boosted.predict_one(x.tolist()) for x in X_test])
+    # Over every 10th sample from the test triggers until fallen (0.2-1 s left).
+    assert at_test.sum() == 4 and np.median(np.abs(ours - left_test)) < 0.02
+    constant = np.median(left[at_trigger])
+    assert np.median(np.abs(constant - left_test)) > 0.1
+    sklearn = HistGradientBoostingRegressor(**TIME_TO_FALL_LEARNER_PARAMS, random_state=0).fit(X, left)
+    np.testing.assert_allclose(ours, np.maximum(sklearn.predict(X_test), 0.0), atol=1e-12)

@@ -1,4 +1,5 @@
-"""``fall-predictor train``, ``rules``, ``evaluate`` and ``fit-direction``: models."""
+"""``fall-predictor train``, ``rules``, ``evaluate``, ``fit-direction`` and ``fit-time-to-fall``:
+models."""
 from __future__ import annotations
 
 import argparse
@@ -177,6 +178,51 @@ def cmd_fit_direction(args) -> int:
     return 0
 
 
+def cmd_fit_time_to_fall(args) -> int:
+    import dataclasses
+
+    import numpy as np
+
+    from fall_predictor.data.dataset import DatasetError
+    from fall_predictor.learning.time_to_fall_training import (fit_time_to_fall_at_triggers,
+                                                               time_left_after_triggers)
+    from fall_predictor.learning.training import load_dataset
+    from fall_predictor.learning.when_where import trigger_indices
+    from fall_predictor.monitor.model_file import ModelFileError, load_model, save_model
+
+    try:
+        lists, metadata = load_model(args.model)
+        tau_his = metadata.recommended_tau_his_s
+        if tau_his is None:
+            return _fail('fit-time-to-fall', f'{args.model} recommends no tau_his: its triggers '
+                                              'are not defined')
+        state = argtypes.resolved_state(args)
+        report = load_dataset(args.data, args.jobs, progress=not args.json, state=state)
+        triggers = trigger_indices(report.trajectories, lists, tau_his,
+                                   metadata.feature_settings.guard_com_height_m)
+        X, modes, left, at_trigger = time_left_after_triggers(report.trajectories, triggers)
+        if not at_trigger.any():
+            return _fail('fit-time-to-fall', f'{args.data}: the model triggers on no fall to '
+                                              'learn from')
+        boosted = fit_time_to_fall_at_triggers(report.trajectories, triggers)
+        save_model(args.out, lists, dataclasses.replace(metadata, time_to_fall=boosted))
+    except (DatasetError, ModelFileError, ValueError) as error:
+        return _fail('fit-time-to-fall', error)
+    error = np.abs(np.array([boosted.predict_one(x.tolist()) for x in X[at_trigger]])
+                   - left[at_trigger])
+    payload = {'model': str(args.out), 'from_model': str(args.model), 'data': str(args.data),
+               'state': state, 'tau_his_s': tau_his, 'triggers': int(at_trigger.sum()),
+               'samples': int(left.size), 'trees': len(boosted.trees),
+               'in_sample_median_error_at_triggers_s': float(np.median(error))}
+    _emit(args, payload, [
+        f'wrote {args.out}: a time to fall of {len(boosted.trees)} boosted trees fitted on '
+        f'{left.size} samples from {int(at_trigger.sum())} triggers of {args.model} until fallen '
+        f'on {args.data} ({state} state)',
+        f'median error at those triggers (in sample): {np.median(error):.3f} s; evaluate it on '
+        'held-out data'])
+    return 0
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser('train', help='learn per-mode decision lists and write a model file',
                        description='Train one decision list per foot contact mode (method §8) on every '
@@ -253,3 +299,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--jobs', type=argtypes.positive_int, default=1, help='processes loading features')
     p.add_argument('--json', action='store_true', help='print one JSON object')
     p.set_defaults(func=cmd_fit_direction)
+
+    p = sub.add_parser('fit-time-to-fall', help='add a time to fall fitted at a model\'s triggers',
+                       description='Fit the time to fall the monitor reports (method §8d) on a '
+                                   'development dataset: boosted trees over the 15 features on every '
+                                   '10th sample from each of the model\'s triggers until fallen (what '
+                                   'the monitor reports on), in place of the per-mode trees that '
+                                   '`train` fits on every falling state; write the model with it. '
+                                   'Its decisions are unchanged. Exit code 2 if the model or the '
+                                   'dataset cannot be used.')
+    p.add_argument('--data', type=Path, required=True, help='development dataset directory')
+    p.add_argument('--model', type=Path, required=True, help='model file (JSON) whose triggers to use')
+    p.add_argument('--out', type=Path, required=True, help='model file to write (JSON)')
+    argtypes.add_state_argument(p)
+    p.add_argument('--jobs', type=argtypes.positive_int, default=1, help='processes loading features')
+    p.add_argument('--json', action='store_true', help='print one JSON object')
+    p.set_defaults(func=cmd_fit_time_to_fall)

@@ -185,3 +185,63 @@ class BoostedTrees:
             return cls(tuple(trees), value['bias'], value['decision_threshold'])
         except (TypeError, BoostedTreesError) as error:
             raise BoostedTreesError(str(error)) from error
+
+
+#: ``time_to_fall.kind`` of boosted time-to-fall trees in a model file.
+BOOSTED_TIME_TO_FALL = 'boosted'
+
+
+@dataclass(frozen=True)
+class BoostedTimeToFall:
+    """The time left until fallen [s] as ``bias + sum(trees(x))`` over the 15 features, never
+    negative: the regressor fitted from each trigger to fallen (method §8d), in place of the
+    per-mode trees of :class:`~fall_predictor.monitor.time_to_fall.TimeToFallRegressor` (the
+    same ``predict_one(x, mode)``; the contact mode is not read). Run as one generated function,
+    as the classifiers' trees are."""
+
+    trees: tuple[RegressionTree, ...]
+    bias: float
+    _predict: Callable[[Sequence[float]], float] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, 'trees', tuple(self.trees))
+        for tree in self.trees:
+            if not isinstance(tree, RegressionTree) or tree.n_inputs != N_FEATURES:
+                raise BoostedTreesError(f'time-to-fall trees read the {N_FEATURES} features, got '
+                                        f'{type(tree).__name__} over {getattr(tree, "n_inputs", "?")}')
+        if (isinstance(self.bias, bool) or not isinstance(self.bias, (int, float))
+                or not math.isfinite(self.bias)):
+            raise BoostedTreesError(f'bias must be a finite number, got {self.bias!r}')
+        object.__setattr__(self, 'bias', float(self.bias))
+        object.__setattr__(self, '_predict', compile_tree_sum(self.trees, self.bias))
+
+    def __reduce__(self):
+        # The compiled function is not picklable; it is made again from the trees.
+        return BoostedTimeToFall, (self.trees, self.bias)
+
+    def predict_one(self, x: Sequence[float], mode: int = 0) -> float:
+        """Seconds until fallen for one sample (the 15 features ``x``), never negative."""
+        return max(0.0, self._predict(x))
+
+    def to_json(self) -> dict[str, Any]:
+        return {'kind': BOOSTED_TIME_TO_FALL, 'bias': self.bias,
+                'trees': [tree.to_json() for tree in self.trees]}
+
+    @classmethod
+    def from_json(cls, value: Any, where: str = 'time_to_fall') -> BoostedTimeToFall:
+        """Validated: raises :class:`BoostedTreesError` naming the offending field."""
+        if (not isinstance(value, dict) or set(value) != {'kind', 'bias', 'trees'}
+                or value['kind'] != BOOSTED_TIME_TO_FALL):
+            raise BoostedTreesError(f'{where}: expected an object with keys kind '
+                                    f'("{BOOSTED_TIME_TO_FALL}"), bias, trees')
+        if not isinstance(value['trees'], list):
+            raise BoostedTreesError(f'{where}.trees: expected an array')
+        try:
+            trees = tuple(RegressionTree.from_json(raw, f'{where}.trees[{k}]')
+                          for k, raw in enumerate(value['trees']))
+        except TimeToFallError as error:
+            raise BoostedTreesError(str(error)) from error
+        try:
+            return cls(trees, value['bias'])
+        except BoostedTreesError as error:
+            raise BoostedTreesError(f'{where}: {error}') from error

@@ -24,10 +24,14 @@ Layout (schema ``fall_predictor.decision_lists``, version 6)::
       "dataset_fingerprint": "...",
       "created": {"utc": "2025-01-01T00:00:00Z", "package_version": "0.1.0"},
       "robot_mass_kg": <kg>,                                  # the training robot's; or null (version 3)
-      "time_to_fall": {"trees": [...16, tree or null], "fallback": tree},  # or null (version 3)
+      "time_to_fall": {"trees": [...16, tree or null], "fallback": tree},  # or null (version 3);
+                      # version 7: or {"kind": "boosted", "bias": 0.6, "trees": [tree, ...]}
       "fall_direction": {"inputs": [...8 names], "bias": 0.0, "trees": [tree, ...]}  # or null (5)
     }
 
+Version 7 lets ``time_to_fall`` be boosted trees over the 15 features fitted from each trigger to
+fallen (method §8d; :class:`~fall_predictor.monitor.boosted_trees.BoostedTimeToFall`, the same
+``predict_one(x, mode)``) instead of the per-mode trees.
 Version 6 added ``input_names``: what a classifier reads, the 15 features or the 19 inputs
 :data:`~fall_predictor.monitor.records.INPUT_NAMES_WITH_ATTITUDE` (the features, then the base's
 attitude, method §8c; boosted trees only); older files read the 15 features.
@@ -67,7 +71,8 @@ from fall_predictor.monitor.features import FeatureSettings
 from fall_predictor.monitor.fileio import atomic_output, read_regular_file
 from fall_predictor.monitor.decision_list import (COMPARISON_OPS, Condition, DecisionList,
                                           PerModeDecisionLists, Rule)
-from fall_predictor.monitor.boosted_trees import BoostedTrees, BoostedTreesError
+from fall_predictor.monitor.boosted_trees import (BoostedTimeToFall, BoostedTrees,
+                                                  BoostedTreesError)
 from fall_predictor.monitor.fall_direction import FallDirectionError, LearnedDirection
 from fall_predictor.monitor.time_to_fall import TimeToFallError, TimeToFallRegressor
 from fall_predictor.monitor.records import (BALANCED, CLASS_NAMES, CONTACT_MODE_NAMES, FALLING,
@@ -75,11 +80,11 @@ from fall_predictor.monitor.records import (BALANCED, CLASS_NAMES, CONTACT_MODE_
                                     N_FEATURES, N_INPUTS_WITH_ATTITUDE)
 
 SCHEMA_NAME = 'fall_predictor.decision_lists'
-SCHEMA_VERSION = 6
+SCHEMA_VERSION = 7
 #: Older versions this reader still accepts (version 2: no robot mass, no time to fall;
 #: version 3: decision lists only; version 4: no learned fall direction; version 5: the 15
-#: features as the only inputs).
-SUPPORTED_SCHEMA_VERSIONS = (2, 3, 4, 5, 6)
+#: features as the only inputs; version 6: per-mode time-to-fall trees only).
+SUPPORTED_SCHEMA_VERSIONS = (2, 3, 4, 5, 6, 7)
 #: The input vectors a model may read, by length.
 INPUT_NAMES = {N_FEATURES: FEATURE_NAMES, N_INPUTS_WITH_ATTITUDE: INPUT_NAMES_WITH_ATTITUDE}
 #: Values of ``training.state`` (optional; absent = 'true').
@@ -121,8 +126,10 @@ class ModelMetadata:
     package_version: str = __version__
     #: Total robot mass [kg] of the training data (None in version-2 files).
     robot_mass_kg: Optional[float] = None
-    #: Seconds left until fallen, per contact mode (None: the model has none).
-    time_to_fall: Optional[TimeToFallRegressor] = field(default=None, compare=False)
+    #: Seconds left until fallen: per contact mode, or boosted trees fitted from each trigger
+    #: to fallen (None: the model has none).
+    time_to_fall: Optional[Union[TimeToFallRegressor, BoostedTimeToFall]] = field(
+        default=None, compare=False)
     #: The state the training features came from: 'true' (the simulator's) or 'estimated'
     #: (the state estimator's, from the sensor topics); files without it were trained on 'true'.
     state: str = 'true'
@@ -285,8 +292,11 @@ def _parse_model(text: str, path: Path) -> tuple[PerModeDecisionLists, ModelMeta
     time_to_fall = document.get('time_to_fall')
     if time_to_fall is not None:
         try:
-            time_to_fall = TimeToFallRegressor.from_json(time_to_fall)
-        except TimeToFallError as error:
+            if version >= 7 and isinstance(time_to_fall, dict) and 'kind' in time_to_fall:
+                time_to_fall = BoostedTimeToFall.from_json(time_to_fall)
+            else:
+                time_to_fall = TimeToFallRegressor.from_json(time_to_fall)
+        except (TimeToFallError, BoostedTreesError) as error:
             raise read.fail('time_to_fall', str(error)) from error
     fall_direction = document.get('fall_direction')
     if fall_direction is not None:

@@ -5,7 +5,9 @@ fallen (method §5's ``t_fallen``). The model is one binary regression tree per 
 trained (:mod:`fall_predictor.learning.time_to_fall_training`) on the falling states of falling
 trajectories, with the target ``t_fallen - t``; a mode with too few falling states uses the
 tree fitted on all modes (``fallback``). At run time a prediction is a walk down one tree:
-plain Python, no scikit-learn.
+plain Python, no scikit-learn. A model may carry instead boosted trees fitted from each of its
+triggers until fallen (method §8d; :class:`~fall_predictor.monitor.boosted_trees.BoostedTimeToFall`,
+the same ``predict_one(x, mode)``).
 
 A tree is stored as parallel arrays (JSON-friendly)::
 

@@ -1,0 +1,133 @@
+#!/usr/bin/env python3
+"""Which samples the time-to-fall regressor should learn from: cross-validation on development
+data at a model's own triggers.
+
+The monitor reports a time to fall from its trigger on; the shipped regressor (per-mode trees,
+:func:`~fall_predictor.learning.time_to_fall_training.fit_time_to_fall`) learns from every
+falling state, from the push on. For a model (its triggers: first falling output in
+``[t_push, t_fallen)`` at its recommended tau_his, estimated state) this compares, by
+``--folds``-fold cross-validation over the development trajectories (``--repeats`` shuffles),
+regressors fitted on the training folds:
+
+* ``per-mode trees, every falling state``: the shipped method;
+* ``per-mode trees, trigger to fallen``: the same trees on every 10th sample from each training
+  trigger until fallen (what the monitor reports on);
+* ``boosting <settings>, trigger to fallen``: scikit-learn's gradient boosting on those samples
+  and the 15 features, at the settings of :data:`BOOSTING` (small trees, as the monitor runs
+  them at every falling sample; the absolute-error loss fits the median the aim is stated in);
+* ``constant``: the training triggers' median time to fall.
+
+Errors at the test folds' triggers (median and p90 of the absolute error, pooled over folds and
+repeats) and over every 10th sample from each test trigger until fallen. Writes JSON (``--out``).
+
+    python benchmarks/bench_time_to_fall_cv.py --dev data/g1_dev1000 \\
+        --model models/g1_attitude_model.json --out docs/time_to_fall_cv/g1.json
+"""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from fall_predictor.learning.time_to_fall_training import (fit_time_to_fall, fit_time_to_fall_samples,
+                                                           time_left_after_triggers)
+from fall_predictor.learning.training import load_dataset
+from fall_predictor.learning.when_where import trigger_indices
+from fall_predictor.monitor.model_file import load_model
+
+
+
+#: Gradient-boosting settings compared (scikit-learn's ``HistGradientBoostingRegressor``).
+BOOSTING = {
+    '200 trees of 31 leaves, rate 0.05, squared error': {'max_iter': 200, 'learning_rate': 0.05},
+    '100 trees of depth 3, rate 0.05, absolute error': {
+        'max_iter': 100, 'learning_rate': 0.05, 'max_depth': 3, 'min_samples_leaf': 20,
+        'loss': 'absolute_error'},
+    '100 trees of depth 3, rate 0.1, absolute error': {
+        'max_iter': 100, 'learning_rate': 0.1, 'max_depth': 3, 'min_samples_leaf': 20,
+        'loss': 'absolute_error'},
+    '200 trees of depth 3, rate 0.05, absolute error': {
+        'max_iter': 200, 'learning_rate': 0.05, 'max_depth': 3, 'min_samples_leaf': 20,
+        'loss': 'absolute_error'},
+    '100 trees of depth 3, rate 0.1, squared error': {
+        'max_iter': 100, 'learning_rate': 0.1, 'max_depth': 3, 'min_samples_leaf': 20},
+    '100 trees of 31 leaves, rate 0.1, squared error': {'max_iter': 100, 'learning_rate': 0.1},
+    '200 trees of 15 leaves, rate 0.05, squared error': {
+        'max_iter': 200, 'learning_rate': 0.05, 'max_leaf_nodes': 15},
+    '400 trees of 31 leaves, rate 0.025, squared error': {'max_iter': 400, 'learning_rate': 0.025},
+    '100 trees of 63 leaves, rate 0.1, squared error': {
+        'max_iter': 100, 'learning_rate': 0.1, 'max_leaf_nodes': 63},
+    '50 trees of 31 leaves, rate 0.2, squared error': {'max_iter': 50, 'learning_rate': 0.2},
+}
+
+
+def _trees(regressor):
+    return lambda X, modes: np.array([regressor.predict_one(x.tolist(), int(m))
+                                      for x, m in zip(X, modes)])
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--dev', type=Path, required=True)
+    parser.add_argument('--model', type=Path, required=True)
+    parser.add_argument('--folds', type=int, default=5)
+    parser.add_argument('--repeats', type=int, default=2)
+    parser.add_argument('--jobs', type=int, default=2)
+    parser.add_argument('--out', type=Path, default=None)
+    args = parser.parse_args(argv)
+    from sklearn.ensemble import HistGradientBoostingRegressor
+
+    lists, metadata = load_model(args.model)
+    report = load_dataset(args.dev, args.jobs, progress=True, state='estimated')
+    trajs = [t for t in report.trajectories if t.fallen]
+    triggers = trigger_indices(trajs, lists, metadata.recommended_tau_his_s,
+                               metadata.feature_settings.guard_com_height_m)
+    pooled: dict[str, list] = {}
+    for repeat in range(args.repeats):
+        order = np.random.default_rng(repeat).permutation(len(trajs))
+        for fold in np.array_split(order, args.folds):
+            test = set(fold.tolist())
+            train_idx = [i for i in order if i not in test]
+            train = [trajs[i] for i in train_idx]
+            train_left = time_left_after_triggers(train, [triggers[i] for i in train_idx])
+            test_left = time_left_after_triggers([trajs[i] for i in fold],
+                                                 [triggers[i] for i in fold])
+            X, modes, left, at_trigger = train_left
+            constant = float(np.median(left[at_trigger]))
+            predictors = {
+                'per-mode trees, every falling state': _trees(fit_time_to_fall(train)),
+                'per-mode trees, trigger to fallen': _trees(
+                    fit_time_to_fall_samples(X, modes, left)),
+                "constant (the training triggers' median)":
+                    lambda X, modes: np.full(len(X), constant),
+            }
+            for name, params in BOOSTING.items():
+                fitted = HistGradientBoostingRegressor(**params, random_state=0).fit(X, left)
+                predictors[f'boosting {name}, trigger to fallen'] = (
+                    lambda X, modes, fitted=fitted: fitted.predict(X))
+            for name, predict in predictors.items():
+                X_t, modes_t, left_t, trig_t = test_left
+                pooled.setdefault(name, []).append((np.abs(predict(X_t, modes_t) - left_t), trig_t))
+    result = {'model': str(args.model), 'dev': str(args.dev), 'folds': args.folds,
+              'repeats': args.repeats, 'state': 'estimated',
+              'triggered_falls': int(sum(k is not None for k in triggers)),
+              'falls': len(trajs)}
+    for name, parts in pooled.items():
+        error = np.concatenate([e for e, _ in parts])
+        at = np.concatenate([t for _, t in parts])
+        result[name] = {'at_triggers_median_s': float(np.median(error[at])),
+                        'at_triggers_p90_s': float(np.percentile(error[at], 90)),
+                        'trigger_to_fallen_median_s': float(np.median(error)),
+                        'n_trigger_predictions': int(at.sum())}
+    text = json.dumps(result, indent=1)
+    if args.out:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(text + '\n')
+    print(text)
+    return result
+
+
+if __name__ == '__main__':
+    main()
