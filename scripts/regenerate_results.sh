@@ -21,6 +21,8 @@ $FP sweep --data data/d1000s --out docs/sweep_wide_mirror --jobs "$JOBS" --mirro
 $FP train --data data/d1000s --mirror --tau-plus=-0.25 --tau-his-recommended 0.06 --out models/default_model.json --jobs "$JOBS"
 # Its learned fall direction (method §8b), fitted at its triggers on the development set.
 $FP fit-direction --data data/d1000s --model models/default_model.json --out models/default_model.json --jobs "$JOBS" --json
+# Its time to fall (method §8d), fitted from each of its triggers until fallen on the same set.
+$FP fit-time-to-fall --data data/d1000s --model models/default_model.json --out models/default_model.json --jobs "$JOBS" --json
 .venv/bin/python scripts/model_evaluation.py --sweep docs/sweep_wide_mirror/sweep.json --model models/default_model.json \
   --out models/default_model.evaluation.json \
   --dataset-command "fall-predictor generate --trajectories 1000 --seed 0 --out data/d1000s --sensor-noise 1 --jobs 2"
