@@ -432,3 +432,19 @@ def test_split_joint_states_that_overlap_or_repeat_are_refused(tmp_path, measure
         writer.write_joint_state(0.0, ('c',), [1.0])
     with pytest.raises(BagError, match=r'two messages of the same joints at t=0\.0'):
         read_trajectory(bag)
+
+
+def test_a_joint_named_twice_in_one_message_is_refused(tmp_path, measurements):
+    bag = tmp_path / 'twice_named'
+    with BagWriter(bag) as writer:
+        writer.write_measurement(measurements[0])
+        # The writer refuses such a message (WireFormatError); another recorder may not.
+        types = typestore().types
+        msg = types[JOINT_STATES.msg_type](
+            header=types['std_msgs/msg/Header'](
+                stamp=types['builtin_interfaces/msg/Time'](sec=0, nanosec=2_000_000), frame_id=''),
+            name=['a', 'a'], position=np.array([0.0, 1.0]), velocity=np.zeros(0),
+            effort=np.zeros(0))
+        writer.write(JOINT_STATES.name, JOINT_STATES.msg_type, 2_000_000, msg)
+    with pytest.raises(BagError, match=r'at 2000000 ns: joint state names are not unique'):
+        read_trajectory(bag)

@@ -348,8 +348,8 @@ def _joint_groups(path: Path, samples: list[JointStateSample]) -> list[tuple[str
     for sample in samples:
         if sample.names in groups:
             continue
-        if seen.intersection(sample.names) or len(set(sample.names)) != len(sample.names):
-            raise BagError(f'{path}: {JOINT_STATES.name} joint names change at t={sample.t}')
+        if seen.intersection(sample.names):     # (a message naming a joint twice is malformed)
+            raise BagError(f'{path}: {JOINT_STATES.name} joint names change at t={sample.t} s')
         groups[sample.names] = None
         seen.update(sample.names)
     return list(groups)
@@ -378,13 +378,11 @@ def _joint_series(path: Path, samples: list[JointStateSample]) -> JointStateSeri
 
 def _merged_groups(path: Path, groups: list[tuple[str, ...]],
                    samples: list[JointStateSample]) -> JointStateSeries:
-    """Split joint states as one row per stamp (see :class:`JointStateSeries`)."""
+    """Split joint states as one row per stamp, in stamp order (see :class:`JointStateSeries`)."""
     names = tuple(name for group in groups for name in group)
     column = {group: slice(start, start + len(group)) for group, start in zip(
         groups, np.cumsum([0, *map(len, groups[:-1])]).tolist())}
-    row: dict[float, int] = {}
-    for sample in samples:
-        row.setdefault(sample.t, len(row))
+    row = {t: k for k, t in enumerate(sorted({sample.t for sample in samples}))}
     shape = (len(row), len(names))
     position = np.full(shape, np.nan)
     arrays = {'velocity': np.full(shape, np.nan), 'effort': np.full(shape, np.nan)}
@@ -393,7 +391,7 @@ def _merged_groups(path: Path, groups: list[tuple[str, ...]],
         k, columns = row[sample.t], column[sample.names]
         if filled[k, columns].any():
             raise BagError(f'{path}: {JOINT_STATES.name} has two messages of the same joints '
-                           f'at t={sample.t}')
+                           f'at t={sample.t} s')
         filled[k, columns] = True
         position[k, columns] = sample.position
         for what, values in arrays.items():
