@@ -135,6 +135,22 @@ def cmd_evaluate(args) -> int:
     return 0
 
 
+def _model_and_development_data(args):
+    """For the fits at a model's triggers: the model of ``args.model`` (lists, metadata), its
+    recommended tau_his, the state and the loaded dataset of ``args.data``. ValueError if the
+    model recommends no tau_his (its triggers are then not defined)."""
+    from fall_predictor.learning.training import load_dataset
+    from fall_predictor.monitor.model_file import load_model
+
+    lists, metadata = load_model(args.model)
+    tau_his = metadata.recommended_tau_his_s
+    if tau_his is None:
+        raise ValueError(f'{args.model} recommends no tau_his: its triggers are not defined')
+    state = argtypes.resolved_state(args)
+    report = load_dataset(args.data, args.jobs, progress=not args.json, state=state)
+    return lists, metadata, tau_his, state, report
+
+
 def cmd_fit_direction(args) -> int:
     import dataclasses
 
@@ -143,18 +159,11 @@ def cmd_fit_direction(args) -> int:
     from fall_predictor.data.dataset import DatasetError
     from fall_predictor.learning.direction_training import fit_learned_direction, trigger_samples
     from fall_predictor.learning.when_where import direction_errors_deg
-    from fall_predictor.learning.training import load_dataset
     from fall_predictor.monitor.fall_direction import momentum_direction
-    from fall_predictor.monitor.model_file import ModelFileError, load_model, save_model
+    from fall_predictor.monitor.model_file import ModelFileError, save_model
 
     try:
-        lists, metadata = load_model(args.model)
-        tau_his = metadata.recommended_tau_his_s
-        if tau_his is None:
-            return _fail('fit-direction', f'{args.model} recommends no tau_his: its triggers are '
-                                          'not defined')
-        state = argtypes.resolved_state(args)
-        report = load_dataset(args.data, args.jobs, progress=not args.json, state=state)
+        lists, metadata, tau_his, state, report = _model_and_development_data(args)
         samples = trigger_samples(args.data, report.trajectories, lists, tau_his,
                                   metadata.feature_settings.guard_com_height_m)
         if samples.X.shape[0] == 0:
@@ -186,18 +195,11 @@ def cmd_fit_time_to_fall(args) -> int:
     from fall_predictor.data.dataset import DatasetError
     from fall_predictor.learning.time_to_fall_training import (fit_time_to_fall_at_triggers,
                                                                time_left_after_triggers)
-    from fall_predictor.learning.training import load_dataset
     from fall_predictor.learning.when_where import trigger_indices
-    from fall_predictor.monitor.model_file import ModelFileError, load_model, save_model
+    from fall_predictor.monitor.model_file import ModelFileError, save_model
 
     try:
-        lists, metadata = load_model(args.model)
-        tau_his = metadata.recommended_tau_his_s
-        if tau_his is None:
-            return _fail('fit-time-to-fall', f'{args.model} recommends no tau_his: its triggers '
-                                              'are not defined')
-        state = argtypes.resolved_state(args)
-        report = load_dataset(args.data, args.jobs, progress=not args.json, state=state)
+        lists, metadata, tau_his, state, report = _model_and_development_data(args)
         triggers = trigger_indices(report.trajectories, lists, tau_his,
                                    metadata.feature_settings.guard_com_height_m)
         X, modes, left, at_trigger = time_left_after_triggers(report.trajectories, triggers)

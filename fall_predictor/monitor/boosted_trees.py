@@ -71,6 +71,24 @@ def compile_tree_sum(trees: Sequence[RegressionTree], bias: float
     return namespace['score_one']
 
 
+def checked_tree_sum(owner: object, n_inputs: int, what: str, error: type[ValueError]) -> None:
+    """Check and freeze a frozen dataclass ``owner`` with fields ``trees`` and ``bias`` that runs
+    as ``bias + sum(trees(x))``: every tree a :class:`RegressionTree` over ``n_inputs`` inputs
+    (``what`` names them in the error), a finite bias; sets its ``_run`` to the compiled sum.
+    Raises ``error``."""
+    trees = tuple(owner.trees)
+    for tree in trees:
+        if not isinstance(tree, RegressionTree) or tree.n_inputs != n_inputs:
+            raise error(f'{type(owner).__name__} trees read the {n_inputs} {what}, got '
+                        f'{type(tree).__name__} over {getattr(tree, "n_inputs", "?")} inputs')
+    bias = owner.bias
+    if isinstance(bias, bool) or not isinstance(bias, (int, float)) or not math.isfinite(bias):
+        raise error(f'bias must be a finite number, got {bias!r}')
+    object.__setattr__(owner, 'trees', trees)
+    object.__setattr__(owner, 'bias', float(bias))
+    object.__setattr__(owner, '_run', compile_tree_sum(trees, float(bias)))
+
+
 @dataclass(frozen=True)
 class BoostedTrees:
     """One contact mode's boosted trees: falling when ``bias + sum(trees(x)) > decision_threshold``.
@@ -201,19 +219,10 @@ class BoostedTimeToFall:
 
     trees: tuple[RegressionTree, ...]
     bias: float
-    _predict: Callable[[Sequence[float]], float] = field(init=False, repr=False, compare=False)
+    _run: Callable[[Sequence[float]], float] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, 'trees', tuple(self.trees))
-        for tree in self.trees:
-            if not isinstance(tree, RegressionTree) or tree.n_inputs != N_FEATURES:
-                raise BoostedTreesError(f'time-to-fall trees read the {N_FEATURES} features, got '
-                                        f'{type(tree).__name__} over {getattr(tree, "n_inputs", "?")}')
-        if (isinstance(self.bias, bool) or not isinstance(self.bias, (int, float))
-                or not math.isfinite(self.bias)):
-            raise BoostedTreesError(f'bias must be a finite number, got {self.bias!r}')
-        object.__setattr__(self, 'bias', float(self.bias))
-        object.__setattr__(self, '_predict', compile_tree_sum(self.trees, self.bias))
+        checked_tree_sum(self, N_FEATURES, 'features', BoostedTreesError)
 
     def __reduce__(self):
         # The compiled function is not picklable; it is made again from the trees.
@@ -221,7 +230,7 @@ class BoostedTimeToFall:
 
     def predict_one(self, x: Sequence[float], mode: int = 0) -> float:
         """Seconds until fallen for one sample (the 15 features ``x``), never negative."""
-        return max(0.0, self._predict(x))
+        return max(0.0, self._run(x))
 
     def to_json(self) -> dict[str, Any]:
         return {'kind': BOOSTED_TIME_TO_FALL, 'bias': self.bias,

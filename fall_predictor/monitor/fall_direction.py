@@ -24,7 +24,7 @@ from typing import Any, Callable, Optional, Sequence
 
 import numpy as np
 
-from fall_predictor.monitor.boosted_trees import compile_tree_sum
+from fall_predictor.monitor.boosted_trees import checked_tree_sum
 from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2
 from fall_predictor.monitor.time_to_fall import RegressionTree, TimeToFallError
 
@@ -124,20 +124,10 @@ class LearnedDirection:
 
     trees: tuple[RegressionTree, ...]
     bias: float = 0.0
-    _turn: Callable[[Sequence[float]], float] = field(init=False, repr=False, compare=False)
+    _run: Callable[[Sequence[float]], float] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, 'trees', tuple(self.trees))
-        for tree in self.trees:
-            if not isinstance(tree, RegressionTree) or tree.n_inputs != len(DIRECTION_INPUT_NAMES):
-                raise FallDirectionError(
-                    f'a learned direction\'s trees read the {len(DIRECTION_INPUT_NAMES)} direction '
-                    f'inputs, got {type(tree).__name__} over {getattr(tree, "n_inputs", "?")} inputs')
-        if (isinstance(self.bias, bool) or not isinstance(self.bias, (int, float))
-                or not math.isfinite(self.bias)):
-            raise FallDirectionError(f'bias must be a finite number, got {self.bias!r}')
-        object.__setattr__(self, 'bias', float(self.bias))
-        object.__setattr__(self, '_turn', compile_tree_sum(self.trees, self.bias))
+        checked_tree_sum(self, len(DIRECTION_INPUT_NAMES), 'direction inputs', FallDirectionError)
 
     def __reduce__(self):
         # The compiled function is not picklable; it is made again from the trees.
@@ -145,7 +135,7 @@ class LearnedDirection:
 
     def turn_rad(self, inputs: Sequence[float]) -> float:
         """The angle [rad] from the momentum's direction to the fall direction."""
-        return self._turn(inputs)
+        return self._run(inputs)
 
     def direction(self, x: Sequence[float], mass_kg: float = 1.0) -> np.ndarray:
         """Unit vector (3,) in the heading frame (the signature of :func:`momentum_direction`;
@@ -155,7 +145,7 @@ class LearnedDirection:
         inputs = direction_inputs(x)
         if inputs is None:
             return np.full(3, np.nan)
-        angle = math.atan2(inputs[1], inputs[0]) + self._turn(inputs)
+        angle = math.atan2(inputs[1], inputs[0]) + self._run(inputs)
         return np.array([math.cos(angle), math.sin(angle), 0.0])
 
     def to_json(self) -> dict[str, Any]:
