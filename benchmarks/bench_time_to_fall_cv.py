@@ -37,8 +37,6 @@ from fall_predictor.learning.training import load_dataset
 from fall_predictor.learning.when_where import trigger_indices
 from fall_predictor.monitor.model_file import load_model
 
-
-
 #: Gradient-boosting settings compared (scikit-learn's ``HistGradientBoostingRegressor``).
 BOOSTING = {
     '200 trees of 31 leaves, rate 0.05, squared error': {'max_iter': 200, 'learning_rate': 0.05},
