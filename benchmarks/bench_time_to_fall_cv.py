@@ -15,6 +15,9 @@ regressors fitted on the training folds:
 * ``boosting <settings>, trigger to fallen``: scikit-learn's gradient boosting on those samples
   and the 15 features, at the settings of :data:`BOOSTING` (small trees, as the monitor runs
   them at every falling sample; the absolute-error loss fits the median the aim is stated in);
+* ``boosting (shipped settings), weighted ... / the first ... after the trigger only``: the
+  shipped settings with samples nearer the trigger weighing more (:data:`NEAR_TRIGGER`): the
+  trigger's own time to fall is the one the FALLING event carries;
 * ``constant``: the training triggers' median time to fall.
 
 Errors at the test folds' triggers (median and p90 of the absolute error, pooled over folds and
@@ -31,7 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
-from fall_predictor.learning.time_to_fall_training import (fit_time_to_fall, fit_time_to_fall_samples,
+from fall_predictor.learning.time_to_fall_training import (TIME_TO_FALL_LEARNER_PARAMS,
+                                                           fit_time_to_fall, fit_time_to_fall_samples,
                                                            time_left_after_triggers)
 from fall_predictor.learning.training import load_dataset
 from fall_predictor.learning.when_where import trigger_indices
@@ -59,6 +63,27 @@ BOOSTING = {
         'max_iter': 100, 'learning_rate': 0.1, 'max_leaf_nodes': 63},
     '50 trees of 31 leaves, rate 0.2, squared error': {'max_iter': 50, 'learning_rate': 0.2},
 }
+
+
+#: Samples nearer the trigger weigh more (the trigger's time to fall goes out with the FALLING
+#: event): weight of a sample ``s`` seconds after its trigger.
+NEAR_TRIGGER = {
+    'weighted exp(-s / 0.2 s)': lambda s: np.exp(-s / 0.2),
+    'weighted exp(-s / 0.1 s)': lambda s: np.exp(-s / 0.1),
+    'the first 0.3 s after the trigger only': lambda s: (s <= 0.3).astype(float),
+    'the first 0.1 s after the trigger only': lambda s: (s <= 0.1).astype(float),
+}
+
+
+def _since_trigger(left: np.ndarray, at_trigger: np.ndarray) -> np.ndarray:
+    """Seconds since each sample's trigger (the rows of one fall follow its trigger's row)."""
+    since = np.empty_like(left)
+    start = 0.0
+    for k, (value, first) in enumerate(zip(left.tolist(), at_trigger.tolist())):
+        if first:
+            start = value
+        since[k] = start - value
+    return since
 
 
 def _trees(regressor):
@@ -104,6 +129,14 @@ def main(argv: list[str] | None = None) -> dict:
             for name, params in BOOSTING.items():
                 fitted = HistGradientBoostingRegressor(**params, random_state=0).fit(X, left)
                 predictors[f'boosting {name}, trigger to fallen'] = (
+                    lambda X, modes, fitted=fitted: fitted.predict(X))
+            since = _since_trigger(left, at_trigger)
+            for name, weight in NEAR_TRIGGER.items():
+                w = weight(since)
+                fitted = HistGradientBoostingRegressor(
+                    **TIME_TO_FALL_LEARNER_PARAMS, random_state=0).fit(X[w > 0], left[w > 0],
+                                                                      sample_weight=w[w > 0])
+                predictors[f'boosting (shipped settings), {name}'] = (
                     lambda X, modes, fitted=fitted: fitted.predict(X))
             for name, predict in predictors.items():
                 X_t, modes_t, left_t, trig_t = test_left
