@@ -41,7 +41,7 @@ from rclpy.node import Node
 from rclpy.subscription import Subscription
 
 from fall_predictor.ros.bringup import (NodeProcess, default_domain_id, default_params_file,
-                                    node_command, ros_environment, start_node, start_process,
+                                    node_command, ros_environment, start_process,
                                     stop_nodes)
 from fall_predictor.monitor.decision_list import Condition, DecisionList, PerModeDecisionLists, Rule
 from fall_predictor.monitor.model_file import ModelMetadata, save_model
