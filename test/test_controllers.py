@@ -74,6 +74,23 @@ def test_switch_to_fall_control_is_one_way_and_freezes_the_target():
     assert switch.mode == 'fall' and switch.t_switch == walk[n_before].t
 
 
+@pytest.mark.parametrize('robot', ['asimo_like', 'g1'])
+def test_a_fall_triggered_before_any_update_holds_the_robots_own_starting_target(robot):
+    """C_fall holds C_bal's target; triggered before C_bal's first update (a predictor that says
+    falling on the first sample) it holds the target C_bal starts from, one value per joint of
+    that robot (it held 26 zeros, the ASIMO-like robot's count, whatever the robot)."""
+    from fall_predictor.robot.controllers import controller_configs
+    profile = load_profile(robot)
+    gait, reflex, stabilizer = controller_configs(profile)
+    balance = BalanceController(gait, reflex, stabilizer=stabilizer, profile=profile)
+    switch = ControllerSwitch(balance)
+    posture, _ = balance.initial_posture()            # what a run starts the robot in
+    assert switch.trigger_fall(0.0) is True
+    held = switch.update(None)
+    assert held.shape == (len(profile.joint_names),)
+    assert np.array_equal(held, posture) and held.any()
+
+
 def test_an_hour_long_plan_moved_by_its_footholds_equals_the_plan_moved_at_once():
     """The controller keeps only the next steps and seconds of its walk in world coordinates;
     every step and ZMP sample it uses must still be the planned one plus every foothold's move."""

@@ -9,7 +9,7 @@ holds the joint targets C_bal had reached. The switch from C_bal to C_fall is on
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Optional
 
 import numpy as np
@@ -23,7 +23,6 @@ from fall_predictor.robot.stabilizer import Stabilizer, StabilizerConfig
 from fall_predictor.robot.gait import GRAVITY, Footstep, PreviewController, WalkingPlan, plan_walk, swing_position
 from fall_predictor.monitor.records import Measurement
 
-N_JOINTS = len(rm.JOINT_NAMES)
 _EYE = np.eye(3)
 #: Within a leg (the profile's hip-to-ankle order): the ankle pitch and roll joints.
 _ANKLE_PITCH, _ANKLE_ROLL = 4, 5
@@ -473,7 +472,9 @@ class ControllerSwitch:
     balance: BalanceController
     fall: Optional[FallController] = None
     t_switch: Optional[float] = None
-    _last_target: np.ndarray = field(default_factory=lambda: np.zeros(N_JOINTS))
+    #: C_bal's latest target, which C_fall holds (None before C_bal's first update: C_fall then
+    #: holds the target C_bal holds at that moment, its starting posture).
+    _last_target: Optional[np.ndarray] = None
 
     @property
     def mode(self) -> str:
@@ -483,7 +484,8 @@ class ControllerSwitch:
         """Switch to C_fall; returns False if already switched."""
         if self.fall is not None:
             return False
-        self.fall = FallController(self._last_target)
+        self.fall = FallController(self.balance.target if self._last_target is None
+                                   else self._last_target)
         self.t_switch = t
         return True
 
