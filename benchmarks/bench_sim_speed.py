@@ -63,9 +63,8 @@ def main() -> None:
     fell = bool(sim.measure().com[2] < profile.fallen_com_height_m)
 
     calls, pose = record_calls(walk)
-    posture = ControllerSwitch(BalanceController(
-        gait, reflex, walk_duration_s=args.seconds + 5, stabilizer=stabilizer,
-        profile=profile)).balance.initial_posture()
+    posture = BalanceController(gait, reflex, walk_duration_s=args.seconds + 5,
+                                stabilizer=stabilizer, profile=profile).initial_posture()
     wall0 = time.perf_counter()
     bare_cpu, bare_steps, replayed = replay(sim, *posture, calls)
     bare = _rates(bare_steps, time.perf_counter() - wall0, bare_cpu)

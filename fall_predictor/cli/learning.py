@@ -193,7 +193,7 @@ def cmd_fit_time_to_fall(args) -> int:
     import numpy as np
 
     from fall_predictor.data.dataset import DatasetError
-    from fall_predictor.learning.time_to_fall_training import (fit_time_to_fall_at_triggers,
+    from fall_predictor.learning.time_to_fall_training import (fit_boosted_time_to_fall,
                                                                time_left_after_triggers)
     from fall_predictor.learning.when_where import trigger_indices
     from fall_predictor.monitor.model_file import ModelFileError, save_model
@@ -202,11 +202,11 @@ def cmd_fit_time_to_fall(args) -> int:
         lists, metadata, tau_his, state, report = _model_and_development_data(args)
         triggers = trigger_indices(report.trajectories, lists, tau_his,
                                    metadata.feature_settings.guard_com_height_m)
-        X, modes, left, at_trigger = time_left_after_triggers(report.trajectories, triggers)
+        X, _, left, at_trigger = time_left_after_triggers(report.trajectories, triggers)
         if not at_trigger.any():
             return _fail('fit-time-to-fall', f'{args.data}: the model triggers on no fall to '
                                               'learn from')
-        boosted = fit_time_to_fall_at_triggers(report.trajectories, triggers)
+        boosted = fit_boosted_time_to_fall(X, left)
         save_model(args.out, lists, dataclasses.replace(metadata, time_to_fall=boosted))
     except (DatasetError, ModelFileError, ValueError) as error:
         return _fail('fit-time-to-fall', error)

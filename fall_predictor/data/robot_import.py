@@ -71,12 +71,10 @@ def robot_recording_row(bag: Path, tid: str, urdf: Optional[str] = None,
             raise DatasetError(f'{bag}: no /robot_description in the recording; give the URDF (--urdf)')
     ms = estimated_measurements(bag, urdf=urdf, robot=robot)
     if len(ms) < 2:
-        from fall_predictor.contract.topics import (IMU, LEFT_FOOT_WRENCH, RIGHT_FOOT_WRENCH,
-                                                    SENSOR_JOINT_STATES)
+        from fall_predictor.data.sensorbag import STREAM_TOPICS
         from fall_predictor.profiles import load_profile
-        wrenches = {'l': LEFT_FOOT_WRENCH.name, 'r': RIGHT_FOOT_WRENCH.name}
-        needed = [SENSOR_JOINT_STATES.name, IMU.name, *(
-            wrenches[side] for side in load_profile(robot).sensor_layout().force_sensors)]
+        streams = ('joints', 'imu', *load_profile(robot).sensor_layout().force_sensors)
+        needed = [STREAM_TOPICS[stream].name for stream in streams]
         raise DatasetError(f'{bag}: the estimator gave {len(ms)} states; the {robot} robot needs '
                            f'{", ".join(needed)}')
     t = np.array([m.t for m in ms])

@@ -118,11 +118,18 @@ def fit_time_to_fall_at_triggers(trajectories: Sequence[TrajectoryFeatures],
                                  random_state: int = 0) -> BoostedTimeToFall:
     """Boosted trees of the time left until fallen (:data:`TIME_TO_FALL_LEARNER_PARAMS`) on the
     samples from each trigger until fallen (:func:`time_left_after_triggers`)."""
+    X, _, left, _ = time_left_after_triggers(trajectories, triggers, stride)
+    return fit_boosted_time_to_fall(X, left, random_state)
+
+
+def fit_boosted_time_to_fall(X: np.ndarray, left: np.ndarray,
+                             random_state: int = 0) -> BoostedTimeToFall:
+    """The boosted trees of :func:`fit_time_to_fall_at_triggers` on given samples: features
+    ``X`` (n, 15) and the time left until fallen [s] (n,)."""
     from sklearn.ensemble import HistGradientBoostingRegressor
 
     from fall_predictor.learning.boosting import exported_trees
 
-    X, _, left, _ = time_left_after_triggers(trajectories, triggers, stride)
     if left.size == 0:
         raise ValueError('no trigger on a fall: nothing to learn a time to fall from')
     model = HistGradientBoostingRegressor(**TIME_TO_FALL_LEARNER_PARAMS, random_state=random_state)

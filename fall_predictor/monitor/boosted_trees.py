@@ -46,8 +46,8 @@ def _tree_source(tree: RegressionTree, node: int, indent: str, lines: list[str])
 def compile_tree_sum(trees: Sequence[RegressionTree], bias: float
                      ) -> Callable[[Sequence[float]], float]:
     """``bias`` plus the trees' leaves for one input vector (the trees' ``n_inputs`` values; only
-    those the trees read are looked at), as one Python function (validated numbers only: feature indices and ``repr`` of finite floats, which read
-    back bit for bit)::
+    those the trees read are looked at), as one Python function (validated numbers only: feature
+    indices and ``repr`` of finite floats, which read back bit for bit)::
 
         def score_one(x):
             x3 = x[3]
