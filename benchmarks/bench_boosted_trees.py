@@ -5,17 +5,18 @@ trains the decision lists (``tree``) and the boosted trees (``boosting``, ``--pa
 hyper-parameters) at the same tau_plus, on the same weighted samples (``--mirror``: with the
 left-right mirror images, both). The boosted trees are trained once per fold and their score
 thresholded at every ``--thresholds`` value (log-odds); the lists' setting is tau_his, the
-boosted trees' is (decision threshold, tau_his). For each FPR budget the operating point is
-chosen as :func:`~fall_predictor.learning.nested.nested_operating_point` does (on the other
-folds, reported on each), with Wilson / bootstrap intervals.
+boosted trees' is (decision threshold, tau_his). ``--tau-plus`` repeated trains each learner at
+each tau_plus, which joins the setting: (tau_plus, decision threshold, tau_his). For each FPR
+budget the operating point is chosen as :func:`~fall_predictor.learning.nested.nested_over_grid`
+does (on the other folds, reported on each), with Wilson / bootstrap intervals.
 
 With ``--test``: both learners trained on all the development data, each budget's setting
 chosen on all the development folds, evaluated once on the test set; and each final model's
 cost per 1 kHz decision (``predict_one``, one sample at a time as the monitor calls it, over
 the test set's samples). Writes JSON (``--out``).
 
-With ``--fixed LEARNER:THRESHOLD,TAU_HIS`` (repeatable), a setting fixed in advance, such as a
-shipped model's own, is reported beside the nested choices: pooled over the folds (no
+With ``--fixed LEARNER:THRESHOLD,TAU_HIS[,TAU_PLUS]`` (repeatable; TAU_PLUS needed with several
+``--tau-plus``), a setting fixed in advance, such as a shipped model's own, is reported beside the nested choices: pooled over the folds (no
 selection, so no nesting) and, with ``--test``, held out.
 
 With ``--window``, another learner, ``boosting_window``: the same boosting on the features and
@@ -43,11 +44,11 @@ import numpy as np
 
 from fall_predictor.cli.args import learner_param
 from fall_predictor.data.dataset import dataset_guard_com_height_m
-from fall_predictor.learning.crossval import FoldFit, stratified_trajectory_folds
+from fall_predictor.learning.crossval import stratified_trajectory_folds
 from fall_predictor.learning.evaluation import evaluation_result_json
 from fall_predictor.learning.metrics import evaluate_atomic
 from fall_predictor.learning.mirror import ATTITUDE_MIRROR_SIGNS, MIRROR_ID_SUFFIX
-from fall_predictor.learning.nested import fixed_setting, nested_operating_point
+from fall_predictor.learning.nested import nested_over_grid, pool_results
 from fall_predictor.learning.training import fit_strided, load_dataset, make_learner, model_inputs
 from fall_predictor.monitor.boosted_trees import BoostedTrees
 from fall_predictor.monitor.records import ATTITUDE_NAMES, FALLING, N_CONTACT_MODES
@@ -191,15 +192,18 @@ def cost_us(lists, trajs, n: int = 20000) -> dict:
     return {'per_decision_us': round(best, 2), 'samples': len(samples)}
 
 
-def fixed_arg(text: str) -> tuple[str, tuple[float, float]]:
-    """``LEARNER:THRESHOLD,TAU_HIS`` -> (learner, (threshold, tau_his))."""
+def fixed_arg(text: str) -> tuple[str, tuple[float | None, float, float]]:
+    """``LEARNER:THRESHOLD,TAU_HIS[,TAU_PLUS]`` -> (learner, (tau_plus or None, threshold,
+    tau_his))."""
     name, _, setting = text.partition(':')
     try:
-        threshold, tau_his = (float(v) for v in setting.split(','))
+        values = [float(v) for v in setting.split(',')]
+        if len(values) not in (2, 3):
+            raise ValueError
     except ValueError:
-        raise argparse.ArgumentTypeError(f'{text!r}: expected LEARNER:THRESHOLD,TAU_HIS, '
-                                         'e.g. boosting:3.0,0.03 or tree:0,0.06') from None
-    return name, (threshold, tau_his)
+        raise argparse.ArgumentTypeError(f'{text!r}: expected LEARNER:THRESHOLD,TAU_HIS[,TAU_PLUS], '
+                                         'e.g. boosting:3.0,0.03 or tree:0,0.06,-0.25') from None
+    return name, (values[2] if len(values) == 3 else None, values[0], values[1])
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -208,7 +212,9 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument('--test', type=Path, default=None, help='held-out data (optional)')
     parser.add_argument('--folds', type=int, default=5)
     parser.add_argument('--seed', type=int, default=0, help='fold seed (the sweep uses 0)')
-    parser.add_argument('--tau-plus', type=float, default=-0.25)
+    parser.add_argument('--tau-plus', type=float, action='append', default=None,
+                        help='training tau_plus [s] (default -0.25); repeatable: a grid, chosen '
+                             'with the run-time setting by the same nested CV')
     parser.add_argument('--mirror', action='store_true', help='train both with mirror images')
     parser.add_argument('--thresholds', type=lambda s: tuple(float(v) for v in s.split(',')),
                         default=THRESHOLDS)
@@ -231,12 +237,18 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument('--jobs', type=int, default=2)
     parser.add_argument('--out', type=Path, default=None)
     args = parser.parse_args(argv)
-    for name, (threshold, tau_his) in args.fixed:
-        if name not in ('tree', 'boosting') or tau_his not in TAU_HIS_S or (
+    tau_plus_grid = tuple(args.tau_plus or (-0.25,))
+    fixed = []
+    for name, (tau_plus, threshold, tau_his) in args.fixed:
+        if tau_plus is None and len(tau_plus_grid) == 1:
+            tau_plus = tau_plus_grid[0]
+        if name not in ('tree', 'boosting') or tau_his not in TAU_HIS_S or tau_plus not in tau_plus_grid or (
                 name == 'boosting' and threshold not in args.thresholds) or (name == 'tree' and threshold != 0):
             parser.error(f'--fixed {name}:{threshold},{tau_his}: not a setting of the grid '
                          f'(learner tree or boosting, tau_his in {TAU_HIS_S}, thresholds in '
-                         f'{args.thresholds}; the lists: 0)')
+                         f'{args.thresholds}; the lists: 0; tau_plus in {tau_plus_grid}, '
+                         'given when there are several)')
+        fixed.append((name, (tau_plus, threshold, tau_his)))
     guard_m = dataset_guard_com_height_m(args.data)
     trajs = load_dataset(args.data, jobs=args.jobs, state='estimated').trajectories
     learners = {'tree': make_learner('tree'), 'boosting': make_learner('boosting', dict(args.param))}
@@ -253,46 +265,50 @@ def main(argv: list[str] | None = None) -> dict:
         """The trajectories as learner ``name`` reads them (the attitude's: 19 inputs)."""
         return model_inputs(ts, name == 'boosting_attitude')
 
-    def fit(learner, train):
+    def fit(learner, train, tau_plus):
         if isinstance(learner, ExtraInputsBoosting):
-            return ExtraInputsBoosting(learner.params, learner.inputs).fit(train, args.tau_plus, args.mirror)
-        return fit_strided(train, args.tau_plus, learner, mirror=args.mirror)
+            return ExtraInputsBoosting(learner.params, learner.inputs).fit(train, tau_plus, args.mirror)
+        return fit_strided(train, tau_plus, learner, mirror=args.mirror)
     folds = stratified_trajectory_folds(trajs, args.folds, args.seed)
-    fits = {name: [] for name in learners}
+    # Per learner, per fold: {(tau_plus, decision threshold, tau_his): result on the fold}.
+    grids = {name: {k: {} for k in range(len(folds))} for name in learners}
     fit_s = {name: 0.0 for name in learners}
     for k, test_index in enumerate(folds):
         train = [trajs[i] for j, f in enumerate(folds) if j != k for i in f]
         test = [trajs[i] for i in test_index]
         for name, learner in learners.items():
-            start = time.perf_counter()
-            lists = fit(learner, inputs(name, train))
-            fit_s[name] += time.perf_counter() - start
-            kind = 'tree' if name == 'tree' else 'boosting'
-            sizes = (lists.rule_sizes, lists.depths) if hasattr(lists, 'rule_sizes') else ((), ())
-            for thr, results in fold_results(lists, inputs(name, test), kind, args.thresholds,
-                                             guard_m).items():
-                fits[name].append(FoldFit(k, thr, None, len(train), *sizes, 0.0, results))
+            for tau_plus in tau_plus_grid:
+                start = time.perf_counter()
+                lists = fit(learner, inputs(name, train), tau_plus)
+                fit_s[name] += time.perf_counter() - start
+                kind = 'tree' if name == 'tree' else 'boosting'
+                for thr, results in fold_results(lists, inputs(name, test), kind, args.thresholds,
+                                                 guard_m).items():
+                    for tau_his, result in results.items():
+                        grids[name][k][(tau_plus, thr, tau_his)] = result
         print(f'fold {k} done', flush=True)
-    out = {'data': str(args.data), 'folds': args.folds, 'seed': args.seed, 'tau_plus_s': args.tau_plus,
+    out = {'data': str(args.data), 'folds': args.folds, 'seed': args.seed,
+           'tau_plus_s': list(tau_plus_grid),
            'mirror': args.mirror, 'boosting_params': learners['boosting'].get_params(),
            'window_lags_s': list(WINDOW_LAGS_S) if args.window else None,
            'imu_inputs': ['fused_roll_rad', 'fused_pitch_rad', 'roll_rate_rad_s', 'pitch_rate_rad_s'] if args.imu else None,
            'attitude_inputs': list(ATTITUDE_NAMES) if args.attitude else None,
-           'setting': '(decision_threshold [log-odds], tau_his [s]); the lists: (0, tau_his)',
-           'fit_s_per_fold': {n: round(s / args.folds, 1) for n, s in fit_s.items()},
+           'setting': '(tau_plus [s], decision_threshold [log-odds], tau_his [s]); the lists: '
+                      '(tau_plus, 0, tau_his)',
+           'fit_s_per_fold': {n: round(s / args.folds / len(tau_plus_grid), 1) for n, s in fit_s.items()},
            'nested': {}, 'fixed': {}, 'test': None}
     chosen_on_dev = {}
     for name in learners:
         out['nested'][name] = {}
         for budget in BUDGETS:
-            point = nested_operating_point(fits[name], budget)
+            point = nested_over_grid(grids[name], budget)
             out['nested'][name][str(budget)] = {'chosen_per_fold': point.chosen, **figures(point.outer),
                                                 'chosen_on_all_folds': point.selected_in_hindsight}
             chosen_on_dev[(name, budget)] = point.selected_in_hindsight
             print(name, budget, out['nested'][name][str(budget)], flush=True)
-    for name, setting in args.fixed:
-        key = f'{name}:{setting[0]},{setting[1]}'
-        out['fixed'][key] = figures(fixed_setting(fits[name], setting))
+    for name, setting in fixed:
+        key = f'{name}:{setting[1]},{setting[2]},{setting[0]}'
+        out['fixed'][key] = figures(pool_results([grids[name][k][setting] for k in sorted(grids[name])]))
         print('fixed', key, out['fixed'][key], flush=True)
     if args.test is not None:
         test = load_dataset(args.test, jobs=args.jobs, state='estimated').trajectories
@@ -302,24 +318,31 @@ def main(argv: list[str] | None = None) -> dict:
             test_imu.add(args.test, test, args.jobs)
         out['test'] = {'data': str(args.test), 'learners': {}}
         for name, learner in learners.items():
-            lists = fit(learner, inputs(name, trajs))
-            if isinstance(getattr(lists, 'inputs', None), ImuInputs):
-                lists.inputs = test_imu                 # the trained model reads the test set's IMU
             kind = 'tree' if name == 'tree' else 'boosting'
-            results = fold_results(lists, inputs(name, test), kind, args.thresholds, test_guard_m)
-            row = ({'mean_rule_size': lists.mean_rule_size, 'cost': cost_us(lists, inputs(name, test))}
-                   if hasattr(lists, 'mean_rule_size') else {})
+            needed = sorted({chosen_on_dev[(name, b)][0] for b in BUDGETS}
+                            | {setting[0] for n, setting in fixed if n == name})
+            row, results = {}, {}
+            for tau_plus in needed:
+                lists = fit(learner, inputs(name, trajs), tau_plus)
+                if isinstance(getattr(lists, 'inputs', None), ImuInputs):
+                    lists.inputs = test_imu             # the trained model reads the test set's IMU
+                results[tau_plus] = fold_results(lists, inputs(name, test), kind, args.thresholds,
+                                                 test_guard_m)
+                if hasattr(lists, 'mean_rule_size'):
+                    row[f'tau_plus:{tau_plus}'] = {'mean_rule_size': lists.mean_rule_size,
+                                                   'cost': cost_us(lists, inputs(name, test))}
             for budget in BUDGETS:
-                thr, tau_his = chosen_on_dev[(name, budget)]
-                payload = evaluation_result_json(results[thr][tau_his])
-                row[str(budget)] = {'decision_threshold': thr, 'tau_his_s': tau_his,
+                tau_plus, thr, tau_his = chosen_on_dev[(name, budget)]
+                payload = evaluation_result_json(results[tau_plus][thr][tau_his])
+                row[str(budget)] = {'tau_plus_s': tau_plus, 'decision_threshold': thr, 'tau_his_s': tau_his,
                                     **{k: payload[k] for k in KEEP if k in payload}}
                 print(name, budget, row[str(budget)], flush=True)
-            for fixed_name, (thr, tau_his) in args.fixed:
+            for fixed_name, (tau_plus, thr, tau_his) in fixed:
                 if fixed_name == name:
-                    payload = evaluation_result_json(results[thr][tau_his])
-                    row[f'fixed:{thr},{tau_his}'] = {k: payload[k] for k in KEEP if k in payload}
-                    print(name, 'fixed', (thr, tau_his), row[f'fixed:{thr},{tau_his}'], flush=True)
+                    payload = evaluation_result_json(results[tau_plus][thr][tau_his])
+                    key = f'fixed:{thr},{tau_his},{tau_plus}'
+                    row[key] = {k: payload[k] for k in KEEP if k in payload}
+                    print(name, 'fixed', (thr, tau_his, tau_plus), row[key], flush=True)
             out['test']['learners'][name] = row
     text = json.dumps(out, indent=1, default=float)
     if args.out:

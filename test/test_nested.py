@@ -5,7 +5,7 @@ import pytest
 from fall_predictor.learning.crossval import FoldFit
 from fall_predictor.learning.intervals import wilson_interval
 from fall_predictor.learning.metrics import EvaluationResult
-from fall_predictor.learning.nested import fixed_setting, nested_operating_point
+from fall_predictor.learning.nested import fixed_setting, nested_operating_point, nested_over_grid
 
 A = (0.0, 0.0)      # long lead, false alarms concentrated in fold 2
 B = (0.5, 0.0)      # short lead, no false alarms
@@ -38,6 +38,34 @@ def test_nested_choice_differs_from_hindsight_and_is_reported_on_the_outer_fold(
     assert point.outer.fpr_ci95 == pytest.approx(wilson_interval(3, 30))
     low, high = point.outer.tau_lead_ci95
     assert 0.5 <= low <= point.outer.tau_lead_s <= high <= 1.0
+
+
+def test_a_grid_of_three_part_settings_is_chosen_as_the_two_part_one():
+    # (tau_plus, decision threshold, tau_his): A and B of fits() at threshold 1.0, and at
+    # threshold 2.0 a setting with no false alarm and a lead between theirs (0.8 s).
+    grid = {fold: {} for fold in range(3)}
+    for fit in fits():
+        for tau_his, res in fit.results.items():
+            grid[fit.fold][(fit.tau_plus_s, 1.0, tau_his)] = res
+    for fold in range(3):
+        grid[fold][(0.5, 2.0, 0.0)] = result(0, 0.8)
+    point = nested_over_grid(grid, max_fpr=0.1)
+    a, c = (0.0, 1.0, 0.0), (0.5, 2.0, 0.0)
+    assert point.selected_in_hindsight == a
+    # leaving out fold 0 or 1, A is over budget and C is the longest lead without false alarms
+    assert point.chosen == (c, c, a)
+    assert point.outer.n_false_positives == 3
+    assert point.outer.tau_lead_s == pytest.approx((4 * 0.8 + 2 * 1.0) / 6)
+    # without C the choice is the two-part grid's, B in place of C
+    for fold in range(3):
+        del grid[fold][c]
+    two_part = nested_operating_point(fits(), max_fpr=0.1)
+    three_part = nested_over_grid(grid, max_fpr=0.1)
+    assert [s[0::2] for s in three_part.chosen] == list(two_part.chosen)
+    assert three_part.outer == two_part.outer
+    del grid[2][a]
+    with pytest.raises(ValueError, match='same settings'):
+        nested_over_grid(grid, max_fpr=0.1)
 
 
 def test_fixed_setting_needs_no_selection_and_rejects_unknown_settings():

@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 from collections import defaultdict
 from dataclasses import dataclass
-from typing import Optional, Sequence
+from typing import Mapping, Optional, Sequence
 
 from fall_predictor.learning.crossval import FoldFit
 from fall_predictor.learning.intervals import bootstrap_mean_interval, wilson_interval
@@ -95,10 +95,21 @@ class NestedOperatingPoint:
 
 def nested_operating_point(fits: Sequence[FoldFit], max_fpr: float) -> NestedOperatingPoint:
     """Choose "the longest lead at FPR <= ``max_fpr``" on the other folds, report each fold."""
-    grid = _per_fold_grid(fits)
+    return nested_over_grid(_per_fold_grid(fits), max_fpr)
+
+
+def nested_over_grid(grid: Mapping[int, Mapping[tuple, EvaluationResult]],
+                     max_fpr: float) -> NestedOperatingPoint:
+    """:func:`nested_operating_point` over a grid given per fold: ``{fold: {setting: result}}``
+    where a setting is any tuple of numbers (e.g. ``(tau_plus, decision_threshold, tau_his)``,
+    a grid with a training setting and two run-time ones); every fold holds the same settings."""
     folds = sorted(grid)
+    if len(folds) < 2:
+        raise ValueError('nested selection needs at least 2 folds')
     settings = sorted(grid[folds[0]])
-    chosen: list[Setting] = []
+    if any(set(grid[k]) != set(settings) for k in folds):
+        raise ValueError('every fold must hold the same settings')
+    chosen: list[tuple] = []
     outer: list[EvaluationResult] = []
     for k in folds:
         inner = {s: pool_results([grid[j][s] for j in folds if j != k]) for s in settings}
