@@ -16,8 +16,9 @@ cost per 1 kHz decision (``predict_one``, one sample at a time as the monitor ca
 the test set's samples). Writes JSON (``--out``).
 
 With ``--fixed LEARNER:THRESHOLD,TAU_HIS[,TAU_PLUS]`` (repeatable; TAU_PLUS needed with several
-``--tau-plus``), a setting fixed in advance, such as a shipped model's own, is reported beside the nested choices: pooled over the folds (no
-selection, so no nesting) and, with ``--test``, held out.
+``--tau-plus``), a setting fixed in advance, such as a shipped model's own, is reported beside
+the nested choices: pooled over the folds (no selection, so no nesting) and, with ``--test``,
+held out.
 
 With ``--window``, another learner, ``boosting_window``: the same boosting on the features and
 their changes over the last 50, 100 and 200 ms (60 inputs; :class:`ExtraInputsBoosting`),
@@ -242,8 +243,9 @@ def main(argv: list[str] | None = None) -> dict:
     for name, (tau_plus, threshold, tau_his) in args.fixed:
         if tau_plus is None and len(tau_plus_grid) == 1:
             tau_plus = tau_plus_grid[0]
-        if name not in ('tree', 'boosting') or tau_his not in TAU_HIS_S or tau_plus not in tau_plus_grid or (
-                name == 'boosting' and threshold not in args.thresholds) or (name == 'tree' and threshold != 0):
+        if (name not in ('tree', 'boosting') or tau_his not in TAU_HIS_S or tau_plus not in tau_plus_grid
+                or (name == 'boosting' and threshold not in args.thresholds)
+                or (name == 'tree' and threshold != 0)):
             parser.error(f'--fixed {name}:{threshold},{tau_his}: not a setting of the grid '
                          f'(learner tree or boosting, tau_his in {TAU_HIS_S}, thresholds in '
                          f'{args.thresholds}; the lists: 0; tau_plus in {tau_plus_grid}, '
@@ -295,7 +297,8 @@ def main(argv: list[str] | None = None) -> dict:
            'attitude_inputs': list(ATTITUDE_NAMES) if args.attitude else None,
            'setting': '(tau_plus [s], decision_threshold [log-odds], tau_his [s]); the lists: '
                       '(tau_plus, 0, tau_his)',
-           'fit_s_per_fold': {n: round(s / args.folds / len(tau_plus_grid), 1) for n, s in fit_s.items()},
+           'fit_s_per_fold_and_tau_plus': {n: round(s / args.folds / len(tau_plus_grid), 1)
+                                           for n, s in fit_s.items()},
            'nested': {}, 'fixed': {}, 'test': None}
     chosen_on_dev = {}
     for name in learners:
