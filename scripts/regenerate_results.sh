@@ -26,7 +26,7 @@ $FP fit-time-to-fall --data data/d1000s --model models/default_model.json --out 
 # The conservative model (method §8a): boosted trees at the FPR-0 budget's setting, chosen with
 # tau_plus by nested CV over the development data (benchmarks/bench_boosted_trees.py).
 .venv/bin/python benchmarks/bench_boosted_trees.py --data data/d1000s --folds 5 --mirror \
-  --tau-plus=-0.5 --tau-plus=-0.25 --tau-plus=0 --tau-plus=0.25 --tau-plus=0.5 --jobs "$JOBS" --out data/tau_plus_grid_asimo_like.json
+  --tau-plus=-1.0 --tau-plus=-0.75 --tau-plus=-0.5 --tau-plus=-0.25 --tau-plus=0 --tau-plus=0.25 --tau-plus=0.5 --jobs "$JOBS" --out data/tau_plus_grid_asimo_like.json
 $FP train --data data/d1000s --tau-plus=0 --learner boosting --param decision_threshold=1.0 --mirror \
   --tau-his-recommended 0.08 --out models/conservative_model.json --jobs "$JOBS"
 $FP fit-direction --data data/d1000s --model models/conservative_model.json --out models/conservative_model.json --jobs "$JOBS" --json
