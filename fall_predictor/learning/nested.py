@@ -8,6 +8,8 @@ every outer fold k: pool the results of the *other* folds per setting, choose th
 and take fold k's result at that setting. The reported figure pools the outer folds' results
 (false positives over balanced trajectories, leads over fallen trajectories), with a Wilson
 interval on the FPR and a bootstrap interval over trajectories on the lead.
+:func:`nested_over_grid` does the same over any per-fold grid of settings, e.g. the boosted
+trees' (tau_plus, decision threshold, tau_his) (method §8a).
 
 Caveat, stated in the docs: the inner folds' results come from models whose training data
 included fold k (one training per fold, as in the issue's "re-select on 9 folds, report the
@@ -87,9 +89,9 @@ class NestedOperatingPoint:
     """An operating point chosen on inner folds and reported on the outer folds."""
 
     max_fpr: float                       #: the FPR budget of the choice
-    chosen: tuple[Setting, ...]          #: per outer fold, the (tau_plus, tau_his) chosen
+    chosen: tuple[tuple, ...]            #: per outer fold, the setting chosen (tau_plus, tau_his)
     outer: PooledFigures                 #: the outer folds' results at their chosen settings
-    selected_in_hindsight: Setting       #: what choosing on all folds would have picked
+    selected_in_hindsight: tuple         #: what choosing on all folds would have picked
     hindsight: PooledFigures             #: its figures on all folds (optimistic)
 
 
