@@ -472,9 +472,6 @@ class ControllerSwitch:
     balance: BalanceController
     fall: Optional[FallController] = None
     t_switch: Optional[float] = None
-    #: C_bal's latest target, which C_fall holds (None before C_bal's first update: C_fall then
-    #: holds the target C_bal holds at that moment, its starting posture).
-    _last_target: Optional[np.ndarray] = None
 
     @property
     def mode(self) -> str:
@@ -484,13 +481,13 @@ class ControllerSwitch:
         """Switch to C_fall; returns False if already switched."""
         if self.fall is not None:
             return False
-        self.fall = FallController(self.balance.target if self._last_target is None
-                                   else self._last_target)
+        # C_fall holds C_bal's target as it stands: the last one C_bal sent, or before its first
+        # update the posture it starts from.
+        self.fall = FallController(self.balance.target)
         self.t_switch = t
         return True
 
     def update(self, m: Measurement) -> np.ndarray:
         if self.fall is not None:
             return self.fall.update(m)
-        self._last_target = self.balance.update(m)
-        return self._last_target
+        return self.balance.update(m)
