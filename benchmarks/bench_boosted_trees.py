@@ -28,7 +28,9 @@ selected and evaluated alike: what a window of the recent past buys by nested CV
 monitor computes no such inputs (no cost per decision is given for them). With ``--attitude``,
 ``boosting_attitude``: the package's own boosted trees on the features and the base's attitude
 from the estimated state (method §8c, ``train --attitude``), which the monitor does compute (its
-cost per decision is given).
+cost per decision is given). With ``--push-time``, ``boosting_push_time``: the same boosting on
+the features and the time since the push's onset (:func:`with_time_since_push`), which the
+monitor is never told: a privileged reference for what knowing when the push came would buy.
 
     .venv/bin/python benchmarks/bench_boosted_trees.py --data data/g1_dev1000 \\
         --test data/g1_test400 --folds 5 --out docs/boosted_trees/g1.json
@@ -146,6 +148,18 @@ class ExtraInputsBoosting:
 
 
 
+#: The time since the push's onset an input saturates at [s]; before the onset it reads this too.
+PUSH_TIME_CAP_S = 2.0
+
+
+def with_time_since_push(traj):
+    """``traj`` with ``X`` (N, 16): the features and the time since the push's onset [s], capped
+    at :data:`PUSH_TIME_CAP_S` and at the cap before the onset (no push seen)."""
+    since = traj.t - traj.t_push
+    since = np.where((since < 0) | (since > PUSH_TIME_CAP_S), PUSH_TIME_CAP_S, since)
+    return dataclasses.replace(traj, X=np.hstack([traj.X, since[:, None]]))
+
+
 class ImuInputs:
     """The 15 features and the IMU tilt detector's four signals (fused roll and pitch [rad], roll
     and pitch rate [rad/s]; NaN where the IMU has no sample) at each feature sample, by
@@ -231,6 +245,10 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument('--attitude', action='store_true',
                         help='also the boosting learner on the features and the base\'s attitude '
                              '(method §8c): what `train --attitude` ships')
+    parser.add_argument('--push-time', action='store_true',
+                        help='also the boosting learner on the features and the time since the '
+                             'push\'s onset, which the monitor is never told (a privileged '
+                             'reference)')
     parser.add_argument('--fixed', type=fixed_arg, action='append', default=[],
                         metavar='LEARNER:THRESHOLD,TAU_HIS',
                         help='a setting fixed in advance (e.g. a shipped model\'s), reported '
@@ -260,6 +278,8 @@ def main(argv: list[str] | None = None) -> dict:
         imu = ImuInputs()
         imu.add(args.data, trajs, args.jobs)
         learners['boosting_imu'] = ExtraInputsBoosting(dict(args.param), imu)
+    if args.push_time:
+        learners['boosting_push_time'] = ExtraInputsBoosting(dict(args.param), with_time_since_push)
     if args.attitude:
         learners['boosting_attitude'] = make_learner('boosting', dict(args.param))
 
@@ -295,6 +315,7 @@ def main(argv: list[str] | None = None) -> dict:
            'window_lags_s': list(WINDOW_LAGS_S) if args.window else None,
            'imu_inputs': ['fused_roll_rad', 'fused_pitch_rad', 'roll_rate_rad_s', 'pitch_rate_rad_s'] if args.imu else None,
            'attitude_inputs': list(ATTITUDE_NAMES) if args.attitude else None,
+           'push_time_cap_s': PUSH_TIME_CAP_S if args.push_time else None,
            'setting': '(tau_plus [s], decision_threshold [log-odds], tau_his [s]); the lists: '
                       '(tau_plus, 0, tau_his)',
            'fit_s_per_fold_and_tau_plus': {n: round(s / args.folds / len(tau_plus_grid), 1)
