@@ -9,7 +9,6 @@ import pytest
 from fall_predictor.monitor.contact_modes import classify_contact_mode
 from fall_predictor.monitor.estimator import EstimatorConfig, StateEstimator
 from fall_predictor.monitor.robot_description import DescriptionError, RobotDescription
-from fall_predictor.monitor.sensor_records import SensorSample
 from fall_predictor.monitor.records import PushSpec
 from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.sim.sensors import SensorParams, apply_sensors

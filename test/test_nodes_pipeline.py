@@ -26,32 +26,30 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import pytest
 from geometry_msgs.msg import WrenchStamped
-from rcl_interfaces.msg import SetParametersResult
 from sensor_msgs.msg import JointState
-from test_nodes_support import MODEL_TAU_HIS_S, ros_context, test_domain_id, write_momentum_model
+from pipeline_support import (CONNECT_TIMEOUT_S, Runs, System, SystemNotRunning, check_alive,
+                              dead_nodes, follow, run, start_nodes)
+from test_nodes_support import MODEL_TAU_HIS_S, ros_context, test_domain_id
 
 from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.data.bagio import iter_messages, read_trajectory
-from fall_predictor.ros.bringup import (UNPACED_PREDICTOR_PARAMS, NodeProcess, default_params_file,
-                                        ros_environment, start_node, stop_nodes)
+from fall_predictor.ros.bringup import NodeProcess, stop_nodes
 from fall_predictor.monitor.features import extract_features
 from fall_predictor.ros.endpoints import create_publisher
 from fall_predictor.ros.health import UNMATCHED_INPUTS
-from fall_predictor.ros.observer import ModeChange, Observer, ObservedState, ReceivedSample
+from fall_predictor.ros.observer import Observer, ObservedState
 from fall_predictor.monitor.records import Measurement, PushSpec
 from fall_predictor.contract import messages
 from fall_predictor.contract.topics import (CONTROLLER_MODE, FALL_DIRECTION, FALL_EVENT, FALLING,
                                             FEATURES, JOINT_COMMANDS, JOINT_STATES, MEASUREMENT,
                                             PUSH, STATE)
 from fall_predictor.contract.wire import LEVEL_STALE
-from fall_predictor.monitor.fall_monitor import STATUS_DEGRADED, STATUS_OK, STATUS_STALE
+from fall_predictor.monitor.fall_monitor import STATUS_OK, STATUS_STALE
 from fall_predictor.msg import Features
 from fall_predictor.msg import Measurement as MeasurementMsg
 
@@ -62,108 +60,6 @@ GARBAGE_AT_S = 3.0                  #: malformed commands sent when the observer
 TAU_HIS_CHANGE_AT_S = 5.0           #: requested when the observer sees this sample time [s]
 NEW_TAU_HIS_S = 0.05
 FOLLOW_AFTER_PUSH_S = 1.5
-#: Wall-clock limit of each run [s] (a run normally takes 2 to 4 ms per simulated ms).
-RUN_TIMEOUT_S = 120.0
-#: Wall-clock limit for the nodes to start and connect [s].
-CONNECT_TIMEOUT_S = 60.0
-
-
-class SystemNotRunning(RuntimeError):
-    """The system under test could not be started or driven (not a failed check)."""
-
-
-@dataclass
-class Run:
-    """What the observer received during one run."""
-
-    samples: list[ReceivedSample]
-    states: list[ObservedState]
-    modes: list[ModeChange]
-    #: /diagnostics counters of the feature and predictor nodes right after the run.
-    counters: dict[str, dict[str, str]]
-
-    @property
-    def t_fallen(self) -> float | None:
-        return next((t for t, fallen in self.samples if fallen), None)
-
-
-@dataclass
-class System:
-    """The running nodes and the tests' observer."""
-
-    observer: Observer
-    nodes: dict[str, NodeProcess]
-    tmp: Path
-
-
-@dataclass
-class Runs:
-    """What the two runs produced, recorded for the tests to check."""
-
-    no_push: Run
-    strong_push: Run
-    #: The predictor's answer to the run-time change of ``tau_his_s``.
-    tau_his_change: list[SetParametersResult]
-    t_tau_his_set: float                     #: sample time when the change was acknowledged
-    #: The malformed joint commands had both their subscribers (simulator, recorder).
-    bad_commands_matched: bool
-
-
-def _start_nodes(tmp: Path, domain: int, nodes: dict[str, NodeProcess]) -> None:
-    """Start the five nodes into ``nodes`` (filled as they start, so all can be stopped)."""
-    env = ros_environment(domain)
-    params = default_params_file()
-    model = write_momentum_model(tmp / 'model.json')
-    overrides = {
-        # The recorder first, so that it is matched before anything is published.
-        'recorder_node': {'bag_path': str(tmp / 'bags')},
-        # No startup STALE states before the recorder has surely matched the predictor; the
-        # simulator runs unpaced, so the sample-age check is off as in an unpaced bring-up
-        # (on a busy machine the predictor lags /clock in simulated time only).
-        'predictor_node': {'model_path': str(model), 'stale_timeout_s': '5.0',
-                           **UNPACED_PREDICTOR_PARAMS},
-        'feature_node': {},
-        'controller_node': {},
-        'simulator_node': {'autostart': 'false', 'real_time_factor': '0.0'},
-    }
-    for name, values in overrides.items():
-        nodes[name] = start_node(name, params, values, env, tmp)
-        if name == 'recorder_node':
-            time.sleep(1.0)
-
-
-def _dead_nodes(nodes: dict[str, NodeProcess]) -> str:
-    """Each node process that has exited, with the end of its log ('' while all run)."""
-    return '\n'.join(f'{node.name} died:\n{node.log_tail()}' for node in nodes.values()
-                     if node.process.poll() is not None)
-
-
-def _check_alive(nodes: dict[str, NodeProcess]) -> None:
-    dead = _dead_nodes(nodes)
-    if dead:
-        raise SystemNotRunning(dead)
-
-
-def _follow(observer: Observer, nodes: dict[str, NodeProcess], until: float) -> None:
-    """Spin until sample time ``until`` [s] or fallen."""
-    def reached() -> bool:
-        return observer.t_last >= until or bool(observer.samples and observer.samples[-1].fallen)
-
-    if not observer.spin_until(reached, RUN_TIMEOUT_S, lambda: _check_alive(nodes)):
-        raise SystemNotRunning(f'run stuck at t = {observer.t_last} s (waiting for {until} s)')
-
-
-def _run(observer: Observer, nodes: dict[str, NodeProcess], until: float) -> Run:
-    """Follow the current run until sample time ``until`` [s] or fallen, then pause; what was
-    received, and the monitor's counters at that point."""
-    _follow(observer, nodes, until)
-    observer.pause_world()
-    observer.spin_for(0.5, lambda: _check_alive(nodes))          # states still in flight
-    end = observer.t_last
-    counters = {name: dict(observer.fresh_diagnostics(name).values)
-                for name in ('feature_node', 'predictor_node')}
-    return Run([s for s in observer.samples if s.t <= end],
-               [s for s in observer.states if s.t <= end], list(observer.modes), counters)
 
 
 def _send_bad_commands_and_push_requests(observer: Observer) -> bool:
@@ -202,9 +98,9 @@ def system(tmp_path_factory: pytest.TempPathFactory) -> Iterator[System]:
     with ros_context(domain) as context:
         observer = Observer(context, 'test_observer')
         try:
-            _start_nodes(tmp, domain, nodes)
+            start_nodes(tmp, domain, nodes)
             if not observer.spin_until(lambda: observer.connected(nodes.keys()), CONNECT_TIMEOUT_S,
-                                       lambda: _check_alive(nodes)):
+                                       lambda: check_alive(nodes)):
                 unmatched = {name: status.values.get(UNMATCHED_INPUTS)
                              for name, status in observer.diagnostics.items()}
                 raise SystemNotRunning(f'the nodes did not connect within {CONNECT_TIMEOUT_S} s '
@@ -222,18 +118,18 @@ def runs(system: System) -> Runs:
 
     # Run 1: walking, no push; tau_his changed at run time; garbage to the simulator.
     observer.reset_world()
-    _follow(observer, nodes, GARBAGE_AT_S)
+    follow(observer, nodes, GARBAGE_AT_S)
     bad_commands_matched = _send_bad_commands_and_push_requests(observer)
-    _follow(observer, nodes, TAU_HIS_CHANGE_AT_S)
+    follow(observer, nodes, TAU_HIS_CHANGE_AT_S)
     tau_his_change = observer.set_parameters('predictor_node', tau_his_s=NEW_TAU_HIS_S)
     t_tau_his_set = observer.t_last
-    no_push = _run(observer, nodes, NO_PUSH_RUN_S)
+    no_push = run(observer, nodes, NO_PUSH_RUN_S)
 
     # Run 2: a fresh world and a strong sideways push.
     observer.reset_world()
     observer.request_push(STRONG_PUSH)
-    strong_push = _run(observer, nodes, STRONG_PUSH.t_force_end + FOLLOW_AFTER_PUSH_S)
-    _check_alive(nodes)
+    strong_push = run(observer, nodes, STRONG_PUSH.t_force_end + FOLLOW_AFTER_PUSH_S)
+    check_alive(nodes)
     return Runs(no_push, strong_push, tau_his_change, t_tau_his_set, bad_commands_matched)
 
 
@@ -338,7 +234,7 @@ def test_invalid_parameters_are_rejected_with_a_reason(system: System) -> None:
     assert not result.successful and 'type' in result.reason, result.reason
     assert observer.set_parameters('simulator_node', command_timeout_s=0.25)[0].successful
     assert observer.fresh_diagnostics('predictor_node').values['tau_his_s'] == str(NEW_TAU_HIS_S)
-    assert _dead_nodes(system.nodes) == ''
+    assert dead_nodes(system.nodes) == ''
 
 
 @pytest.mark.usefixtures('runs')
@@ -413,7 +309,7 @@ def test_bad_input_does_not_kill_any_node_and_gives_degraded_state(system: Syste
             c <= e for c, e in zip(counted, expected)):
         counted = invalid_counts()
     assert counted == expected, (counted, expected)
-    assert _dead_nodes(system.nodes) == ''
+    assert dead_nodes(system.nodes) == ''
 
 
 def _fake_measurement() -> Measurement:
