@@ -219,3 +219,13 @@ def test_no_module_over_500_lines():
     long = [f'{m}: {n} lines' for m, n in ((m, MODULES[m].read_text().count('\n')) for m in sorted(MODULES))
             if n > 500]
     assert not long, 'modules over 500 lines (split them by responsibility):\n' + '\n'.join(long)
+
+
+def test_no_test_benchmark_or_script_over_500_lines():
+    """The same rule for the tests, benchmarks and scripts (the tests mirror the modules)."""
+    repo = PACKAGE_DIR.parent
+    files = [f for d in ('test', 'benchmarks', 'scripts') for f in sorted((repo / d).glob('*.py'))]
+    assert len(files) > 100
+    long = [f'{f.relative_to(repo)}: {n} lines' for f in files
+            if (n := f.read_text().count('\n')) > 500]
+    assert not long, 'files over 500 lines (split them by responsibility):\n' + '\n'.join(long)
