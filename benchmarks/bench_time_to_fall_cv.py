@@ -18,7 +18,10 @@ regressors fitted on the training folds:
 * ``boosting (shipped settings), weighted ... / the first ... after the trigger only``: the
   shipped settings with samples nearer the trigger weighing more (:data:`NEAR_TRIGGER`): the
   trigger's own time to fall is the one the FALLING event carries;
-* ``constant``: the training triggers' median time to fall.
+* ``constant``: the training triggers' median time to fall;
+* with ``--push-time``, ``boosting (shipped settings) + the time since the push``: the shipped
+  regressor given the time since the push's onset beside the features, which the monitor is
+  never told (a privileged reference: what knowing when the push came would buy).
 
 Errors at the test folds' triggers (median and p90 of the absolute error, pooled over folds and
 repeats) and over every 10th sample from each test trigger until fallen. Writes JSON (``--out``).
@@ -86,6 +89,18 @@ def _since_trigger(left: np.ndarray, at_trigger: np.ndarray) -> np.ndarray:
     return since
 
 
+def _time_since_push(trajectories, triggers, stride: int = 10) -> np.ndarray:
+    """Per row of :func:`time_left_after_triggers` (same trajectories, triggers and stride), the
+    time since the push's onset [s]."""
+    since = []
+    for traj, k in zip(trajectories, triggers):
+        if k is None:
+            continue
+        end = int(np.searchsorted(traj.t, traj.t_fallen))
+        since += [traj.t[j] - traj.t_push for j in range(k, max(end, k + 1), stride)]
+    return np.array(since)
+
+
 def _trees(regressor):
     return lambda X, modes: np.array([regressor.predict_one(x.tolist(), int(m))
                                       for x, m in zip(X, modes)])
@@ -97,6 +112,8 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument('--model', type=Path, required=True)
     parser.add_argument('--folds', type=int, default=5)
     parser.add_argument('--repeats', type=int, default=2)
+    parser.add_argument('--push-time', action='store_true',
+                        help='also the shipped regressor with the time since the push (privileged)')
     parser.add_argument('--jobs', type=int, default=2)
     parser.add_argument('--out', type=Path, default=None)
     args = parser.parse_args(argv)
@@ -138,6 +155,15 @@ def main(argv: list[str] | None = None) -> dict:
                                                                       sample_weight=w[w > 0])
                 predictors[f'boosting (shipped settings), {name}'] = (
                     lambda X, modes, fitted=fitted: fitted.predict(X))
+            if args.push_time:
+                def with_push(X, idx):
+                    return np.hstack([X, _time_since_push([trajs[i] for i in idx],
+                                                          [triggers[i] for i in idx])[:, None]])
+                fitted = HistGradientBoostingRegressor(**TIME_TO_FALL_LEARNER_PARAMS, random_state=0
+                                                       ).fit(with_push(X, train_idx), left)
+                test_with_push = with_push(test_left[0], fold)
+                predictors['boosting (shipped settings) + the time since the push'] = (
+                    lambda X, modes, fitted=fitted, Xp=test_with_push: fitted.predict(Xp))
             for name, predict in predictors.items():
                 X_t, modes_t, left_t, trig_t = test_left
                 pooled.setdefault(name, []).append((np.abs(predict(X_t, modes_t) - left_t), trig_t))
