@@ -207,6 +207,19 @@ def cost_us(lists, trajs, n: int = 20000) -> dict:
     return {'per_decision_us': round(best, 2), 'samples': len(samples)}
 
 
+def stratified_subset(trajs: list, n: int, seed: int = 0) -> list:
+    """``n`` of ``trajs`` drawn at random (``seed``), fallen and balanced in their shares, in
+    their original order."""
+    if not 2 <= n <= len(trajs):
+        raise ValueError(f'a subset of {n} of {len(trajs)} trajectories')
+    rng = np.random.default_rng(seed)
+    fallen = np.array([t.fallen for t in trajs])
+    n_fallen = round(n * fallen.mean())
+    keep = np.concatenate([rng.permutation(np.flatnonzero(fallen))[:n_fallen],
+                           rng.permutation(np.flatnonzero(~fallen))[:n - n_fallen]])
+    return [trajs[i] for i in sorted(keep.tolist())]
+
+
 def fixed_arg(text: str) -> tuple[str, tuple[float | None, float, float]]:
     """``LEARNER:THRESHOLD,TAU_HIS[,TAU_PLUS]`` -> (learner, (tau_plus or None, threshold,
     tau_his))."""
@@ -253,6 +266,9 @@ def main(argv: list[str] | None = None) -> dict:
                         metavar='LEARNER:THRESHOLD,TAU_HIS',
                         help='a setting fixed in advance (e.g. a shipped model\'s), reported '
                              'beside the nested choices; repeatable')
+    parser.add_argument('--trajectories', type=int, default=None, metavar='N',
+                        help='a random subset of N development trajectories, both outcomes in '
+                             'their shares (seed 0): a learning curve')
     parser.add_argument('--jobs', type=int, default=2)
     parser.add_argument('--out', type=Path, default=None)
     args = parser.parse_args(argv)
@@ -271,6 +287,8 @@ def main(argv: list[str] | None = None) -> dict:
         fixed.append((name, (tau_plus, threshold, tau_his)))
     guard_m = dataset_guard_com_height_m(args.data)
     trajs = load_dataset(args.data, jobs=args.jobs, state='estimated').trajectories
+    if args.trajectories is not None:
+        trajs = stratified_subset(trajs, args.trajectories)
     learners = {'tree': make_learner('tree'), 'boosting': make_learner('boosting', dict(args.param))}
     if args.window:
         learners['boosting_window'] = ExtraInputsBoosting(dict(args.param), windowed)
@@ -309,7 +327,7 @@ def main(argv: list[str] | None = None) -> dict:
                     for tau_his, result in results.items():
                         grids[name][k][(tau_plus, thr, tau_his)] = result
         print(f'fold {k} done', flush=True)
-    out = {'data': str(args.data), 'folds': args.folds, 'seed': args.seed,
+    out = {'data': str(args.data), 'trajectories': len(trajs), 'folds': args.folds, 'seed': args.seed,
            'tau_plus_s': list(tau_plus_grid),
            'mirror': args.mirror, 'boosting_params': learners['boosting'].get_params(),
            'window_lags_s': list(WINDOW_LAGS_S) if args.window else None,
