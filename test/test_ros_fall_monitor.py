@@ -41,6 +41,15 @@ def _offline_states(model: Path, measurements: list) -> list:
             for m in measurements]
 
 
+def _monitor_nodes(context, model: Path) -> list:
+    """``fall_monitor``'s feature and predictor nodes, in process, with ``model`` (stamps near
+    1970: no sample age check)."""
+    return [make() for make in in_process_chain(
+        MONITOR_NODES, context=context,
+        parameter_overrides=[Parameter('model_path', value=str(model)),
+                             Parameter('max_sample_age_s', value=0.0)])]
+
+
 def test_fall_monitor_hands_each_features_message_to_the_predictor_in_process(tmp_path: Path
                                                                              ) -> None:
     """In ``fall_monitor`` the predictor has no features subscription: the feature node hands
@@ -62,10 +71,7 @@ def test_fall_monitor_hands_each_features_message_to_the_predictor_in_process(tm
     assert 0 < sum(expected) < len(expected)          # the push is predicted, not at once
 
     with ros_context(DOMAIN) as context:
-        feature, predictor = [make() for make in in_process_chain(
-            MONITOR_NODES, context=context,
-            parameter_overrides=[Parameter('model_path', value=str(model)),
-                                 Parameter('max_sample_age_s', value=0.0)])]
+        feature, predictor = _monitor_nodes(context, model)
         probe = rclpy.node.Node('in_process_probe', context=context)
         states: list[float] = []
         features: list[float] = []
@@ -126,10 +132,7 @@ def test_fall_monitor_without_other_subscribers_hands_decoded_samples_and_builds
     # A domain of its own: the previous test's features probe may still be matched in DOMAIN
     # until DDS discovery notices it is gone.
     with ros_context(test_domain_id(74)) as context:
-        feature, predictor = [make() for make in in_process_chain(
-            MONITOR_NODES, context=context,
-            parameter_overrides=[Parameter('model_path', value=str(model)),
-                                 Parameter('max_sample_age_s', value=0.0)])]
+        feature, predictor = _monitor_nodes(context, model)
         probe = rclpy.node.Node('hand_off_probe', context=context)
         statuses: list[int] = []
         reasons: list[str] = []
