@@ -21,7 +21,11 @@ regressors fitted on the training folds:
 * ``constant``: the training triggers' median time to fall;
 * with ``--push-time``, ``boosting (shipped settings) + the time since the push``: the shipped
   regressor given the time since the push's onset beside the features, which the monitor is
-  never told (a privileged reference: what knowing when the push came would buy).
+  never told (a privileged reference: what knowing when the push came would buy);
+* with ``--physics``, ``boosting (shipped settings) + physics``: the same regressor given inputs
+  its trees cannot form from single features (:func:`_physics_inputs`: the capture point relative
+  to the CoP, a linear inverted pendulum's time for it to reach 0.3 m, the CoM's lean, a
+  ballistic drop time): whether the time to fall lacks a learner's arithmetic or information.
 
 Errors at the test folds' triggers (median and p90 of the absolute error, pooled over folds and
 repeats) and over every 10th sample from each test trigger until fallen. Writes JSON (``--out``).
@@ -40,6 +44,7 @@ import numpy as np
 from fall_predictor.learning.time_to_fall_training import (TIME_TO_FALL_LEARNER_PARAMS,
                                                            fit_time_to_fall, fit_time_to_fall_samples,
                                                            time_left_after_triggers)
+from fall_predictor.data.dataset import robot_total_mass_kg
 from fall_predictor.learning.training import load_dataset
 from fall_predictor.learning.when_where import trigger_indices
 from fall_predictor.monitor.model_file import load_model
@@ -101,6 +106,22 @@ def _time_since_push(trajectories, triggers, stride: int = 10) -> np.ndarray:
     return np.array(since)
 
 
+def _physics_inputs(X: np.ndarray, mass_kg: float) -> np.ndarray:
+    """Per row of features (the CoM and its momentum relative to the CoP, method §6): the capture
+    point's x, y and distance from the CoP (the linear inverted pendulum at the CoM's height), the
+    pendulum's time for it to grow to 0.3 m, the CoM's lean from the vertical over the CoP, and
+    the time a free fall from the CoM's height and vertical speed takes to 0.33 m."""
+    height = np.maximum(X[:, 2], 0.05)
+    omega = np.sqrt(9.81 / height)
+    vx, vy, vz = (X[:, 3:6] / mass_kg).T
+    xi_x, xi_y = X[:, 0] + vx / omega, X[:, 1] + vy / omega
+    xi = np.hypot(xi_x, xi_y)
+    t_pendulum = np.log(np.maximum(0.3 / np.maximum(xi, 1e-3), 1e-3)) / omega
+    lean = np.arctan2(np.hypot(X[:, 0], X[:, 1]), height)
+    t_drop = (vz + np.sqrt(vz ** 2 + 2 * 9.81 * np.maximum(height - 0.33, 0.0))) / 9.81
+    return np.column_stack([xi_x, xi_y, xi, t_pendulum, lean, t_drop])
+
+
 def _trees(regressor):
     return lambda X, modes: np.array([regressor.predict_one(x.tolist(), int(m))
                                       for x, m in zip(X, modes)])
@@ -114,6 +135,8 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument('--repeats', type=int, default=2)
     parser.add_argument('--push-time', action='store_true',
                         help='also the shipped regressor with the time since the push (privileged)')
+    parser.add_argument('--physics', action='store_true',
+                        help='also the shipped regressor with inputs from the pendulum and free fall')
     parser.add_argument('--jobs', type=int, default=2)
     parser.add_argument('--out', type=Path, default=None)
     args = parser.parse_args(argv)
@@ -164,6 +187,13 @@ def main(argv: list[str] | None = None) -> dict:
                 test_with_push = with_push(test_left[0], fold)
                 predictors['boosting (shipped settings) + the time since the push'] = (
                     lambda X, modes, fitted=fitted, Xp=test_with_push: fitted.predict(Xp))
+            if args.physics:
+                mass_kg = robot_total_mass_kg(args.dev)
+                fitted = HistGradientBoostingRegressor(**TIME_TO_FALL_LEARNER_PARAMS, random_state=0
+                                                       ).fit(np.hstack([X, _physics_inputs(X, mass_kg)]), left)
+                predictors['boosting (shipped settings) + physics'] = (
+                    lambda X, modes, fitted=fitted, m=mass_kg:
+                        fitted.predict(np.hstack([X, _physics_inputs(X, m)])))
             for name, predict in predictors.items():
                 X_t, modes_t, left_t, trig_t = test_left
                 pooled.setdefault(name, []).append((np.abs(predict(X_t, modes_t) - left_t), trig_t))
