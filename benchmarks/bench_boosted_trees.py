@@ -31,6 +31,9 @@ from the estimated state (method §8c, ``train --attitude``), which the monitor 
 cost per decision is given). With ``--push-time``, ``boosting_push_time``: the same boosting on
 the features and the time since the push's onset (:func:`with_time_since_push`), which the
 monitor is never told: a privileged reference for what knowing when the push came would buy.
+With ``--cusum``, ``boosting_cusum``: the boosted trees' scores under another decision rule, the
+evidence accumulated since it last was none (Page's CUSUM, :func:`cusum_evidence`) instead of
+the history window; its setting (tau_plus, drift, level) chosen by the same nested CV.
 
     .venv/bin/python benchmarks/bench_boosted_trees.py --data data/g1_dev1000 \\
         --test data/g1_test400 --folds 5 --out docs/boosted_trees/g1.json
@@ -65,6 +68,14 @@ TAU_HIS_S = (0.0, 0.016, 0.03, 0.044, 0.06, 0.08, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4
 # grid went past 3.0, its old edge (eighteenth part of docs/results.md).
 THRESHOLDS = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 5.0, 6.0)
 BUDGETS = (0.0, 0.01, 0.06)
+#: The CUSUM rule's grids: the drift subtracted from each sample's score [log-odds] and the
+#: level the accumulated evidence must pass [log-odds s]; scores clipped to +-SCORE_CLIP_LOG_ODDS
+#: (a mode held by a constant list scores +-inf).
+# Widened twice: a first grid (levels up to 0.32 s, drifts -1 to 3) chose its highest level at the
+# low false-alarm budgets, a second (levels to 1.28 s, drifts -1 to 6) its lowest drift at <= 0.01.
+CUSUM_DRIFTS = (-4.0, -2.0, -1.0, 0.0, 1.0, 2.0, 4.0)
+CUSUM_LEVELS_S = (0.02, 0.04, 0.08, 0.16, 0.32, 0.64, 1.28, 2.56)
+SCORE_CLIP_LOG_ODDS = 10.0
 KEEP = ('n_balanced', 'n_false_positives', 'fpr', 'fpr_ci95', 'n_fallen', 'tau_lead_s',
         'tau_lead_ci95', 'n_missed', 'lead_fraction')
 
@@ -93,6 +104,27 @@ def fold_results(lists, trajs, kind: str, thresholds, guard_m: float) -> dict:
         per_traj = [scores(lists, t) for t in trajs]
     return {thr: evaluate_atomic(trajs, [s > thr for s in per_traj], TAU_HIS_S, 0.001, guard_m)
             for thr in thresholds}
+
+
+def cusum_evidence(score: np.ndarray, drift: float, dt_s: float = 0.001) -> np.ndarray:
+    """Page's CUSUM of ``score - drift`` per sample [log-odds s]: the evidence accumulated since it
+    was last at zero, ``E_k = max(0, E_{k-1} + (score_k - drift) dt)`` with ``E_{-1} = 0``, as the
+    running sum less its running minimum (at most zero)."""
+    total = np.cumsum((np.clip(score, -SCORE_CLIP_LOG_ODDS, SCORE_CLIP_LOG_ODDS) - drift) * dt_s)
+    return total - np.minimum(np.minimum.accumulate(total), 0.0)
+
+
+def cusum_results(lists, trajs, guard_m: float) -> dict:
+    """{(drift, level): EvaluationResult} of the CUSUM rule on a boosted model's scores (falling
+    from the first sample whose evidence exceeds the level; the CoM guard as always)."""
+    per_traj = [scores(lists, t) for t in trajs]
+    out = {}
+    for drift in CUSUM_DRIFTS:
+        evidence = [cusum_evidence(s, drift) for s in per_traj]
+        for level in CUSUM_LEVELS_S:
+            out[(drift, level)] = evaluate_atomic(trajs, [e > level for e in evidence], (0.0,),
+                                                  0.001, guard_m)[0.0]
+    return out
 
 
 class ExtraInputsBoosting:
@@ -266,6 +298,9 @@ def main(argv: list[str] | None = None) -> dict:
                         metavar='LEARNER:THRESHOLD,TAU_HIS',
                         help='a setting fixed in advance (e.g. a shipped model\'s), reported '
                              'beside the nested choices; repeatable')
+    parser.add_argument('--cusum', action='store_true',
+                        help="also the boosted trees' scores under the CUSUM rule instead of the "
+                             'history window')
     parser.add_argument('--trajectories', type=int, default=None, metavar='N',
                         help='a random subset of N development trajectories, both outcomes in '
                              'their shares (seed 0): a learning curve')
@@ -311,7 +346,8 @@ def main(argv: list[str] | None = None) -> dict:
         return fit_strided(train, tau_plus, learner, mirror=args.mirror)
     folds = stratified_trajectory_folds(trajs, args.folds, args.seed)
     # Per learner, per fold: {(tau_plus, decision threshold, tau_his): result on the fold}.
-    grids = {name: {k: {} for k in range(len(folds))} for name in learners}
+    rules = list(learners) + (['boosting_cusum'] if args.cusum else [])
+    grids = {name: {k: {} for k in range(len(folds))} for name in rules}
     fit_s = {name: 0.0 for name in learners}
     for k, test_index in enumerate(folds):
         train = [trajs[i] for j, f in enumerate(folds) if j != k for i in f]
@@ -326,6 +362,9 @@ def main(argv: list[str] | None = None) -> dict:
                                                  guard_m).items():
                     for tau_his, result in results.items():
                         grids[name][k][(tau_plus, thr, tau_his)] = result
+                if name == 'boosting' and args.cusum:
+                    for (drift, level), result in cusum_results(lists, inputs(name, test), guard_m).items():
+                        grids['boosting_cusum'][k][(tau_plus, drift, level)] = result
         print(f'fold {k} done', flush=True)
     out = {'data': str(args.data), 'trajectories': len(trajs), 'folds': args.folds, 'seed': args.seed,
            'tau_plus_s': list(tau_plus_grid),
@@ -334,13 +373,16 @@ def main(argv: list[str] | None = None) -> dict:
            'imu_inputs': ['fused_roll_rad', 'fused_pitch_rad', 'roll_rate_rad_s', 'pitch_rate_rad_s'] if args.imu else None,
            'attitude_inputs': list(ATTITUDE_NAMES) if args.attitude else None,
            'push_time_cap_s': PUSH_TIME_CAP_S if args.push_time else None,
+           'cusum_drifts': list(CUSUM_DRIFTS) if args.cusum else None,
+           'cusum_levels_s': list(CUSUM_LEVELS_S) if args.cusum else None,
            'setting': '(tau_plus [s], decision_threshold [log-odds], tau_his [s]); the lists: '
-                      '(tau_plus, 0, tau_his)',
+                      '(tau_plus, 0, tau_his); boosting_cusum: (tau_plus, drift [log-odds], '
+                      'level [log-odds s])',
            'fit_s_per_fold_and_tau_plus': {n: round(s / args.folds / len(tau_plus_grid), 1)
                                            for n, s in fit_s.items()},
            'nested': {}, 'fixed': {}, 'test': None}
     chosen_on_dev = {}
-    for name in learners:
+    for name in rules:
         out['nested'][name] = {}
         for budget in BUDGETS:
             point = nested_over_grid(grids[name], budget)
@@ -386,6 +428,19 @@ def main(argv: list[str] | None = None) -> dict:
                     row[key] = {k: payload[k] for k in KEEP if k in payload}
                     print(name, 'fixed', (thr, tau_his, tau_plus), row[key], flush=True)
             out['test']['learners'][name] = row
+        if args.cusum:
+            row = {}
+            for tau_plus in sorted({chosen_on_dev[('boosting_cusum', b)][0] for b in BUDGETS}):
+                results = cusum_results(fit(learners['boosting'], inputs('boosting', trajs), tau_plus),
+                                        inputs('boosting', test), test_guard_m)
+                for budget in BUDGETS:
+                    chosen_tau_plus, drift, level = chosen_on_dev[('boosting_cusum', budget)]
+                    if chosen_tau_plus == tau_plus:
+                        payload = evaluation_result_json(results[(drift, level)])
+                        row[str(budget)] = {'tau_plus_s': tau_plus, 'drift': drift, 'level_s': level,
+                                            **{k: payload[k] for k in KEEP if k in payload}}
+                        print('boosting_cusum', budget, row[str(budget)], flush=True)
+            out['test']['learners']['boosting_cusum'] = row
     text = json.dumps(out, indent=1, default=float)
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
