@@ -68,11 +68,11 @@ TAU_HIS_S = (0.0, 0.016, 0.03, 0.044, 0.06, 0.08, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4
 # grid went past 3.0, its old edge (eighteenth part of docs/results.md).
 THRESHOLDS = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 5.0, 6.0)
 BUDGETS = (0.0, 0.01, 0.06)
+# Widened twice: a first grid (levels up to 0.32, drifts -1 to 3) chose its highest level at the
+# low false-alarm budgets, a second (levels to 1.28, drifts -1 to 6) its lowest drift at <= 0.01.
 #: The CUSUM rule's grids: the drift subtracted from each sample's score [log-odds] and the
 #: level the accumulated evidence must pass [log-odds s]; scores clipped to +-SCORE_CLIP_LOG_ODDS
 #: (a mode held by a constant list scores +-inf).
-# Widened twice: a first grid (levels up to 0.32 s, drifts -1 to 3) chose its highest level at the
-# low false-alarm budgets, a second (levels to 1.28 s, drifts -1 to 6) its lowest drift at <= 0.01.
 CUSUM_DRIFTS = (-4.0, -2.0, -1.0, 0.0, 1.0, 2.0, 4.0)
 CUSUM_LEVELS_S = (0.02, 0.04, 0.08, 0.16, 0.32, 0.64, 1.28, 2.56)
 SCORE_CLIP_LOG_ODDS = 10.0
@@ -176,7 +176,6 @@ class ExtraInputsBoosting:
             if rows.any():
                 out[rows] = model if isinstance(model, float) else model.decision_function(X[rows])
         return out
-
 
 
 
@@ -363,7 +362,8 @@ def main(argv: list[str] | None = None) -> dict:
                     for tau_his, result in results.items():
                         grids[name][k][(tau_plus, thr, tau_his)] = result
                 if name == 'boosting' and args.cusum:
-                    for (drift, level), result in cusum_results(lists, inputs(name, test), guard_m).items():
+                    cusum = cusum_results(lists, inputs(name, test), guard_m)
+                    for (drift, level), result in cusum.items():
                         grids['boosting_cusum'][k][(tau_plus, drift, level)] = result
         print(f'fold {k} done', flush=True)
     out = {'data': str(args.data), 'trajectories': len(trajs), 'folds': args.folds, 'seed': args.seed,
