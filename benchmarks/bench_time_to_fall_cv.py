@@ -41,10 +41,10 @@ from pathlib import Path
 
 import numpy as np
 
+from fall_predictor.data.dataset import robot_total_mass_kg
 from fall_predictor.learning.time_to_fall_training import (TIME_TO_FALL_LEARNER_PARAMS,
                                                            fit_time_to_fall, fit_time_to_fall_samples,
                                                            time_left_after_triggers)
-from fall_predictor.data.dataset import robot_total_mass_kg
 from fall_predictor.learning.training import load_dataset
 from fall_predictor.learning.when_where import trigger_indices
 from fall_predictor.monitor.model_file import load_model
@@ -185,6 +185,7 @@ def main(argv: list[str] | None = None) -> dict:
                 fitted = HistGradientBoostingRegressor(**TIME_TO_FALL_LEARNER_PARAMS, random_state=0
                                                        ).fit(with_push(X, train_idx), left)
                 test_with_push = with_push(test_left[0], fold)
+                # Called, as every predictor below, on test_left's rows: their push times are these.
                 predictors['boosting (shipped settings) + the time since the push'] = (
                     lambda X, modes, fitted=fitted, Xp=test_with_push: fitted.predict(Xp))
             if args.physics:
