@@ -114,14 +114,15 @@ def cusum_evidence(score: np.ndarray, drift: float, dt_s: float = 0.001) -> np.n
     return total - np.minimum(np.minimum.accumulate(total), 0.0)
 
 
-def cusum_results(lists, trajs, guard_m: float) -> dict:
+def cusum_results(lists, trajs, guard_m: float, drifts=CUSUM_DRIFTS,
+                  levels_s=CUSUM_LEVELS_S) -> dict:
     """{(drift, level): EvaluationResult} of the CUSUM rule on a boosted model's scores (falling
     from the first sample whose evidence exceeds the level; the CoM guard as always)."""
     per_traj = [scores(lists, t) for t in trajs]
     out = {}
-    for drift in CUSUM_DRIFTS:
+    for drift in drifts:
         evidence = [cusum_evidence(s, drift) for s in per_traj]
-        for level in CUSUM_LEVELS_S:
+        for level in levels_s:
             out[(drift, level)] = evaluate_atomic(trajs, [e > level for e in evidence], (0.0,),
                                                   0.001, guard_m)[0.0]
     return out
@@ -300,6 +301,10 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument('--cusum', action='store_true',
                         help="also the boosted trees' scores under the CUSUM rule instead of the "
                              'history window')
+    parser.add_argument('--cusum-drifts', type=lambda s: tuple(float(v) for v in s.split(',')),
+                        default=CUSUM_DRIFTS, help='the CUSUM drift grid [log-odds]')
+    parser.add_argument('--cusum-levels', type=lambda s: tuple(float(v) for v in s.split(',')),
+                        default=CUSUM_LEVELS_S, help='the CUSUM level grid [log-odds s]')
     parser.add_argument('--trajectories', type=int, default=None, metavar='N',
                         help='a random subset of N development trajectories, both outcomes in '
                              'their shares (seed 0): a learning curve')
@@ -362,7 +367,8 @@ def main(argv: list[str] | None = None) -> dict:
                     for tau_his, result in results.items():
                         grids[name][k][(tau_plus, thr, tau_his)] = result
                 if name == 'boosting' and args.cusum:
-                    cusum = cusum_results(lists, inputs(name, test), guard_m)
+                    cusum = cusum_results(lists, inputs(name, test), guard_m, args.cusum_drifts,
+                                          args.cusum_levels)
                     for (drift, level), result in cusum.items():
                         grids['boosting_cusum'][k][(tau_plus, drift, level)] = result
         print(f'fold {k} done', flush=True)
@@ -373,8 +379,8 @@ def main(argv: list[str] | None = None) -> dict:
            'imu_inputs': ['fused_roll_rad', 'fused_pitch_rad', 'roll_rate_rad_s', 'pitch_rate_rad_s'] if args.imu else None,
            'attitude_inputs': list(ATTITUDE_NAMES) if args.attitude else None,
            'push_time_cap_s': PUSH_TIME_CAP_S if args.push_time else None,
-           'cusum_drifts': list(CUSUM_DRIFTS) if args.cusum else None,
-           'cusum_levels_s': list(CUSUM_LEVELS_S) if args.cusum else None,
+           'cusum_drifts': list(args.cusum_drifts) if args.cusum else None,
+           'cusum_levels_s': list(args.cusum_levels) if args.cusum else None,
            'setting': '(tau_plus [s], decision_threshold [log-odds], tau_his [s]); the lists: '
                       '(tau_plus, 0, tau_his); boosting_cusum: (tau_plus, drift [log-odds], '
                       'level [log-odds s])',
@@ -432,7 +438,8 @@ def main(argv: list[str] | None = None) -> dict:
             row = {}
             for tau_plus in sorted({chosen_on_dev[('boosting_cusum', b)][0] for b in BUDGETS}):
                 results = cusum_results(fit(learners['boosting'], inputs('boosting', trajs), tau_plus),
-                                        inputs('boosting', test), test_guard_m)
+                                        inputs('boosting', test), test_guard_m, args.cusum_drifts,
+                                        args.cusum_levels)
                 for budget in BUDGETS:
                     chosen_tau_plus, drift, level = chosen_on_dev[('boosting_cusum', budget)]
                     if chosen_tau_plus == tau_plus:
