@@ -407,6 +407,7 @@ def main(argv: list[str] | None = None) -> dict:
             test_imu = ImuInputs()
             test_imu.add(args.test, test, args.jobs)
         out['test'] = {'data': str(args.test), 'learners': {}}
+        final_boosting = {}             # tau_plus -> the boosted trees on all the development data
         for name, learner in learners.items():
             kind = 'tree' if name == 'tree' else 'boosting'
             needed = sorted({chosen_on_dev[(name, b)][0] for b in BUDGETS}
@@ -414,6 +415,8 @@ def main(argv: list[str] | None = None) -> dict:
             row, results = {}, {}
             for tau_plus in needed:
                 lists = fit(learner, inputs(name, trajs), tau_plus)
+                if name == 'boosting':
+                    final_boosting[tau_plus] = lists
                 if isinstance(getattr(lists, 'inputs', None), ImuInputs):
                     lists.inputs = test_imu             # the trained model reads the test set's IMU
                 results[tau_plus] = fold_results(lists, inputs(name, test), kind, args.thresholds,
@@ -435,18 +438,22 @@ def main(argv: list[str] | None = None) -> dict:
                     print(name, 'fixed', (thr, tau_his, tau_plus), row[key], flush=True)
             out['test']['learners'][name] = row
         if args.cusum:
-            row = {}
-            for tau_plus in sorted({chosen_on_dev[('boosting_cusum', b)][0] for b in BUDGETS}):
-                results = cusum_results(fit(learners['boosting'], inputs('boosting', trajs), tau_plus),
-                                        inputs('boosting', test), test_guard_m, args.cusum_drifts,
-                                        args.cusum_levels)
-                for budget in BUDGETS:
-                    chosen_tau_plus, drift, level = chosen_on_dev[('boosting_cusum', budget)]
-                    if chosen_tau_plus == tau_plus:
-                        payload = evaluation_result_json(results[(drift, level)])
-                        row[str(budget)] = {'tau_plus_s': tau_plus, 'drift': drift, 'level_s': level,
-                                            **{k: payload[k] for k in KEEP if k in payload}}
-                        print('boosting_cusum', budget, row[str(budget)], flush=True)
+            # The CUSUM rule on the same final boosted trees (fitted above where a budget of the
+            # history window chose the same tau_plus).
+            row, cusum_at = {}, {}
+            for budget in BUDGETS:
+                tau_plus, drift, level = chosen_on_dev[('boosting_cusum', budget)]
+                if tau_plus not in cusum_at:
+                    if tau_plus not in final_boosting:
+                        final_boosting[tau_plus] = fit(learners['boosting'],
+                                                       inputs('boosting', trajs), tau_plus)
+                    cusum_at[tau_plus] = cusum_results(final_boosting[tau_plus],
+                                                       inputs('boosting', test), test_guard_m,
+                                                       args.cusum_drifts, args.cusum_levels)
+                payload = evaluation_result_json(cusum_at[tau_plus][(drift, level)])
+                row[str(budget)] = {'tau_plus_s': tau_plus, 'drift': drift, 'level_s': level,
+                                    **{k: payload[k] for k in KEEP if k in payload}}
+                print('boosting_cusum', budget, row[str(budget)], flush=True)
             out['test']['learners']['boosting_cusum'] = row
     text = json.dumps(out, indent=1, default=float)
     if args.out:

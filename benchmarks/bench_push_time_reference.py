@@ -99,13 +99,11 @@ def scores_at(dev, test, delta_s: float, window_s: float, push_rows, folds) -> d
 def schedule(per_delta: list[dict], fallen_dev: np.ndarray, k: int) -> dict[str, np.ndarray]:
     """Per set, each trajectory's first alarm delay (inf: none), the per-delay threshold letting
     ``k`` development false alarms through."""
-    first = {'dev': np.full(len(fallen_dev), np.inf), 'test': None}
+    first = {part: np.full(len(per_delta[0][part]), np.inf) for part in ('dev', 'test')}
     for row in per_delta:
         negatives = np.sort(row['dev'][~fallen_dev])
         threshold = negatives[-1 - k] + 1e-9 if k < len(negatives) else 0.0
-        for part in ('dev', 'test'):
-            if first[part] is None:
-                first[part] = np.full(len(row[part]), np.inf)
+        for part in first:
             alarm = (row[part] >= threshold) & ~row[f'gone_{part}']
             first[part] = np.where(alarm & np.isinf(first[part]), row['delta_s'], first[part])
     return first

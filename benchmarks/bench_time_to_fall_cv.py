@@ -94,16 +94,11 @@ def _since_trigger(left: np.ndarray, at_trigger: np.ndarray) -> np.ndarray:
     return since
 
 
-def _time_since_push(trajectories, triggers, stride: int = 10) -> np.ndarray:
-    """Per row of :func:`time_left_after_triggers` (same trajectories, triggers and stride), the
-    time since the push's onset [s]."""
-    since = []
-    for traj, k in zip(trajectories, triggers):
-        if k is None:
-            continue
-        end = int(np.searchsorted(traj.t, traj.t_fallen))
-        since += [traj.t[j] - traj.t_push for j in range(k, max(end, k + 1), stride)]
-    return np.array(since)
+def _since_push(left: np.ndarray, at_trigger: np.ndarray, push_to_fallen: np.ndarray) -> np.ndarray:
+    """Seconds since the push at each row of :func:`time_left_after_triggers` (the rows of one fall
+    follow its trigger's row; ``push_to_fallen``: t_fallen - t_push of each triggered fall, in
+    order)."""
+    return push_to_fallen[np.cumsum(at_trigger) - 1] - left
 
 
 def _physics_inputs(X: np.ndarray, mass_kg: float) -> np.ndarray:
@@ -179,12 +174,15 @@ def main(argv: list[str] | None = None) -> dict:
                 predictors[f'boosting (shipped settings), {name}'] = (
                     lambda X, modes, fitted=fitted: fitted.predict(X))
             if args.push_time:
-                def with_push(X, idx):
-                    return np.hstack([X, _time_since_push([trajs[i] for i in idx],
-                                                          [triggers[i] for i in idx])[:, None]])
+                def with_push(rows, idx):
+                    X_rows, _, left_rows, trigger_rows = rows
+                    push_to_fallen = np.array([trajs[i].t_fallen - trajs[i].t_push for i in idx
+                                               if triggers[i] is not None])
+                    return np.hstack([X_rows, _since_push(left_rows, trigger_rows,
+                                                          push_to_fallen)[:, None]])
                 fitted = HistGradientBoostingRegressor(**TIME_TO_FALL_LEARNER_PARAMS, random_state=0
-                                                       ).fit(with_push(X, train_idx), left)
-                test_with_push = with_push(test_left[0], fold)
+                                                       ).fit(with_push(train_left, train_idx), left)
+                test_with_push = with_push(test_left, fold)
                 # Called, as every predictor below, on test_left's rows: their push times are these.
                 predictors['boosting (shipped settings) + the time since the push'] = (
                     lambda X, modes, fitted=fitted, Xp=test_with_push: fitted.predict(Xp))

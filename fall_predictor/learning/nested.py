@@ -89,7 +89,7 @@ class NestedOperatingPoint:
     """An operating point chosen on inner folds and reported on the outer folds."""
 
     max_fpr: float                       #: the FPR budget of the choice
-    chosen: tuple[tuple, ...]            #: per outer fold, the setting chosen (tau_plus, tau_his)
+    chosen: tuple[tuple, ...]            #: per outer fold, the setting chosen (a grid's tuple)
     outer: PooledFigures                 #: the outer folds' results at their chosen settings
     selected_in_hindsight: tuple         #: what choosing on all folds would have picked
     hindsight: PooledFigures             #: its figures on all folds (optimistic)
