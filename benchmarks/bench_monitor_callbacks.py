@@ -12,6 +12,10 @@ DDS the same process also pays rclpy's executor and middleware (``bench_monitor_
 --deployment floor``), and the benchmark's load on the other core shakes its CPU figures by
 several percent of a core from run to run; this one repeats to about 1 %.
 
+The garbage collector's work over the same part is reported too (collections per generation,
+their total and longest pause): the feed's message objects are dropped and collected before the
+walk, so the heap it scans is the monitor's, as in its own process.
+
 ``--profile SORT`` prints a cProfile of the same part instead (sorted by ``tottime`` or
 ``cumulative``).
 
@@ -22,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import cProfile
+import gc
 import json
 import os
 import platform
@@ -44,9 +49,28 @@ from bench_monitor_latency import REPO, sensor_feed, simulate
 from bench_robot_streams import TIMINGS
 
 
-def one_run(seconds: float, profile_sort: str | None) -> float | None:
-    """Our callbacks' CPU per sample [µs] over the walk of one fresh set of nodes (None when
-    profiled)."""
+class CollectorLog:
+    """The garbage collector's collections while :attr:`on`: count per generation, pauses."""
+
+    def __init__(self) -> None:
+        self.on = False
+        self.counts = [0, 0, 0]
+        self.pauses_s: list[float] = []
+        self._start = 0.0
+
+    def __call__(self, phase: str, info: dict) -> None:
+        if not self.on:
+            return
+        if phase == 'start':
+            self._start = time.perf_counter()
+        else:
+            self.pauses_s.append(time.perf_counter() - self._start)
+            self.counts[info['generation']] += 1
+
+
+def one_run(seconds: float, profile_sort: str | None) -> tuple[float, dict] | None:
+    """Our callbacks' CPU per sample [µs] over the walk of one fresh set of nodes, and the
+    garbage collector's work meanwhile (None when profiled)."""
     from fall_predictor.ros.state_estimator_node import StateEstimatorNode
 
     context = rclpy.Context()
@@ -75,15 +99,26 @@ def one_run(seconds: float, profile_sort: str | None) -> float | None:
         quarter = len(calls) // 4
         for handler, data in calls[:quarter]:          # warm up: caches, the first samples
             handler(data)
-        walk = calls[quarter:3 * quarter]
+        # Two flat lists (bytes are not tracked by the collector), the feed collected: the
+        # collector then scans the monitor's heap, not the benchmark's.
+        walk_handlers = [handler for handler, _ in calls[quarter:3 * quarter]]
+        walk_data = [data for _, data in calls[quarter:3 * quarter]]
         samples = len({s for s in feed.sample_of[quarter:3 * quarter].tolist() if s >= 0})
+        del calls, feed, run
+        gc.collect()
         if profile_sort:
             profiler = cProfile.Profile()
             profiler.enable()
+        collector = CollectorLog()
+        enabled, count_before = gc.isenabled(), gc.get_count()
+        gc.callbacks.append(collector)
+        collector.on = True
         cpu0 = time.thread_time()
-        for handler, data in walk:
+        for handler, data in zip(walk_handlers, walk_data):
             handler(data)
         cpu = time.thread_time() - cpu0
+        collector.on = False
+        gc.callbacks.remove(collector)
         if profile_sort:
             profiler.disable()
             pstats.Stats(profiler).sort_stats(profile_sort).print_stats(40)
@@ -91,7 +126,13 @@ def one_run(seconds: float, profile_sort: str | None) -> float | None:
         states = nodes[-1].counts
         if states['states'] == 0 or states['degraded_states'] > samples // 100:
             raise SystemExit(f'the nodes did not predict on the walk: {states}')
-        return cpu / samples * 1e6
+        return cpu / samples * 1e6, {
+            'samples': samples, 'collector_enabled': enabled,
+            'allocation_counts_before_after': [count_before, gc.get_count()],
+            'collections_per_generation': collector.counts,
+            'pause_us_per_sample': round(sum(collector.pauses_s) / samples * 1e6, 2),
+            'longest_pause_ms': round(max(collector.pauses_s, default=0.0) * 1e3, 3),
+            'tracked_objects': len(gc.get_objects())}
     finally:
         for node in (*nodes, listener):
             node.destroy_node()
@@ -109,7 +150,8 @@ def main() -> None:
     if args.profile:
         one_run(args.seconds, args.profile)
         return
-    per_sample = [one_run(args.seconds, None) for _ in range(args.repeats)]
+    runs = [one_run(args.seconds, None) for _ in range(args.repeats)]
+    per_sample = [cpu for cpu, _ in runs]
     result = {
         'command': 'benchmarks/bench_monitor_callbacks.py --seconds '
                    f'{args.seconds:g} --repeats {args.repeats}',
@@ -118,6 +160,7 @@ def main() -> None:
         'model': 'models/default_model.json', 'params': 'config/monitor.yaml',
         'cpu_us_per_sample': [round(v, 1) for v in per_sample],
         'cpu_us_per_sample_median': round(float(np.median(per_sample)), 1),
+        'garbage_collector': [collector for _, collector in runs],
         'load_average_1min': os.getloadavg()[0], 'cpus': os.cpu_count(),
         'python': platform.python_version(),
     }

@@ -25,7 +25,10 @@ and those stamped less than 1 ms after it; latency = state arrival minus the pub
 the sample's last message, so it includes this process's own receive path. A sample without a
 state is a drop (the nodes count those they lost as missing or stale samples; those counters are
 in the JSON too). CPU is each node process's user + system time over the replay. The executor is
-the nodes' default, or ``FALL_PREDICTOR_EXECUTOR`` (``ros/runner.py``).
+the nodes' default, or ``FALL_PREDICTOR_EXECUTOR`` (``ros/runner.py``). ``--monitor-cpus 1`` pins
+the node processes (all their threads, DDS's included) to CPU 1 with ``taskset`` and this process
+to the others, as a robot pins its real-time processes: whether moving between cores costs the
+monitor anything.
 
     .venv/bin/python benchmarks/bench_monitor_latency.py --seconds 10 --deployment all \\
         --out docs/bench_monitor_latency.json
@@ -152,14 +155,15 @@ def sensor_feed(run: TrajectoryResult, timing: DriverTiming) -> Feed:
     return Feed(topics, msgs, np.array(stamps), np.array(sample_of))
 
 
-def replay(deployment: str, feed: Feed, domain_id: int,
-           node_params: list[str]) -> dict[str, object]:
+def replay(deployment: str, feed: Feed, domain_id: int, node_params: list[str],
+           monitor_cpus: tuple[int, ...] = ()) -> dict[str, object]:
     label, modules = DEPLOYMENTS[deployment]
     tmp = Path(tempfile.mkdtemp(prefix=f'bench_monitor_{deployment}_'))
     env = ros_environment(domain_id)
     ros_args = ['--ros-args', '--params-file', str(REPO / 'config' / 'monitor.yaml'), *node_params]
     executable = 'fall_monitor' if 'fall_monitor' in modules else None
-    nodes = {name: start_process(name, [sys.executable, *(
+    pin = ['taskset', '-c', ','.join(map(str, monitor_cpus))] if monitor_cpus else []
+    nodes = {name: start_process(name, [*pin, sys.executable, *(
         [str(SCRIPTS[name])] if name in SCRIPTS else ['-m', f'fall_predictor.ros.{name}']),
         *options, *ros_args], env, tmp) for name, options in modules.items()}
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
@@ -246,6 +250,7 @@ def replay(deployment: str, feed: Feed, domain_id: int,
     return {
         'deployment': label,
         'executor': executor_kind(),
+        'monitor_cpus': list(monitor_cpus) or 'any',
         'messages_published': len(feed.msgs),
         'samples': len(ready),
         'states_received': int(latencies.size),
@@ -270,8 +275,17 @@ def main() -> None:
     parser.add_argument('--timing', choices=(*TIMINGS, 'all'), default='simulator',
                         help='sensor stream timing of the estimator and floor deployments')
     parser.add_argument('--domain-id', type=int, default=1 + os.getpid() % 100)
+    parser.add_argument('--monitor-cpus', type=lambda text: tuple(int(c) for c in text.split(',')),
+                        default=(), help='pin the node processes to these CPUs (e.g. 1) and '
+                        'this process to the others')
     parser.add_argument('--out', type=Path, default=None, help='also write the JSON here')
     args = parser.parse_args()
+    if args.monitor_cpus:
+        others = os.sched_getaffinity(0) - set(args.monitor_cpus)
+        if not others or not set(args.monitor_cpus) <= os.sched_getaffinity(0):
+            parser.error(f'--monitor-cpus {args.monitor_cpus}: needs CPUs this process may use, '
+                         f'and one left for it ({sorted(os.sched_getaffinity(0))})')
+        os.sched_setaffinity(0, others)     # before any thread (DDS's) is started
     run = simulate(args.seconds)
     deployments = {'both': ('single', 'separate'), 'all': tuple(DEPLOYMENTS)}.get(
         args.deployment, (args.deployment,))
@@ -279,12 +293,14 @@ def main() -> None:
     runs = []
     for deployment in deployments:
         if deployment not in SENSOR_DEPLOYMENTS:
-            runs.append(replay(deployment, measurement_feed(run), args.domain_id, []))
+            runs.append(replay(deployment, measurement_feed(run), args.domain_id, [],
+                               args.monitor_cpus))
             continue
         for name in timings:
             timing = TIMINGS[name]
             driving = ['-p', 'driving_joints:=' + json.dumps(list(LEGS))] if timing.joint_groups else []
-            result = replay(deployment, sensor_feed(run, timing), args.domain_id, driving)
+            result = replay(deployment, sensor_feed(run, timing), args.domain_id, driving,
+                            args.monitor_cpus)
             runs.append({'timing': name, **result})
     result = {
         'command': 'benchmarks/bench_monitor_latency.py ' + ' '.join(sys.argv[1:]),
