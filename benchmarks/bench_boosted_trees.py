@@ -439,18 +439,16 @@ def main(argv: list[str] | None = None) -> dict:
             out['test']['learners'][name] = row
         if args.cusum:
             # The CUSUM rule on the same final boosted trees (fitted above where a budget of the
-            # history window chose the same tau_plus).
-            row, cusum_at = {}, {}
+            # history window chose the same tau_plus), at each budget's chosen setting only.
+            row = {}
             for budget in BUDGETS:
                 tau_plus, drift, level = chosen_on_dev[('boosting_cusum', budget)]
-                if tau_plus not in cusum_at:
-                    if tau_plus not in final_boosting:
-                        final_boosting[tau_plus] = fit(learners['boosting'],
-                                                       inputs('boosting', trajs), tau_plus)
-                    cusum_at[tau_plus] = cusum_results(final_boosting[tau_plus],
-                                                       inputs('boosting', test), test_guard_m,
-                                                       args.cusum_drifts, args.cusum_levels)
-                payload = evaluation_result_json(cusum_at[tau_plus][(drift, level)])
+                if tau_plus not in final_boosting:
+                    final_boosting[tau_plus] = fit(learners['boosting'], inputs('boosting', trajs),
+                                                   tau_plus)
+                result = cusum_results(final_boosting[tau_plus], inputs('boosting', test),
+                                       test_guard_m, (drift,), (level,))[(drift, level)]
+                payload = evaluation_result_json(result)
                 row[str(budget)] = {'tau_plus_s': tau_plus, 'drift': drift, 'level_s': level,
                                     **{k: payload[k] for k in KEEP if k in payload}}
                 print('boosting_cusum', budget, row[str(budget)], flush=True)

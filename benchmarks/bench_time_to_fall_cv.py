@@ -48,6 +48,7 @@ from fall_predictor.learning.time_to_fall_training import (TIME_TO_FALL_LEARNER_
 from fall_predictor.learning.training import load_dataset
 from fall_predictor.learning.when_where import trigger_indices
 from fall_predictor.monitor.model_file import load_model
+from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2
 
 #: Gradient-boosting settings compared (scikit-learn's ``HistGradientBoostingRegressor``).
 BOOSTING = {
@@ -106,14 +107,15 @@ def _physics_inputs(X: np.ndarray, mass_kg: float) -> np.ndarray:
     point's x, y and distance from the CoP (the linear inverted pendulum at the CoM's height), the
     pendulum's time for it to grow to 0.3 m, the CoM's lean from the vertical over the CoP, and
     the time a free fall from the CoM's height and vertical speed takes to 0.33 m."""
+    g = STANDARD_GRAVITY_M_S2
     height = np.maximum(X[:, 2], 0.05)
-    omega = np.sqrt(9.81 / height)
+    omega = np.sqrt(g / height)
     vx, vy, vz = (X[:, 3:6] / mass_kg).T
     xi_x, xi_y = X[:, 0] + vx / omega, X[:, 1] + vy / omega
     xi = np.hypot(xi_x, xi_y)
     t_pendulum = np.log(np.maximum(0.3 / np.maximum(xi, 1e-3), 1e-3)) / omega
     lean = np.arctan2(np.hypot(X[:, 0], X[:, 1]), height)
-    t_drop = (vz + np.sqrt(vz ** 2 + 2 * 9.81 * np.maximum(height - 0.33, 0.0))) / 9.81
+    t_drop = (vz + np.sqrt(vz ** 2 + 2 * g * np.maximum(height - 0.33, 0.0))) / g
     return np.column_stack([xi_x, xi_y, xi, t_pendulum, lean, t_drop])
 
 
