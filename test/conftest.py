@@ -11,7 +11,7 @@ SLOW_MODULES = frozenset({
     # DDS: nodes, bring-up, recorders, the monitor's contract, replay over DDS
     'test_bringup', 'test_nodes_pipeline', 'test_nodes_units', 'test_monitor_contract',
     'test_state_estimator_node', 'test_robot_replay', 'test_recorder_crash', 'test_recorder_repair',
-    'test_recorder_node', 'test_ros_fall_monitor', 'test_lifecycle',
+    'test_recorder_node', 'test_ros_fall_monitor', 'test_lifecycle', 'test_ros_clock_steps',
     'test_markers', 'test_ros_common', 'test_ros_qos', 'test_launch_files',
     # a Dask cluster
     'test_cluster',

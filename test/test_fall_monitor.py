@@ -97,6 +97,21 @@ def test_disabled_means_no_prediction_and_no_latch():
     assert any(s.falling for s, _ in run(m, 0.03, 30, p_x=30.0))
 
 
+def test_a_latched_fall_survives_the_trigger_switched_off_and_on_and_a_new_monitor():
+    m = monitor()
+    run(m, 0.0, 30, p_x=30.0)
+    assert m.latched
+    m.enable(False)
+    out = run(m, 0.03, 5, p_x=0.0)
+    assert all(s.status == STATUS_DISABLED and s.latched for s, _ in out)
+    m.enable(True)
+    assert m.latched and all(s.latched for s, _ in run(m, 0.035, 5, p_x=0.0))
+    other = monitor()                               # a node reconfigured: its model read again
+    other.take_over(m.latched, m.fallen)
+    assert other.latched and all(s.latched for s, _ in run(other, 0.0, 5, p_x=0.0))
+    assert other.reset().kind == EVENT_RESET and not other.latched
+
+
 @pytest.mark.parametrize('how, kwargs', [
     ('CoM low', {'com_z': 0.30}),
     ('tilted', {'tilt': math.radians(70)}),

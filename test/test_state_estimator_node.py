@@ -9,6 +9,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import String
+from g1_streams import g1_standing
 from test_nodes_support import ros_context, test_domain_id
 
 from fall_predictor.contract import cdr, messages
@@ -221,58 +222,12 @@ def test_fall_monitor_runs_the_estimator_in_front_of_the_monitor(tmp_path):
     assert estimator.message == 'no usable robot description yet'
 
 
-def _g1_standing(n: int, period_ns: int = 2_000_000):
-    """A G1 standing still, knees bent, as its drivers publish it: 29 joints with efforts at
-    500 Hz, the pelvis IMU, no foot F/T sensors; and what the estimator must find (known answer):
-    the CoM height above the soles and the CoP at the CoM's ground projection."""
-    import pinocchio as pin
-
-    from fall_predictor.monitor.sensor_records import ImuReading, JointStateReading
-    from fall_predictor.profiles import load_profile
-    profile = load_profile('g1')
-    robot = profile.sensor_layout().description(profile.urdf_xml())
-    model, data = robot.model, robot.model.createData()
-    q_joints = np.zeros(len(robot.joint_names))
-    for side in ('l', 'r'):
-        hip, _, _, knee, ankle, _ = profile.leg_joints(side)
-        for name, angle in ((hip, -0.3), (knee, 0.6), (ankle, -0.3)):
-            q_joints[robot.joint_names.index(name)] = angle
-    q = robot.configuration(q_joints)
-    pin.computeJointJacobians(model, data, q)
-    pin.updateFramePlacements(model, data)
-    com = pin.centerOfMass(model, data, q)
-    soles = {s: data.oMf[robot.sole_ids[s]] for s in ('l', 'r')}
-    # The weight shared by the lever rule; each sole's CoP under the CoM (feet level, symmetric).
-    weight = robot.total_mass_kg * 9.81
-    lam = (com[1] - soles['l'].translation[1]) / (soles['r'].translation[1] - soles['l'].translation[1])
-    tau = pin.rnea(model, data, q, np.zeros(model.nv), np.zeros(model.nv)).copy()
-    for side, share in (('l', 1 - lam), ('r', lam)):
-        offset = com - soles[side].translation
-        fz = share * weight
-        wrench = np.array([0.0, 0.0, fz, offset[1] * fz, -offset[0] * fz, 0.0])
-        tau -= pin.getFrameJacobian(model, data, robot.sole_ids[side], pin.ReferenceFrame.LOCAL).T @ wrench
-    order = list(reversed(robot.joint_names))                  # the driver's order, not the URDF's
-    index = [robot.joint_names.index(name) for name in order]
-    imu_rot = data.oMf[model.getFrameId(profile.imu_frame)].rotation
-    stamp0 = 1_764_000_000_000_000_000                         # epoch time, as on a robot
-    out = []
-    for k in range(n):
-        stamp = stamp0 + k * period_ns
-        out.append(('joints', JointStateReading(stamp, tuple(order), q_joints[index], np.zeros(len(order)),
-                                                tau[robot.idx_v][index])))
-        out.append(('imu', ImuReading(stamp + 300_000, profile.imu_frame,
-                                      pin.Quaternion(imu_rot).coeffs().copy(), np.zeros(3),
-                                      imu_rot.T @ np.array([0.0, 0.0, 9.81]))))
-    sole_z = soles['l'].translation[2]
-    return out, com[2] - sole_z, com[:2] - (soles['l'].translation[:2] + soles['r'].translation[:2]) / 2
-
-
 def test_a_g1_standing_on_its_topics_without_foot_sensors():
     """robot:=g1: the G1's description, joint states with efforts at 500 Hz in the driver's order,
     its pelvis IMU, no wrench topics: the node estimates every sample, on both feet, with the CoM
     height and the CoP the statics give (known answer, to the millimetre), stamped as received."""
     from fall_predictor.profiles import load_profile
-    sensor_messages, com_height, cop_offset = _g1_standing(60)
+    sensor_messages, com_height, cop_offset = g1_standing(60)
     got, counts, node = _drive(sensor_messages, load_profile('g1').urdf_xml(), expected=55,
                                params=[('robot', 'g1')])
     assert node._pipeline is not None and counts['wrench_messages'] == 0

@@ -25,7 +25,7 @@ def test_epoch_stamps_give_exact_run_times_from_the_first_sample() -> None:
     assert timeline.last_run_time() == pytest.approx(1.998, abs=1e-12)
     assert timeline.period_s == pytest.approx(0.002)
     assert timeline.counters() == {'duplicates': 0, 'out_of_order': 0, 'stray_stamps': 0,
-                                   'clock_jumps': 0, 'missing_samples': 0}
+                                   'clock_jumps': 0, 'pauses': 0, 'missing_samples': 0}
 
 
 def test_duplicates_and_out_of_order_samples_are_dropped_and_counted() -> None:
@@ -75,25 +75,40 @@ def test_a_clock_set_back_re_anchors_after_jump_samples_consistent_samples() -> 
     assert (timeline.jumps, timeline.strays) == (1, 0)
 
 
-def test_a_sensor_that_pauses_or_a_clock_stepped_forward_is_a_gap_of_the_same_run() -> None:
-    """A step forward beyond max_step_s is held for one sample: followed on, it is a gap (the
-    run goes on, the samples in between counted missing); not followed, a stray."""
+def test_a_sensor_that_pauses_or_a_clock_stepped_forward_starts_a_new_run() -> None:
+    """A step forward beyond max_step_s is held for one sample: followed on, the stream paused or
+    its clock stepped forward, and a new run starts at the follower (the samples in between
+    counted missing); not followed, a stray."""
     timeline = StampTimeline(TimelineConfig(max_step_s=0.5))
     stream(timeline, [EPOCH_NS + k * MS for k in range(100)])
     resumed = EPOCH_NS + 2099 * MS                          # 2 s without samples
     assert timeline.classify(resumed) is Stamp.JUMP_PENDING
-    assert timeline.classify(resumed + MS) is Stamp.NEXT
-    assert timeline.missing == 2000 and timeline.anchor_ns == EPOCH_NS and timeline.jumps == 0
-    # An hour forward (NTP): the same, a gap of the same run.
+    assert timeline.classify(resumed + MS) is Stamp.NEW_RUN
+    assert timeline.missing == 2000 and timeline.anchor_ns == resumed + MS
+    assert (timeline.pauses, timeline.jumps) == (1, 0)
+    assert timeline.last_step_s == pytest.approx(1.999)    # beyond where the next sample was due
+    assert timeline.run_time(resumed + 3 * MS) == pytest.approx(0.002)
+    # An hour forward (NTP): the same, a new run.
     ahead = resumed + 3600 * NS_PER_S
     assert [timeline.classify(ahead + k * MS) for k in range(3)] == [
-        Stamp.JUMP_PENDING, Stamp.NEXT, Stamp.NEXT]
-    assert timeline.anchor_ns == EPOCH_NS and timeline.strays == 0
+        Stamp.JUMP_PENDING, Stamp.NEW_RUN, Stamp.NEXT]
+    assert timeline.anchor_ns == ahead + MS and timeline.strays == 0 and timeline.pauses == 2
     # A stray from the past held while the sensor paused is still counted.
     assert timeline.classify(EPOCH_NS - NS_PER_S) is Stamp.JUMP_PENDING
     assert [timeline.classify(ahead + NS_PER_S + k * MS) for k in range(2)] == [
-        Stamp.JUMP_PENDING, Stamp.NEXT]
+        Stamp.JUMP_PENDING, Stamp.NEW_RUN]
     assert timeline.strays == 1
+
+
+def test_a_restart_from_upstream_anchors_at_once() -> None:
+    """A consumer of a producer that applies the rule takes its new run without confirming it."""
+    timeline = StampTimeline()
+    stream(timeline, [EPOCH_NS + k * MS for k in range(10)])
+    back = EPOCH_NS - 10 * NS_PER_S
+    timeline.restart(back)
+    assert timeline.anchor_ns == back and timeline.jumps == 1
+    assert timeline.last_step_s == pytest.approx(-10.010)
+    assert timeline.classify(back + MS) is Stamp.NEXT
 
 
 def test_strays_that_disagree_with_each_other_never_confirm_a_jump() -> None:
@@ -147,8 +162,8 @@ def test_the_period_is_learnt_even_when_the_first_step_is_a_gap() -> None:
     timeline.classify(EPOCH_NS)
     stream(timeline, [EPOCH_NS + 300 * MS + k * MS for k in range(50)])   # 0.3 s, then 1 kHz
     assert timeline.period_s == pytest.approx(0.001)
-    # A 1 s pause: the first sample after it is held, the next confirms the gap; every sample in
-    # between (the held one too) is missing.
+    # A 1 s pause: the first sample after it is held, the next confirms it (a new run); every
+    # sample in between (the held one too) is missing.
     assert stream(timeline, [EPOCH_NS + 1349 * MS, EPOCH_NS + 1350 * MS]) == [Stamp.JUMP_PENDING,
-                                                                             Stamp.NEXT]
+                                                                             Stamp.NEW_RUN]
     assert timeline.missing == 1000

@@ -141,6 +141,8 @@ class StampedMeasurement(NamedTuple):
     frame_id: str
     fault: str
     measurement: Optional[Measurement]
+    #: Handed over in process only: the producer (applying the time rule) started a new run here.
+    new_run: bool = False
 
 
 def _sole(types: MessageTypes, foot: Sequence[float], contacts: np.ndarray) -> Any:
@@ -216,9 +218,10 @@ def measurement_from_msg(msg: Any) -> StampedMeasurement:
     """``fall_predictor/msg/Measurement`` -> StampedMeasurement, checked (WireFormatError;
     :func:`check_measurement`)."""
     ns = stamp_ns(msg)
-    fault = str(msg.fault)
+    fault = plausibility.bound_text(str(msg.fault))         # wire text: bounded
+    frame_id = plausibility.bound_text(str(msg.header.frame_id), plausibility.MAX_NAME_CHARS)
     if fault:
-        return StampedMeasurement(ns, msg.header.frame_id, fault, None)
+        return StampedMeasurement(ns, frame_id, fault, None)
     m = Measurement(t=ns / NS_PER_S, com=np.array(_xyz(msg.com)),
                     lin_mom=np.array(_xyz(msg.linear_momentum)),
                     ang_mom=np.array(_xyz(msg.angular_momentum)), heading=float(msg.heading),
@@ -232,7 +235,7 @@ def measurement_from_msg(msg: Any) -> StampedMeasurement:
                     push_force=np.array(_xyz(msg.push_force)), torso_rotation=None)
     check_measurement(m)
     m.torso_rotation = _rotation(msg.base_orientation)
-    return StampedMeasurement(ns, msg.header.frame_id, '', m)
+    return StampedMeasurement(ns, frame_id, '', m)
 
 
 # --------------------------------------------------------------------------------------------
@@ -249,6 +252,8 @@ class StampedFeatures(NamedTuple):
     x: Optional[np.ndarray]
     mode: Optional[int]
     base_tilt_rad: float
+    #: Handed over in process only: the producer (applying the time rule) started a new run here.
+    new_run: bool = False
 
 
 def features_msg(types: MessageTypes, ns: int, x: Optional[Sequence[float]], mode: Optional[int],
@@ -302,7 +307,7 @@ def features_from_msg(msg: Any) -> StampedFeatures:
     """``fall_predictor/msg/Features`` -> StampedFeatures, checked (WireFormatError;
     :func:`check_features`)."""
     ns = stamp_ns(msg)
-    fault = str(msg.fault)
+    fault = plausibility.bound_text(str(msg.fault))         # wire text: bounded
     if fault:
         return StampedFeatures(ns, fault, None, None, math.nan)
     # A bag recorded before Features carried the attitude decodes without the field (bagio

@@ -8,7 +8,9 @@ and it runs the same offline. Per sample of features it gives a :class:`MonitorS
 * **prediction**: :class:`~fall_predictor.monitor.predictor.OnlinePredictor` (per-mode decision
   lists or boosted trees, the ``tau_his`` window, the CoM guard);
 * **trigger**: ``latched`` from the first falling prediction until :meth:`FallMonitor.reset`, the
-  only way to undo it; a new run (a clock jump), a degraded or stale sample never undoes it;
+  only way to undo it; a new run (a clock step), a degraded or stale sample, switching the trigger
+  off and on (:meth:`FallMonitor.enable`) never undoes it, nor does a new monitor that takes over
+  from this one (:meth:`FallMonitor.take_over`: a node reconfigured);
 * **direction**: the heading-frame fall direction at each falling sample: the model's learned
   direction when it has one (:class:`~fall_predictor.monitor.fall_direction.LearnedDirection`),
   else the horizontal momentum's (:func:`~fall_predictor.monitor.fall_direction.momentum_direction`);
@@ -20,7 +22,8 @@ and it runs the same offline. Per sample of features it gives a :class:`MonitorS
   the ground with the CoM back above ``standing_com_height_m`` and the base within
   ``standing_tilt_rad`` of upright, for ``standing_time_s``. While down the state says FALLEN and
   nothing is predicted;
-* **disabled** (:meth:`FallMonitor.enable`): states say DISABLED and nothing triggers;
+* **disabled** (:meth:`FallMonitor.enable`): states say DISABLED and nothing new triggers (a fall
+  latched before stays latched);
 * **degraded / stale** samples (:meth:`FallMonitor.unusable`): no prediction, the reason in words;
   such a sample is a hole in the data, as a lost one is, not evidence that the robot is not
   falling: the history window restarts after a hole longer than ``max_gap_s`` (no window spans
@@ -36,6 +39,7 @@ from typing import Optional, Sequence
 from fall_predictor.monitor.decision_list import PerModeDecisionLists
 from fall_predictor.monitor.fall_direction import LearnedDirection, momentum_direction
 from fall_predictor.monitor.contact_modes import ContactMode
+from fall_predictor.monitor.plausibility import bound_text
 from fall_predictor.monitor.predictor import COM_HEIGHT_FEATURE, OnlinePredictor
 from fall_predictor.monitor.records import N_FEATURES
 
@@ -179,19 +183,25 @@ class FallMonitor:
         self._last_t = -math.inf
 
     def enable(self, enabled: bool) -> None:
-        """Switch the trigger on or off; either way the window restarts and, off, the latch goes."""
+        """Switch the trigger on or off; either way the window restarts. A latched fall stays
+        latched: only :meth:`reset` undoes it."""
         if enabled != self.enabled:
             self.enabled = enabled
             self.predictor.reset()
-            if not enabled:
-                self._latched = False
+
+    def take_over(self, latched: bool, fallen: bool) -> None:
+        """Continue from a monitor this one replaces (a node reconfigured with its model read
+        again): its latch and whether the robot is down carry over; only :meth:`reset` undoes
+        them."""
+        self._latched = bool(latched)
+        self._fallen = bool(fallen)
 
     def unusable(self, reason: str, stale: bool = False) -> MonitorState:
         """The state of a sample that cannot be used (degraded sensors, or stale): a hole in the
         data, which restarts the window only when it lasts longer than ``max_gap_s`` (the next
         usable sample's :meth:`step` tells)."""
         self._standing_since = None
-        return MonitorState(STATUS_STALE if stale else STATUS_DEGRADED, reason,
+        return MonitorState(STATUS_STALE if stale else STATUS_DEGRADED, bound_text(reason),
                             latched=self._latched, tau_his_s=self.predictor.tau_his_s)
 
     @property
@@ -219,8 +229,8 @@ class FallMonitor:
             return MonitorState(STATUS_FALLEN, 'the robot is down', latched=self._latched,
                                 contact_mode=mode, tau_his_s=tau), event
         if not self.enabled:
-            return MonitorState(STATUS_DISABLED, 'the fall trigger is disabled', contact_mode=mode,
-                                tau_his_s=tau), event
+            return MonitorState(STATUS_DISABLED, 'the fall trigger is disabled', latched=self._latched,
+                                contact_mode=mode, tau_his_s=tau), event
         out = self.predictor.step(t, values, mode)
         direction, time_to_fall_s = _NAN2, math.nan
         if out.falling:

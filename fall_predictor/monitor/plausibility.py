@@ -36,11 +36,18 @@ humanoid and its sensors can do:
 ========================  ===================================================================
 joint position            within the URDF's limits, +- 0.2 rad (continuous joints: any)
 joint velocity            at most 3 x the URDF's velocity limit (none given: 100 rad/s)
+joint effort              finite, at most 3 x the URDF's effort limit (none given: 1e4 N m)
 IMU angular velocity      norm <= 35 rad/s (2000 deg/s, the widest range of MEMS gyroscopes)
 IMU specific force        norm <= 300 m/s^2 (30 g: a torso's impact on the ground stays below)
 IMU orientation           a quaternion of norm 1 +- 0.1
 foot force / torque       norm <= 20 body weights [N]; torque norm <= 20 body weights x 0.5 m
 ========================  ===================================================================
+
+Text from the wire is bounded too: a fault, a reason or a log line carries at most
+:data:`MAX_TEXT_CHARS` characters of it (:func:`bound_text`), a name (a joint, a frame) at most
+:data:`MAX_NAME_CHARS` (:func:`bound_names`), a robot description at most
+:data:`MAX_DESCRIPTION_CHARS`, so that a megabyte string is neither copied into every state nor
+logged whole.
 
 Continuity limits between consecutive accepted samples ``dt`` apart: CoM speed 20 m/s, rate of
 linear momentum 5e5 N, rate of angular momentum 2e5 N m. They are generous on purpose: over 60
@@ -90,11 +97,35 @@ MAX_COM_SPEED_M_S = 20.0
 JOINT_LIMIT_MARGIN_RAD = 0.2
 JOINT_VELOCITY_LIMIT_FACTOR = 3.0
 MAX_JOINT_VELOCITY_RAD_S = 100.0
+JOINT_EFFORT_LIMIT_FACTOR = 3.0
+MAX_JOINT_EFFORT_N_M = 1e4
 MAX_IMU_ANGULAR_VELOCITY_RAD_S = 35.0
 MAX_IMU_SPECIFIC_FORCE_M_S2 = 300.0
 IMU_QUATERNION_NORM_TOLERANCE = 0.1
 MAX_FOOT_FORCE_BODY_WEIGHTS = 20.0
 FOOT_TORQUE_ARM_M = 0.5
+
+
+#: Characters of wire text kept in a fault, a reason or a log line; of one name; of a URDF.
+MAX_TEXT_CHARS = 500
+MAX_NAME_CHARS = 100
+MAX_DESCRIPTION_CHARS = 50_000_000
+#: Names listed in one line (the rest counted).
+MAX_NAMES_LISTED = 6
+
+
+def bound_text(text: str, limit: int = MAX_TEXT_CHARS) -> str:
+    """``text`` cut to ``limit`` characters, saying how long it was."""
+    if len(text) <= limit:
+        return text
+    return f'{text[:limit]}... ({len(text)} characters, cut)'
+
+
+def bound_names(names: Sequence[str], count: int = MAX_NAMES_LISTED) -> str:
+    """The first ``count`` of ``names``, each bounded to :data:`MAX_NAME_CHARS`, joined, with how
+    many more there are."""
+    shown = ', '.join(bound_text(str(n), MAX_NAME_CHARS) for n in list(names)[:count])
+    return shown + (f' and {len(names) - count} more' if len(names) > count else '')
 
 
 class ImplausibleSample(ValueError):
@@ -367,13 +398,23 @@ class JointBounds:
     """Per-joint bounds of the encoders, from the URDF (arrays in one joint order).
 
     ``lower``/``upper`` are the position limits [rad] (-inf/+inf for continuous joints), ``velocity``
-    the velocity limits [rad/s] (inf where the URDF gives none).
+    the velocity limits [rad/s] and ``effort`` the effort limits [N m or N] (inf where the URDF
+    gives none; ``effort`` None: none for every joint).
     """
 
     names: tuple[str, ...]
     lower: np.ndarray
     upper: np.ndarray
     velocity: np.ndarray
+    effort: Optional[np.ndarray] = None
+
+    @functools.cached_property
+    def max_effort(self) -> np.ndarray:
+        """The largest effort accepted per joint [N m or N]."""
+        if self.effort is None:
+            return np.full(len(self.names), MAX_JOINT_EFFORT_N_M)
+        return np.where(np.isfinite(self.effort), JOINT_EFFORT_LIMIT_FACTOR * self.effort,
+                        MAX_JOINT_EFFORT_N_M)
 
     @functools.cached_property
     def _limits(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

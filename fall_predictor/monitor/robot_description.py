@@ -59,7 +59,7 @@ class RobotDescription:
         self.sole_ids = {side: self.model.getFrameId(self.soles[side].frame) for side in SIDES}
         self.total_mass_kg = float(sum(inertia.mass for inertia in self.model.inertias))
         self.joint_names, iq, iv, continuous = [], [], [], []
-        lower, upper, velocity = [], [], []
+        lower, upper, velocity, effort = [], [], [], []
         for j in range(2, self.model.njoints):     # 0: universe, 1: the floating base
             joint = self.model.joints[j]
             if joint.nv != 1:
@@ -75,12 +75,14 @@ class RobotDescription:
             upper.append(np.inf if is_continuous else self.model.upperPositionLimit[joint.idx_q])
             v_max = self.model.velocityLimit[joint.idx_v]
             velocity.append(v_max if 0.0 < v_max < 1e10 else np.inf)
+            effort_max = self.model.effortLimit[joint.idx_v]
+            effort.append(effort_max if 0.0 < effort_max < 1e10 else np.inf)
         self.joint_names = tuple(self.joint_names)
         self.idx_q = np.array(iq, dtype=np.int64)
         self.idx_v = np.array(iv, dtype=np.int64)
         self.continuous = np.array(continuous, dtype=bool)
         self.joint_bounds = JointBounds(self.joint_names, np.array(lower), np.array(upper),
-                                        np.array(velocity))
+                                        np.array(velocity), np.array(effort))
         self._frame_cache: dict[str, int] = {}
         self._neutral = pin.neutral(self.model)
         self._any_continuous = bool(self.continuous.any())

@@ -18,15 +18,27 @@ recording's messages (in the order they were received), so that both give the sa
    drive only when they carry a joint of ``driving_joints`` (default: any joint of the
    description), and only once per stamp: the rest are taken as the joints' newest values.
 
-A confirmed clock jump starts a new run: the estimator and the IMU/wrench buffers are reset.
+A confirmed step of the driving stream's clock, back or forward (an NTP or PTP step on the robot, a
+simulator reset, a recording that loops, a sensor that paused for more than ``max_step_s``), starts
+a new run: the estimator starts again, every other stream starts again from its readings on the new
+timeline (:meth:`~fall_predictor.monitor.sensor_sync.SensorSync.follow`), and the estimate says so
+(``new_run``, with the step) so that the monitor restarts its windows, never its latch. Each
+stream's own clock follows the same rule: a stream that steps alone starts its readings again, and
+the samples then say that the clocks differ. :meth:`SensorPipeline.take_notices` gives each such
+event once, in words, for the log.
+
+A joint state message that carries none of the description's joints (empty, or naming only joints
+the description lacks) while none of the robot's joints arrive either is a fault in words, not a
+silent missing sample.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from typing import Optional
 
+from fall_predictor.monitor.effort_wrench import leg_joint_ids
 from fall_predictor.monitor.estimator import EstimatorConfig, StateEstimator
-from fall_predictor.monitor.plausibility import ImplausibleSample, check_measurement
+from fall_predictor.monitor.plausibility import ImplausibleSample, bound_names, check_measurement
 from fall_predictor.monitor.records import Measurement
 from fall_predictor.monitor.robot_description import SIDES, RobotDescription
 from fall_predictor.monitor.sensor_records import ImuReading, JointStateReading, WrenchReading
@@ -44,7 +56,9 @@ class Estimate:
     t: float                            #: run time [s]
     measurement: Optional[Measurement]  #: None when ``fault`` says why
     fault: str = ''
-    new_run: bool = False               #: this stamp started a new run (a confirmed clock jump)
+    new_run: bool = False               #: this stamp started a new run (a confirmed clock step)
+    #: With ``new_run``: the step [s] from the previous accepted stamp (negative: back).
+    clock_step_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -79,13 +93,22 @@ class SensorPipeline:
         self.estimator = StateEstimator(robot, config.estimator, imu_frame=imu_frame,
                                         effort_feet=tuple(s for s in SIDES if s not in force_sensors))
         weight_n = robot.total_mass_kg * 9.81
+        effort_joints = [robot.model.names[j] for side in self.estimator.effort_feet
+                         for j in leg_joint_ids(robot, side)]
         self.sync = SensorSync(robot.joint_names, force_sensors, weight_n, config.sync,
-                               robot.joint_bounds, topics)
+                               robot.joint_bounds, topics, config.timeline, effort_joints)
         self.timeline = StampTimeline(config.timeline)
-        self.counts = {'estimates': 0, 'measurements': 0, 'faults': 0}
+        self.counts = {'estimates': 0, 'measurements': 0, 'faults': 0, 'joint_messages_unused': 0}
         self._drivers = frozenset(config.driving_joints or robot.joint_names)
-        #: An accepted driving stamp waiting for its readings: (stamp [ns], starts a new run).
-        self._pending: Optional[tuple[int, bool]] = None
+        self._known = frozenset(robot.joint_names)
+        self._topics = self.sync.topics
+        #: An accepted driving stamp waiting for its readings: (stamp [ns], starts a new run, the
+        #: fault it has already, if any).
+        self._pending: Optional[tuple[int, bool, str]] = None
+        self._notices: list[str] = []
+        #: Steps of other streams' clocks not told yet: (stream, step [s], estimates then). A
+        #: step of the driving stream's clock soon after tells them with its own.
+        self._stream_steps: list[tuple[str, float, int]] = []
 
     def reset(self) -> None:
         """A new run: time, estimator and sensor buffers start over."""
@@ -94,13 +117,53 @@ class SensorPipeline:
         self.sync.reset()
         self._pending = None
 
+    def take_notices(self) -> list[str]:
+        """What happened to the streams' clocks since the last call, in words, each once (for a
+        log line): a step of the driving stream's clock (with the streams that stepped with it),
+        or of another stream's alone (told once the driving stream has gone on without it)."""
+        estimates = self.counts['estimates']
+        self._stream_steps += [(stream, step_s, estimates) for stream, step_s in self.sync.take_steps()]
+        alone = [(stream, step_s) for stream, step_s, then in self._stream_steps
+                 if estimates - then > self.config.timeline.jump_samples]
+        self._stream_steps = [s for s in self._stream_steps
+                              if estimates - s[2] <= self.config.timeline.jump_samples]
+        driving = self._topics[self.config.driving]
+        out = self._notices + [
+            f'{self._topics[stream]} stamps stepped {_direction(step_s)} {abs(step_s):.3f} s alone: its '
+            f'readings start again from its new timeline, which {driving} does not share (the '
+            'samples say so until the clocks agree)' for stream, step_s in alone]
+        self._notices = []
+        return out
+
     def joint_state(self, reading: JointStateReading) -> tuple[list[Estimate], list[str]]:
         """One joint state message: (the estimates it completes, joint names the robot
         description does not know, seen for the first time). ValueError if malformed."""
         unknown = self.sync.add_joint_state(reading)
-        drives = (self.config.driving == 'joints' and not self._drivers.isdisjoint(reading.names)
+        joints = self.config.driving == 'joints'
+        drives = (joints and not self._drivers.isdisjoint(reading.names)
                   and reading.stamp_ns != self.timeline.last_ns)      # not a part of a split message
-        return self._after_reading(reading.stamp_ns if drives else None), unknown
+        if drives:
+            return self._after_reading(reading.stamp_ns), unknown
+        if joints and self._known.isdisjoint(reading.names) and self._robot_silent(reading.stamp_ns):
+            self.counts['joint_messages_unused'] += 1
+            return self._after_reading(reading.stamp_ns, self._unusable_joint_state(reading)), unknown
+        return self._after_reading(None), unknown
+
+    def _robot_silent(self, stamp_ns: int) -> bool:
+        """Whether none of the robot's joints arrived within the joint timeout before
+        ``stamp_ns`` (a message of other joints is then not a second publisher's: it is all
+        there is)."""
+        newest = self.sync.joints.newest_stamp_ns
+        timeout_ns = round(self.config.sync.joint_timeout_s * 1e9)
+        return not self.sync.joints.received.any() or stamp_ns - newest > timeout_ns
+
+    def _unusable_joint_state(self, reading: JointStateReading) -> str:
+        topic = self._topics['joints']
+        if not reading.names:
+            return f'{topic} message with no joints (empty names)'
+        names = bound_names(reading.names)
+        return (f'{topic} names only joints the robot description lacks ({names}): is the '
+                'robot_description this robot\'s?')
 
     def imu(self, reading: ImuReading) -> list[Estimate]:
         self.sync.add_imu(reading)
@@ -124,29 +187,52 @@ class SensorPipeline:
         """The estimate of a driving stamp still waiting for readings (end of a recording)."""
         return self._estimate_pending()
 
-    def _after_reading(self, driving_ns: Optional[int]) -> list[Estimate]:
+    def _after_reading(self, driving_ns: Optional[int], fault: str = '') -> list[Estimate]:
         out = []
         if driving_ns is not None:
             out = self._estimate_pending()
             kind = self.timeline.classify(driving_ns)
             if kind.accepted:
                 if kind is Stamp.NEW_RUN:
-                    self.estimator.reset()
-                self._pending = (driving_ns, kind is Stamp.NEW_RUN)
-        if self._pending is not None and self.sync.complete_at(self._pending[0]):
+                    self._new_run(driving_ns)
+                self._pending = (driving_ns, kind is Stamp.NEW_RUN, fault)
+        if (self._pending is not None and not self._pending[2]
+                and self.sync.complete_at(self._pending[0])):
             out.extend(self._estimate_pending())
         return out
+
+    def _new_run(self, anchor_ns: int) -> None:
+        """The driving stream's clock stepped: the estimator and the other streams start again."""
+        self.estimator.reset()
+        with_it = self.sync.follow(anchor_ns)
+        step_s = self.timeline.last_step_s
+        max_step_s = self.config.timeline.max_step_s
+        self._stream_steps += [(stream, s, 0) for stream, s in self.sync.take_steps()]
+        together = [self._topics[stream] for stream, s, _ in self._stream_steps
+                    if abs(s - step_s) <= max_step_s]
+        together += [self._topics[stream] for stream in with_it]
+        self._stream_steps = [s for s in self._stream_steps if abs(s[1] - step_s) > max_step_s]
+        streams = ' and '.join([self._topics[self.config.driving], *together])
+        self._notices.append(
+            f'{streams} stamps stepped {_direction(step_s)} {abs(step_s):.3f} s (a clock step, a '
+            f'simulator reset, a looped recording or a pause longer than {max_step_s:g} s): a new '
+            f'timeline from stamp {anchor_ns / 1e9:.3f} s; buffers emptied, history restarted, the '
+            'fall latch kept')
 
     def _estimate_pending(self) -> list[Estimate]:
         if self._pending is None:
             return []
-        stamp_ns, new_run = self._pending
+        stamp_ns, new_run, fault = self._pending
         self._pending = None
-        return [self._estimate(stamp_ns, new_run)]
+        return [self._estimate(stamp_ns, new_run, fault)]
 
-    def _estimate(self, stamp_ns: int, new_run: bool) -> Estimate:
+    def _estimate(self, stamp_ns: int, new_run: bool, fault: str = '') -> Estimate:
         t = self.timeline.run_time(stamp_ns)
+        step_s = self.timeline.last_step_s if new_run else 0.0
         self.counts['estimates'] += 1
+        if fault:
+            self.counts['faults'] += 1
+            return Estimate(stamp_ns, t, None, fault, new_run, step_s)
         sample, faults = self.sync.sample_at(stamp_ns, t, self.config.driving)
         measurement = None
         if sample is not None:
@@ -163,6 +249,10 @@ class SensorPipeline:
                     measurement, faults = None, [f'implausible estimate: {error}']
         if measurement is None:
             self.counts['faults'] += 1
-            return Estimate(stamp_ns, t, None, '; '.join(faults), new_run)
+            return Estimate(stamp_ns, t, None, '; '.join(faults), new_run, step_s)
         self.counts['measurements'] += 1
-        return Estimate(stamp_ns, t, measurement, '', new_run)
+        return Estimate(stamp_ns, t, measurement, '', new_run, step_s)
+
+
+def _direction(step_s: float) -> str:
+    return 'back' if step_s < 0 else 'forward'

@@ -22,211 +22,25 @@ them says so.
 """
 from __future__ import annotations
 
-import bisect
 import math
-from dataclasses import dataclass
 from typing import Optional, Sequence
 
 import numpy as np
 
-from fall_predictor.monitor.plausibility import JointBounds, check_imu, check_wrench
+from fall_predictor.monitor.plausibility import MAX_NAME_CHARS, JointBounds, check_imu, check_wrench
 from fall_predictor.monitor.sensor_records import (ImuReading, JointStateReading, SensorSample,
                                                    WrenchReading)
-from fall_predictor.monitor.timeline import NS_PER_S
-
-SIDES = ('l', 'r')
-
-
-@dataclass(frozen=True)
-class SyncConfig:
-    """How readings are matched to a driving stamp, and when a joint counts as missing or stuck."""
-
-    #: The IMU and wrench readings used lie within this of the driving stamp [s].
-    tolerance_s: float = 0.005
-    #: A joint not updated within this of the driving stamp is missing [s].
-    joint_timeout_s: float = 0.05
-    #: A joint whose position stays identical for this long [s] while its reported speed is at
-    #: least ``stuck_speed_rad_s`` is stuck (a frozen encoder or driver).
-    stuck_time_s: float = 0.1
-    stuck_speed_rad_s: float = 0.5
-    #: Readings kept per stream (interpolation needs two around the stamp).
-    buffer_readings: int = 16
-
-    def __post_init__(self) -> None:
-        for name in ('tolerance_s', 'joint_timeout_s', 'stuck_time_s', 'stuck_speed_rad_s'):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0.0):
-                raise ValueError(f'{name} must be a finite number > 0, got {value!r}')
-        if self.buffer_readings < 2:
-            raise ValueError(f'buffer_readings must be >= 2, got {self.buffer_readings}')
+# The per-stream state, re-exported: SyncConfig, StreamBuffer and JointTable live there.
+from fall_predictor.monitor.sensor_streams import (SIDES, JointTable, StreamBuffer,  # noqa: F401
+                                                   SyncConfig)
+from fall_predictor.monitor.timeline import NS_PER_S, TimelineConfig
 
 
-class StreamBuffer:
-    """The last readings of one sensor stream (values as flat float arrays), in stamp order."""
-
-    def __init__(self, size: int) -> None:
-        self.size = size
-        self._stamps: list[int] = []
-        self._values: list[np.ndarray] = []
-
-    def __len__(self) -> int:
-        return len(self._stamps)
-
-    @property
-    def newest_ns(self) -> Optional[int]:
-        return self._stamps[-1] if self._stamps else None
-
-    @property
-    def newest(self) -> Optional[np.ndarray]:
-        return self._values[-1] if self._values else None
-
-    def clear(self) -> None:
-        self._stamps.clear()
-        self._values.clear()
-
-    def add(self, stamp_ns: int, values: np.ndarray) -> None:
-        """Insert a reading in stamp order (a late one too); a repeated stamp replaces it."""
-        stamps = self._stamps
-        i = bisect.bisect_left(stamps, stamp_ns)
-        if i < len(stamps) and stamps[i] == stamp_ns:
-            self._values[i] = values
-            return
-        stamps.insert(i, stamp_ns)
-        self._values.insert(i, values)
-        if len(stamps) > self.size:
-            del stamps[0], self._values[0]
-
-    def at(self, stamp_ns: int, tolerance_ns: int) -> Optional[np.ndarray]:
-        """The reading at ``stamp_ns``: interpolated between the readings around it when both lie
-        within ``tolerance_ns``, else the nearest within it, else None."""
-        stamps = self._stamps
-        i = bisect.bisect_right(stamps, stamp_ns) - 1          # newest at or before the stamp
-        before = i if i >= 0 and stamp_ns - stamps[i] <= tolerance_ns else None
-        after = i + 1 if i + 1 < len(stamps) and stamps[i + 1] - stamp_ns <= tolerance_ns else None
-        if before is not None and (after is None or stamps[before] == stamp_ns):
-            return self._values[before]
-        if before is not None and after is not None:
-            w = (stamp_ns - stamps[before]) / (stamps[after] - stamps[before])
-            return self._values[before] + w * (self._values[after] - self._values[before])
-        return None if after is None else self._values[after]
-
-
-class JointTable:
-    """The newest position, velocity and effort of each joint of the robot description."""
-
-    def __init__(self, names: Sequence[str], bounds: Optional[JointBounds] = None) -> None:
-        self.names = tuple(names)
-        n = len(self.names)
-        self._index = {name: i for i, name in enumerate(self.names)}
-        self.q = np.full(n, np.nan)
-        self.dq = np.full(n, np.nan)
-        self.tau = np.full(n, np.nan)
-        self.stamp_ns = np.zeros(n, dtype=np.int64)
-        self.received = np.zeros(n, dtype=bool)
-        self.reports_velocity = np.zeros(n, dtype=bool)
-        self._frozen_since_ns = np.zeros(n, dtype=np.int64)
-        self.bounds = bounds
-        self.unknown: set[str] = set()        #: names seen that the description does not have
-        self.oldest_stamp_ns = 0               #: the stamp of the joint longest without news
-        self.all_received = n == 0             #: every joint has been received
-        self._maps: dict[tuple[str, ...], tuple] = {}
-
-    def _map(self, names: tuple[str, ...]) -> tuple:
-        """Of a message layout: (positions in the message, joint indices) of its known names, and
-        its names the description lacks."""
-        cached = self._maps.get(names)
-        if cached is None:
-            if len(set(names)) != len(names):
-                raise ValueError(f'joint names repeat in one message: {list(names)}')
-            pairs = [(k, self._index[n]) for k, n in enumerate(names) if n in self._index]
-            message = np.array([k for k, _ in pairs], dtype=np.int64)
-            joints = np.array([j for _, j in pairs], dtype=np.int64)
-            cached = self._maps[names] = (message, joints,
-                                          [n for n in names if n not in self._index])
-        return cached
-
-    def update(self, reading: JointStateReading) -> list[str]:
-        """Take one message's joints; returns the names the description does not know that were
-        not seen before (to be reported once). ValueError for a malformed message."""
-        names = tuple(reading.names)
-        position = np.asarray(reading.position, dtype=float)
-        velocity = np.asarray(reading.velocity, dtype=float)
-        effort = np.asarray(reading.effort, dtype=float)
-        n = len(names)
-        if position.shape != (n,) or velocity.size not in (0, n) or effort.size not in (0, n):
-            raise ValueError(f'joint state with {n} names has {position.size} positions, '
-                             f'{velocity.size} velocities and {effort.size} efforts')
-        k, j, unknown = self._map(names)
-        new_unknown = [name for name in unknown if name not in self.unknown]
-        self.unknown.update(new_unknown)
-        if not j.size:
-            return new_unknown
-        q_new = position[k]
-        stamp = reading.stamp_ns
-        if not np.isfinite(q_new).all():
-            raise ValueError('joint positions are not finite')
-        if velocity.size:
-            dq_new = velocity[k]
-            if not np.isfinite(dq_new).all():
-                raise ValueError('joint velocities are not finite')
-            self.reports_velocity[j] = True
-        else:
-            # No velocities reported: the backward difference of positions per joint.
-            dt = (stamp - self.stamp_ns[j]) / NS_PER_S
-            with np.errstate(invalid='ignore', divide='ignore'):
-                dq_new = np.where(self.received[j] & (dt > 0), (q_new - self.q[j]) / dt, 0.0)
-            self.reports_velocity[j] = False
-        moved = q_new != self.q[j]
-        if not self.all_received:
-            moved |= ~self.received[j]          # a first reading starts the stuck clock too
-        self._frozen_since_ns[j[moved]] = stamp
-        self.q[j] = q_new
-        self.dq[j] = dq_new
-        self.tau[j] = effort[k] if effort.size else np.nan
-        self.stamp_ns[j] = stamp
-        if not self.all_received:
-            self.received[j] = True
-            self.all_received = not np.count_nonzero(~self.received)
-        # Kept per message, read per sample and per reading (complete_at, faults); a message with
-        # every joint makes its stamp the oldest.
-        self.oldest_stamp_ns = stamp if len(j) == len(self.names) else int(self.stamp_ns.min())
-        return new_unknown
-
-    def efforts(self) -> np.ndarray:
-        """A copy of every joint's effort, or an empty array where any is unknown."""
-        return self.tau.copy() if np.isfinite(self.tau).all() else np.zeros(0)
-
-    def never_received(self) -> list[str]:
-        return [self.names[i] for i in np.flatnonzero(~self.received)]
-
-    def faults(self, stamp_ns: int, config: SyncConfig) -> list[str]:
-        """Why the joints cannot be used at ``stamp_ns`` (empty when they can)."""
-        out = []
-        if not self.all_received:
-            missing = ~self.received
-            out.append(_joint_list('never received', [self.names[i] for i in np.flatnonzero(missing)]))
-        # Each check in full only when its cheap bound says a joint may fail it.
-        if (stamp_ns - self.oldest_stamp_ns) / NS_PER_S > config.joint_timeout_s:
-            age_s = (stamp_ns - self.stamp_ns) / NS_PER_S
-            old = self.received & (age_s > config.joint_timeout_s)
-            if np.count_nonzero(old):
-                out.append(_joint_list(f'not received for more than {config.joint_timeout_s * 1e3:.0f} ms',
-                                       [self.names[i] for i in np.flatnonzero(old)]))
-        if (stamp_ns - int(self._frozen_since_ns.min())) / NS_PER_S >= config.stuck_time_s:
-            frozen_s = (stamp_ns - self._frozen_since_ns) / NS_PER_S
-            stuck = (self.received & self.reports_velocity & (frozen_s >= config.stuck_time_s)
-                     & (np.abs(self.dq) >= config.stuck_speed_rad_s))
-            for i in np.flatnonzero(stuck):
-                out.append(f'joint {self.names[i]} stuck at {self.q[i]:.4g} rad for {frozen_s[i]:.2f} s '
-                           f'while reporting {self.dq[i]:.3g} rad/s')
-        if self.bounds is not None and not out:
-            out.extend(self.bounds.violations(self.q, self.dq))
-        return out
-
-
-def _joint_list(what: str, names: list[str]) -> str:
-    shown = ', '.join(names[:6]) + (f' and {len(names) - 6} more' if len(names) > 6 else '')
-    return f'joint{"s" if len(names) > 1 else ""} {shown} {what}'
+def _frame_problem(frame_id: str) -> Optional[str]:
+    """Why a reading's frame cannot be a frame of the robot description, or None."""
+    if len(frame_id) > MAX_NAME_CHARS:
+        return f'a frame_id of {len(frame_id)} characters (at most {MAX_NAME_CHARS} are read)'
+    return None
 
 
 class SensorSync:
@@ -235,28 +49,41 @@ class SensorSync:
     ``joint_names``: the joints of the robot description, in the estimator's order;
     ``force_sensors``: the sides ('l', 'r') that have a foot force/torque sensor;
     ``robot_weight_n``: for the wrench bounds; ``topics``: the resolved topic names, for the words
-    of the faults (keys 'joints', 'imu', 'l', 'r').
+    of the faults (keys 'joints', 'imu', 'l', 'r'); ``timeline``: the time rule each stream's
+    readings follow (a step of a stream's clock starts its buffer again); ``effort_joints``: the
+    joints whose efforts feed the estimate (the legs of the feet without force sensors): a sample
+    whose effort of one of them was refused, or not reported by a driver that reports them, is not
+    made.
     """
 
     def __init__(self, joint_names: Sequence[str], force_sensors: Sequence[str] = SIDES,
                  robot_weight_n: float = 1000.0, config: SyncConfig = SyncConfig(),
                  bounds: Optional[JointBounds] = None,
-                 topics: Optional[dict[str, str]] = None) -> None:
+                 topics: Optional[dict[str, str]] = None,
+                 timeline: TimelineConfig = TimelineConfig(),
+                 effort_joints: Sequence[str] = ()) -> None:
         self.config = config
         self.joints = JointTable(joint_names, bounds)
+        index = {name: i for i, name in enumerate(self.joints.names)}
+        self._effort_joints = np.array([index[name] for name in effort_joints], dtype=np.int64)
+        self._max_step_ns = round(timeline.max_step_s * NS_PER_S)
+        #: Streams whose clock stepped on their own since the last :meth:`take_steps`:
+        #: (stream, step [s]).
+        self.steps: list[tuple[str, float]] = []
         self.force_sensors = tuple(force_sensors)
         self.robot_weight_n = robot_weight_n
         self.topics = {'joints': '/joint_states', 'imu': '/imu/data', 'l': '/left_foot/wrench',
                        'r': '/right_foot/wrench', **(topics or {})}
         self._tolerance_ns = round(config.tolerance_s * NS_PER_S)
-        self.imu = StreamBuffer(config.buffer_readings)
-        self.wrenches = {side: StreamBuffer(config.buffer_readings) for side in self.force_sensors}
+        self.imu = StreamBuffer(config.buffer_readings, timeline)
+        self.wrenches = {side: StreamBuffer(config.buffer_readings, timeline)
+                         for side in self.force_sensors}
         self.imu_frame = ''
         self.wrench_frames = {side: '' for side in SIDES}
         #: Per stream: (stamp [ns], reason) of the latest reading refused as implausible.
         self.refused: dict[str, tuple[int, str]] = {}
         self.counts = {'joint_messages': 0, 'imu_readings': 0, 'wrench_readings': 0,
-                       'refused_readings': 0}
+                       'refused_readings': 0, 'refused_efforts': 0, 'sensor_clock_steps': 0}
 
     def reset(self) -> None:
         """Forget the IMU and wrench readings (a new run); joint values stay (they are absolute)."""
@@ -265,6 +92,34 @@ class SensorSync:
             buffer.clear()
         self.refused.clear()
 
+    def _buffers(self) -> list[tuple[str, StreamBuffer]]:
+        return [('imu', self.imu), *self.wrenches.items()]
+
+    def follow(self, anchor_ns: int) -> list[str]:
+        """The driving stream started a new run at ``anchor_ns`` (its clock stepped): every other
+        stream starts again from its readings on the new timeline, or from none
+        (:meth:`StreamBuffer.follow`); the joints' stuck clocks start again. Returns the streams
+        whose readings showed that their clock stepped with the driving one's."""
+        self.joints.new_run(anchor_ns)
+        with_it = []
+        for stream, buffer in self._buffers():
+            held = buffer.holds_readings_near(anchor_ns)
+            if buffer.follow(anchor_ns) and held:
+                self.counts['sensor_clock_steps'] += 1
+                with_it.append(stream)
+        self.refused.clear()
+        return with_it
+
+    def take_steps(self) -> list[tuple[str, float]]:
+        """The streams whose clock stepped on their own since the last call: (stream, step [s])."""
+        out, self.steps = self.steps, []
+        return out
+
+    def _added(self, stream: str, buffer: StreamBuffer, stepped: bool) -> None:
+        if stepped:
+            self.counts['sensor_clock_steps'] += 1
+            self.steps.append((stream, buffer.clock.last_step_s))
+
     def _refuse(self, stream: str, stamp_ns: int, reason: str) -> None:
         self.refused[stream] = (stamp_ns, reason)
         self.counts['refused_readings'] += 1
@@ -272,11 +127,13 @@ class SensorSync:
     def add_joint_state(self, reading: JointStateReading) -> list[str]:
         """One joint state message; returns newly seen joint names the description lacks."""
         self.counts['joint_messages'] += 1
-        return self.joints.update(reading)
+        unknown = self.joints.update(reading)
+        self.counts['refused_efforts'] = self.joints.refused_efforts
+        return unknown
 
     def add_imu(self, reading: ImuReading) -> None:
-        reason = check_imu(reading.orientation_xyzw, reading.angular_velocity,
-                           reading.linear_acceleration)
+        reason = _frame_problem(reading.frame_id) or check_imu(
+            reading.orientation_xyzw, reading.angular_velocity, reading.linear_acceleration)
         if reason is not None:
             self._refuse('imu', reading.stamp_ns, reason)
             return
@@ -286,19 +143,21 @@ class SensorSync:
         if previous is not None and float(previous[:4] @ quat) < 0.0:
             quat = -quat                    # the same attitude: keep the sign for interpolation
         self.imu_frame = reading.frame_id
-        self.imu.add(reading.stamp_ns, np.concatenate([quat, np.asarray(reading.angular_velocity, dtype=float),
-                                                       np.asarray(reading.linear_acceleration, dtype=float)]))
+        values = np.concatenate([quat, np.asarray(reading.angular_velocity, dtype=float),
+                                 np.asarray(reading.linear_acceleration, dtype=float)])
+        self._added('imu', self.imu, self.imu.add(reading.stamp_ns, values))
 
     def add_wrench(self, side: str, reading: WrenchReading) -> None:
         if side not in self.wrenches:
             return                          # a foot without a configured sensor: not used
-        reason = check_wrench(reading.wrench, self.robot_weight_n)
+        reason = _frame_problem(reading.frame_id) or check_wrench(reading.wrench, self.robot_weight_n)
         if reason is not None:
             self._refuse(side, reading.stamp_ns, reason)
             return
         self.counts['wrench_readings'] += 1
         self.wrench_frames[side] = reading.frame_id
-        self.wrenches[side].add(reading.stamp_ns, np.asarray(reading.wrench, dtype=float))
+        buffer = self.wrenches[side]
+        self._added(side, buffer, buffer.add(reading.stamp_ns, np.asarray(reading.wrench, dtype=float)))
 
     def complete_at(self, stamp_ns: int) -> bool:
         """Whether every stream has a reading at or after ``stamp_ns`` (nothing more to wait for)."""
@@ -316,14 +175,21 @@ class SensorSync:
         within = f'within {self.config.tolerance_s * 1e3:.0f} ms of {self.topics[driving]}'
         if not len(buffer):
             return f'no {self.topics[stream]} {within}'
-        lag_s = (stamp_ns - buffer.newest_ns) / NS_PER_S
-        return f'no {self.topics[stream]} {within} (newest {lag_s * 1e3:.0f} ms older)'
+        lag_ns = stamp_ns - buffer.newest_ns
+        if abs(lag_ns) > self._max_step_ns:     # not late: on another timeline
+            return (f'no {self.topics[stream]} {within} (its stamps are {abs(lag_ns) / NS_PER_S:.3f} s '
+                    f'{"behind" if lag_ns > 0 else "ahead of"} {self.topics[driving]}: the clocks differ)')
+        if lag_ns < 0:
+            return f'no {self.topics[stream]} {within} (the nearest {-lag_ns / 1e6:.0f} ms newer)'
+        return f'no {self.topics[stream]} {within} (newest {lag_ns / 1e6:.0f} ms older)'
 
     def sample_at(self, stamp_ns: int, t: float, driving: str = 'joints'
                   ) -> tuple[Optional[SensorSample], list[str]]:
         """The sample at a driving message's ``stamp_ns`` (run time ``t`` [s]) and its faults; the
         sample is None when there are any (module docstring)."""
-        faults = self.joints.faults(stamp_ns, self.config)
+        faults = self.joints.faults(stamp_ns, self.config, self._max_step_ns)
+        if self._effort_joints.size:
+            faults += self.joints.effort_faults(self._effort_joints)
         imu = self.imu.at(stamp_ns, self._tolerance_ns)
         if imu is None:
             faults.append(self._missing('imu', self.imu, stamp_ns, driving))

@@ -11,10 +11,14 @@ time.
 
 * **next**: a stamp after the previous accepted one by at most ``max_step_s`` is accepted; samples
   missing on the stream's period (estimated from the stream itself) are counted;
-* **pause**: a stamp further than ``max_step_s`` after the previous accepted one is held (dropped,
-  counted as missing); if the next one follows it (by at most ``max_step_s``), the sensor paused
-  (or its clock stepped forward) and the run goes on from there: a gap, not a new run. If the next
-  one belongs to the run instead, the held stamp was a stray (far future, ``sec = 2^31 - 1``);
+* **step forward**: a stamp further than ``max_step_s`` after the previous accepted one is held
+  (dropped, counted as missing); if the next one follows it (by at most ``max_step_s``), the
+  sensor paused or its clock stepped forward, and a new run starts there (:data:`Stamp.NEW_RUN`):
+  whatever a consumer integrated or windowed across the step (an estimator's dead reckoning, a
+  momentum-rate window, the history window) is no longer about the same motion. The samples of
+  the step are counted missing on the stream's period (a pause and a clock step cannot be told
+  apart). If the next one belongs to the run instead, the held stamp was a stray (far future,
+  ``sec = 2^31 - 1``);
 * **duplicate**: the same stamp again is dropped;
 * **out of order**: a stamp before the previous accepted one, by at most ``max_step_s``, is dropped;
 * **jump back**: any stamp before the previous accepted one (an old sample, a stray from the far
@@ -27,7 +31,11 @@ time.
   new run.
 
 The first sample after construction or :meth:`StampTimeline.reset` anchors a run whatever its stamp;
-if it was a stray, the stream re-anchors after ``jump_samples`` samples.
+if it was a stray, the stream re-anchors after ``jump_samples`` samples (two, when it lay in the past).
+
+A consumer fed by a producer that already applies this rule (a node of the same process, which only
+hands on accepted stamps and says which one starts a new run) calls :meth:`StampTimeline.restart`
+at the producer's new run instead of confirming the step again from its own samples.
 """
 from __future__ import annotations
 
@@ -79,7 +87,11 @@ class StampTimeline:
         self.duplicates = 0         #: dropped: the same stamp again
         self.out_of_order = 0       #: dropped: slightly older than the previous
         self.strays = 0             #: dropped: jump candidates discarded by a sample of the run
-        self.jumps = 0              #: clock jumps confirmed (new runs without a reset)
+        self.jumps = 0              #: clock steps back confirmed (new runs without a reset)
+        self.pauses = 0             #: steps forward confirmed: a pause or a clock stepped ahead
+        #: The latest new run's clock step [s] (negative: back): from where the old timeline would
+        #: have put its next sample to the new timeline's first stamp.
+        self.last_step_s = 0.0
         self.missing = 0            #: samples missing on the stream's estimated period
         self.reset()
 
@@ -114,12 +126,11 @@ class StampTimeline:
         held = self._ahead
         self._ahead = None
         if held is not None and 0 < stamp_ns - held <= self._max_step_ns:
-            # The stamp held ahead of the run is followed: the sensor paused (a gap; the held
-            # sample, dropped, is one of the missing).
+            # The stamp held ahead of the run is followed: the sensor paused or its clock stepped
+            # forward (the held sample, dropped, is one of the missing); a new run starts here.
             self._discard_candidates()
             self._count_missing(stamp_ns - last)
-            self.last_ns = stamp_ns
-            return Stamp.NEXT
+            return self._new_run(stamp_ns, held)
         if held is not None:
             self.strays += 1
         step = stamp_ns - last
@@ -147,9 +158,28 @@ class StampTimeline:
                 self.out_of_order += 1
                 return Stamp.OUT_OF_ORDER
             return Stamp.JUMP_PENDING
-        self.jumps += 1
+        return self._new_run(stamp_ns, candidates[0])
+
+    def _new_run(self, stamp_ns: int, first_ns: Optional[int] = None) -> Stamp:
+        """A new run anchored at ``stamp_ns``; ``first_ns``: the first stamp of the new timeline
+        (the held one, or the first of the confirming candidates), from which the step is told:
+        the clock's step is how far that stamp lies from where the old timeline would have put
+        the next sample."""
+        first_ns = stamp_ns if first_ns is None else first_ns
+        if self.last_ns is not None and first_ns > self.last_ns:
+            self.pauses += 1
+        else:
+            self.jumps += 1
+        if self.last_ns is not None:
+            period = self._period_ns or 0.0
+            self.last_step_s = (first_ns - self.last_ns - period) / NS_PER_S
         self._anchor(stamp_ns)
         return Stamp.NEW_RUN
+
+    def restart(self, stamp_ns: int) -> None:
+        """A new run at ``stamp_ns`` that an upstream producer applying this rule has confirmed
+        (counted as a clock jump; see the module docstring)."""
+        self._new_run(stamp_ns)
 
     def _discard_candidates(self) -> None:
         last = self.last_ns
@@ -180,5 +210,5 @@ class StampTimeline:
     def counters(self) -> dict[str, int]:
         """Counts for ``/diagnostics``."""
         return {'duplicates': self.duplicates, 'out_of_order': self.out_of_order,
-                'stray_stamps': self.strays, 'clock_jumps': self.jumps,
+                'stray_stamps': self.strays, 'clock_jumps': self.jumps, 'pauses': self.pauses,
                 'missing_samples': self.missing}

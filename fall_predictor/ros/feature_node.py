@@ -8,7 +8,8 @@ at a slower rate every features message says why (a DEGRADED state), once the ra
 
 For every ``fall_predictor/measurement`` (``fall_predictor/msg/Measurement``) whose stamp the time
 rule accepts (:mod:`fall_predictor.monitor.timeline`: duplicates, out-of-order samples and stray
-stamps are dropped and counted; a confirmed clock jump or the monitor's RESET event on
+stamps are dropped and counted; a confirmed clock step, back or forward (in ``fall_monitor
+--estimator`` the estimator's, handed over with its measurement), or the monitor's RESET event on
 ``fall_predictor/fall_event`` starts a new run, clearing the momentum history) it publishes
 ``fall_predictor/features`` (``fall_predictor/msg/Features``) with the measurement's own stamp
 (in ``fall_monitor``, handed to the predictor node in process and published only while another
@@ -146,10 +147,15 @@ class FeatureNode(MonitorLifecycleNode):
         return True
 
     def _process(self, decoded: messages.StampedMeasurement) -> None:
-        kind = self._timeline.classify(decoded.stamp_ns)
+        if decoded.new_run:                 # confirmed by the estimator of this process
+            self._timeline.restart(decoded.stamp_ns)
+            kind = Stamp.NEW_RUN
+        else:
+            kind = self._timeline.classify(decoded.stamp_ns)
         if not kind.accepted:
             return                          # duplicate, out of order, stray: counted
-        if kind is Stamp.NEW_RUN:
+        new_run = kind is Stamp.NEW_RUN
+        if new_run:
             self._extractor.reset()
         self._check_rate()
         own = self._rate_problem or ''      # this node's own fault, logged here (not the input's)
@@ -165,9 +171,10 @@ class FeatureNode(MonitorLifecycleNode):
         fault = decoded.fault or own
         stamp_ns = decoded.stamp_ns
         if fault:
-            features = messages.StampedFeatures(stamp_ns, fault, None, None, math.nan)
+            features = messages.StampedFeatures(stamp_ns, fault, None, None, math.nan, new_run)
         else:
-            features = messages.StampedFeatures(stamp_ns, '', np.asarray(x, dtype=float), mode, tilt)
+            features = messages.StampedFeatures(stamp_ns, '', np.asarray(x, dtype=float), mode, tilt,
+                                                new_run)
         self.output.hand_off(features, partial(messages.features_msg, ros_qos.TYPES, stamp_ns,
                                                features.x, features.mode, tilt, fault))
         self.counts['faults' if fault else 'features'] += 1

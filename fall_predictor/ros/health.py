@@ -12,6 +12,7 @@ from rclpy.node import Node
 from rclpy.subscription import Subscription
 
 from fall_predictor.contract.topics import DIAGNOSTICS, DIAGNOSTICS_RATE_HZ
+from fall_predictor.monitor.plausibility import bound_text
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.ros.endpoints import create_publisher
 from fall_predictor.ros.parameters import ParamSpec
@@ -102,7 +103,7 @@ class InputErrors:
 
     def reject(self, what: str, error: Exception) -> None:
         self.count += 1
-        self.last = f'{what}: {error}'
+        self.last = bound_text(f'{what}: {error}')         # the error may quote wire text
         now = time.monotonic()
         if now - self._logged_at >= self._throttle_s:
             self._logged_at = now
@@ -150,7 +151,8 @@ class FaultLog:
         self._ended: tuple[str, float] = ('', 0.0)   # the last fault that ended, how long it lasted
 
     def update(self, fault: str) -> None:
-        """The fault of the latest sample ('' when it had none)."""
+        """The fault of the latest sample ('' when it had none; bounded as it is logged)."""
+        fault = bound_text(fault)
         if fault != self._fault:
             now = time.monotonic()
             if self._fault:
@@ -198,6 +200,16 @@ class SampleAge:
 
     def __init__(self, node: Node) -> None:
         self._clock = node.get_clock()
+        #: Under ``use_sim_time``, after the input's clock stepped back: the node's clock then,
+        #: until ``/clock`` follows the step (ages are unknown meanwhile).
+        self._clock_before_step_ns: Optional[int] = None
+
+    def input_stepped_back(self) -> None:
+        """The input's clock stepped back (a new run). Under ``use_sim_time`` a simulator reset
+        steps ``/clock`` back too, but its first samples may come before the new ``/clock``: until
+        the node's clock has stepped back as well, a sample's age is unknown, not late."""
+        if self._clock.ros_time_is_active:
+            self._clock_before_step_ns = self._clock.now().nanoseconds
 
     def age_s(self, stamp_ns: int) -> Optional[float]:
         """Seconds since ``stamp_ns`` on the node's clock; None while the clock has no time yet
@@ -210,6 +222,10 @@ class SampleAge:
         now = self._clock.now().nanoseconds
         if now == 0:
             return None
+        if self._clock_before_step_ns is not None:
+            if now >= self._clock_before_step_ns and self._clock.ros_time_is_active:
+                return None                 # /clock has not followed the step back yet
+            self._clock_before_step_ns = None
         age_s = (now - stamp_ns) / 1e9
         return 0.0 if age_s < 0.0 and self._clock.ros_time_is_active else age_s
 

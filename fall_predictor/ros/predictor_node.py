@@ -17,8 +17,10 @@ sample; this node only converts messages. Outputs (the contract is in
 
 Services: ``fall_predictor/reset`` (``std_srvs/Trigger``): the one reset of the whole monitor
 (history, latch and trigger here; the other monitor nodes and the controller follow the RESET
-event), the only way to undo a fall; ``fall_predictor/enable`` (``std_srvs/SetBool``): false
-switches the trigger off (states say DISABLED).
+event, published before ``falling`` turns false), the only way to undo a fall; ``fall_predictor/
+enable`` (``std_srvs/SetBool``): false switches the trigger off (states say DISABLED; nothing new
+triggers). The latch survives the trigger switched off and on, a lifecycle deactivate/activate and
+a cleanup/configure (the model read again): ``falling`` never turns false without a RESET event.
 
 Inputs follow the time rule of :mod:`fall_predictor.monitor.timeline` (dropped stamps counted; a
 confirmed clock jump restarts the window, never the latch). A sample whose stamp differs from the
@@ -27,8 +29,8 @@ node's ROS clock by more than ``max_sample_age_s`` (system time on a robot, ``/c
 DEGRADED state with it; a wall-clock watchdog publishes a STALE state whenever no features arrived
 for ``stale_timeout_s``. Health, counters and reasons go to ``/diagnostics``.
 
-Parameters: ``model_path`` (default: the shipped model), ``tau_his_s`` (settable at run time;
-default: the model's recommended window), ``decision_threshold`` (boosted-trees models only;
+Parameters: ``model_path`` (default: the shipped model), ``tau_his_s`` (settable at run time
+within its range; default: the model's recommended window, taken at configure), ``decision_threshold`` (boosted-trees models only;
 settable at run time; default: the model's), ``stale_timeout_s``, ``max_sample_age_s``,
 ``robot_mass_kg``, and the fallen-detection heights of the robot (``robot``'s profile). A missing
 or invalid model makes the node refuse to start with one FATAL line (exit code 1).
@@ -107,11 +109,14 @@ class PredictorNode(MonitorLifecycleNode):
         p = self._params = declare_parameters(
             self, (AUTOSTART, MODEL_PATH, MAX_MODEL_BYTES, STALE_TIMEOUT, MAX_SAMPLE_AGE, ROBOT_PARAM,
                    TAU_HIS, DECISION_THRESHOLD, ROBOT_MASS, *feature_setting_params(SETTINGS)))
-        # A model of decision lists has no decision threshold: setting one is refused, in words.
-        self.add_on_set_parameters_callback(self._check_decision_threshold)
+        # A model of decision lists has no decision threshold, and the model's window is taken at
+        # configure only: setting either is refused, in words.
+        self.add_on_set_parameters_callback(self._check_parameters)
         self._stale_timeout_s = float(p['stale_timeout_s'])
         self._max_sample_age_s = float(p['max_sample_age_s'])
         self._monitor: Optional[FallMonitor] = None
+        #: The latch and fallen state of a monitor cleaned up, carried to the next configure.
+        self._kept_latch = (False, False)
         self._model_description = ''
         self.add_post_set_parameters_callback(self._apply_parameters)
 
@@ -171,6 +176,7 @@ class PredictorNode(MonitorLifecycleNode):
                                     settings.sample_period_s, settings.guard_com_height_m,
                                     float(mass_kg), getattr(metadata, 'time_to_fall', None),
                                     fall_direction=getattr(metadata, 'fall_direction', None))
+        self._monitor.take_over(*self._kept_latch)      # a cleanup undoes no fall
         self._timeline.reset()
         reads = '' if lists.n_inputs == N_FEATURES else ", reads the base's attitude"
         self._model_description = (f'{p["model_path"] or "the shipped model"} (mean rule size '
@@ -181,12 +187,14 @@ class PredictorNode(MonitorLifecycleNode):
 
     def _activate(self) -> None:
         self._last_valid_wall = time.monotonic()
-        self._publish_trigger(False)
+        self._publish_trigger(self._monitor.latched)    # false at start; a latched fall stays true
 
     def _deactivate(self) -> None:
-        self._publish_trigger(False)
+        pass                                # the trigger stays as it is: only the reset undoes it
 
     def _cleanup(self) -> None:
+        if self._monitor is not None:
+            self._kept_latch = (self._monitor.latched, self._monitor.fallen)
         self._monitor = None
 
     def _apply_parameters(self, parameters: list[Parameter]) -> None:
@@ -205,12 +213,18 @@ class PredictorNode(MonitorLifecycleNode):
             elif parameter.name == 'max_sample_age_s':
                 self._max_sample_age_s = float(parameter.value)
 
-    def _check_decision_threshold(self, parameters: list[Parameter]) -> SetParametersResult:
+    def _check_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         for parameter in parameters:
             if (parameter.name == 'decision_threshold' and self._monitor is not None
                     and parameter.value != THRESHOLD_FROM_MODEL
                     and not self._monitor.predictor.lists.boosted):
                 return SetParametersResult(successful=False, reason=NO_DECISION_THRESHOLD)
+            if (parameter.name == 'tau_his_s' and self._monitor is not None
+                    and parameter.value == FROM_MODEL):
+                return SetParametersResult(successful=False, reason=(
+                    f'tau_his_s {FROM_MODEL:g} (the model\'s recommended window) is taken at '
+                    f'configure only; while running give a window in [0, {MAX_TAU_HIS_S:g}] s '
+                    f'(in use: {self._monitor.tau_his_s:g} s)'))
         return SetParametersResult(successful=True)
 
     # -- services --------------------------------------------------------------------------
@@ -218,10 +232,14 @@ class PredictorNode(MonitorLifecycleNode):
         if self._monitor is None:
             response.success, response.message = False, 'not configured (lifecycle)'
             return response
+        # Stamped with the last sample's stamp (the time the monitor had reached), or, before any
+        # sample, with the node's clock.
+        stamp_ns = self._timeline.last_ns or self.get_clock().now().nanoseconds
         event = self._monitor.reset()
+        self._kept_latch = (False, False)
         self._timeline.reset()
-        self._publish_trigger(False)
-        self._publish_event(self._timeline.last_ns or 0, event)
+        self._publish_event(stamp_ns, event)
+        self._publish_trigger(False)        # after the RESET event: never false without one
         self.counts['resets'] += 1
         self.get_logger().info('reset: history, latch and trigger cleared')
         response.success, response.message = True, 'monitor reset: history, latch and trigger cleared'
@@ -234,11 +252,12 @@ class PredictorNode(MonitorLifecycleNode):
         enabled = bool(request.data)
         if enabled != self._monitor.enabled:
             self._monitor.enable(enabled)
-            if not enabled:
-                self._publish_trigger(False)
             self.get_logger().info(f'fall trigger {"enabled" if enabled else "disabled"}')
         response.success = True
-        response.message = 'enabled' if enabled else 'disabled: no trigger'
+        response.message = 'enabled' if enabled else 'disabled: no new trigger'
+        if self._monitor.latched:
+            response.message += ('; the fall already latched stays until '
+                                 f'{self.resolve_service_name(MONITOR_RESET_SERVICE)}')
         return response
 
     # -- samples ---------------------------------------------------------------------------
@@ -270,11 +289,17 @@ class PredictorNode(MonitorLifecycleNode):
         self._step(decoded)
 
     def _step(self, decoded: messages.StampedFeatures) -> None:
-        kind = self._timeline.classify(decoded.stamp_ns)
+        if decoded.new_run:                 # confirmed upstream, in this process
+            self._timeline.restart(decoded.stamp_ns)
+            kind = Stamp.NEW_RUN
+        else:
+            kind = self._timeline.classify(decoded.stamp_ns)
         if not kind.accepted:
             return                          # duplicate, out of order, stray: counted
         if kind is Stamp.NEW_RUN:
-            self._monitor.new_run()
+            self._monitor.new_run()         # the window restarts; the latch stays
+            if self._timeline.last_step_s < 0.0:
+                self._age.input_stepped_back()
         self._last_valid_wall = time.monotonic()
         self._stale_reason = None
         late = SampleAge.problem(self._age.age_s(decoded.stamp_ns), self._max_sample_age_s)

@@ -28,8 +28,12 @@ objects); a message in another encoding is decoded by rclpy instead (counted as
 ``rclpy_decoded_messages``).
 
 Stamps follow the time rule of :mod:`fall_predictor.monitor.timeline` (ROS time; one stray stamp
-is dropped, a confirmed clock jump starts a new run). The RESET event on
-``fall_predictor/fall_event`` (the monitor's one reset) starts a new run too.
+is dropped; a confirmed step of the clock, back or forward, starts a new run: the readings of the
+old timeline are dropped, the estimator starts again, the step is logged once, and the measurement
+handed over in process says so, so that the monitor's nodes restart their windows at once, never
+the latch). Each sensor stream's clock follows the same rule: one that steps alone gives DEGRADED
+measurements that say the clocks differ. The RESET event on ``fall_predictor/fall_event`` (the
+monitor's one reset) starts a new run too.
 """
 from __future__ import annotations
 
@@ -49,6 +53,7 @@ from fall_predictor.contract.topics import (FALL_EVENT, IMU, LEFT_FOOT_WRENCH, M
 from fall_predictor.contract.wire import LEVEL_ERROR, LEVEL_OK, LEVEL_STALE, LEVEL_WARN
 from fall_predictor.monitor.estimator import EstimatorConfig
 from fall_predictor.monitor.fall_monitor import EVENT_RESET
+from fall_predictor.monitor.plausibility import MAX_DESCRIPTION_CHARS, bound_names
 from fall_predictor.monitor.robot_description import DescriptionError, SensorLayout
 from fall_predictor.monitor.sensor_pipeline import Estimate, PipelineConfig, SensorPipeline
 from fall_predictor.monitor.sensor_sync import SyncConfig
@@ -161,6 +166,9 @@ class StateEstimatorNode(MonitorLifecycleNode):
     # -- inputs ----------------------------------------------------------------------------
     @guarded('robot description')
     def _on_description(self, msg: String) -> None:
+        if len(msg.data) > MAX_DESCRIPTION_CHARS:
+            raise WireFormatError(f'a robot description of {len(msg.data)} characters (at most '
+                                  f'{MAX_DESCRIPTION_CHARS} are read)')
         self._description = msg.data
         if self._layout is not None:
             self._build(msg.data)
@@ -204,7 +212,7 @@ class StateEstimatorNode(MonitorLifecycleNode):
         estimates, unknown = self._pipeline.joint_state(reading)
         if unknown:
             self.get_logger().info(f'ignoring joints the robot description does not have: '
-                                   f'{", ".join(unknown)}')
+                                   f'{bound_names(unknown)}')
         self._publish(estimates)
 
     @guarded('IMU reading')
@@ -237,10 +245,13 @@ class StateEstimatorNode(MonitorLifecycleNode):
         return self.active and self._pipeline is not None
 
     def _publish(self, estimates: list[Estimate]) -> None:
+        for notice in self._pipeline.take_notices():
+            self.get_logger().warning(notice)      # each clock step once, in words
         for e in estimates:
             self._faults.update(e.fault)
             self.counts['faults' if e.fault else 'measurements'] += 1
-            sample = messages.StampedMeasurement(e.stamp_ns, ODOM_FRAME, e.fault, e.measurement)
+            sample = messages.StampedMeasurement(e.stamp_ns, ODOM_FRAME, e.fault, e.measurement,
+                                                 e.new_run)
             try:
                 self.output.hand_off(sample, partial(messages.measurement_msg, ros_qos.TYPES,
                                                      e.stamp_ns, ODOM_FRAME, e.measurement, e.fault))
