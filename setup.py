@@ -8,7 +8,9 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test', 'test.*']),
-    package_data={package_name: ['profiles/*/*.yaml', 'profiles/*/*.urdf', 'profiles/*/LICENSE*']},
+    package_data={package_name: ['profiles/*/*.yaml', 'profiles/*/*.urdf', 'profiles/*/*.xml',
+                                 'profiles/*/LICENSE*', 'profiles/*/meshes/*',
+                                 'profiles/*/controllers/*/*']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -29,9 +31,13 @@ setup(
         'pin>=3.0',
     ],
     extras_require={
-        # example-robot-data: the G1's meshes for the simulator (the monitor needs none).
+        # example-robot-data: the G1's meshes for the simulator (the monitor needs none);
+        # mujoco: the second simulator; onnxruntime: learned policies given as ONNX (a
+        # TorchScript policy runs in numpy, robot/networks.py). Neither has a rosdep key: on a
+        # ROS install, pip install them (README).
         'offline': ['pybullet>=3.2.5', 'scipy>=1.10', 'scikit-learn>=1.3', 'joblib>=1.3',
-                    'matplotlib>=3.7', 'tqdm>=4.60', 'example-robot-data>=4.1'],
+                    'matplotlib>=3.7', 'tqdm>=4.60', 'example-robot-data>=4.1',
+                    'mujoco>=3.2', 'onnxruntime>=1.17'],
         'cluster': ['distributed>=2023.1'],
         'test': ['pytest>=7'],
     },
