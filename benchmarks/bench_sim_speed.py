@@ -24,7 +24,8 @@ import pybullet as pb
 
 from bare_physics import MAX_POSE_ERROR_M, record_calls, replay
 from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
-from fall_predictor.robot.controllers import BalanceController, ControllerSwitch, controller_configs
+from fall_predictor.robot.control import ControllerSwitch
+from fall_predictor.robot.controllers import BalanceController, controller_configs
 from fall_predictor.sim.simulator import Simulator, SimulatorConfig
 
 

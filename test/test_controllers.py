@@ -4,8 +4,8 @@ import pytest
 
 from fall_predictor.monitor.records import PushSpec
 from fall_predictor.profiles import load_profile
-from fall_predictor.robot.controllers import (BalanceController, ControllerSwitch, GaitConfig,
-                                              controller_configs)
+from fall_predictor.robot.control import ControllerSwitch
+from fall_predictor.robot.controllers import BalanceController, GaitConfig, controller_configs
 from fall_predictor.robot.gait import GRAVITY
 from fall_predictor.sim.simulator import Simulator
 from fall_predictor.sim.trajectory import run_trajectory

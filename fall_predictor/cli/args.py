@@ -42,6 +42,27 @@ def add_robot_argument(parser: argparse.ArgumentParser) -> None:
                              f'profile file (default {DEFAULT_ROBOT})')
 
 
+def add_controller_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--controller NAME`` and ``--simulator {pybullet,mujoco}``: who walks the robot, and in
+    which simulator (defaults: the robot profile's; checked against it by :func:`controller_of`)."""
+    from fall_predictor.profiles.profile import C_BAL, SIMULATORS
+    parser.add_argument('--controller', default=None, metavar='NAME',
+                        help=f'the walking controller: {C_BAL!r} (the package\'s balance controller) '
+                             'or a learned policy the robot profile names (default: the profile\'s)')
+    parser.add_argument('--simulator', choices=SIMULATORS, default=None,
+                        help='the simulator (default: the robot profile\'s)')
+
+
+def controller_of(args) -> tuple[str, str]:
+    """(controller, simulator) of ``args`` (--robot, --controller, --simulator), the profile's
+    where not given; ProfileError for a controller the robot does not have."""
+    from fall_predictor.profiles import load_profile
+    profile = load_profile(args.robot)
+    controller = getattr(args, 'controller', None) or profile.default_controller
+    profile.controller_profile(controller)
+    return controller, getattr(args, 'simulator', None) or profile.simulator
+
+
 def add_scheduler_argument(parser: argparse.ArgumentParser, what: str) -> None:
     """``--scheduler ADDRESS``: run ``what`` on a Dask cluster instead of local processes."""
     parser.add_argument('--scheduler', default=None, metavar='ADDRESS',

@@ -12,7 +12,25 @@ to the file. What it holds (method §1, §10):
 - the IMU frame of readings that name none; the total mass;
 - when the robot is down and the CoM guard (method §4, §6), scaled to the robot's size;
 - joint groups (legs in hip-to-ankle order, arms, head), servo gains per group, the posture held
-  outside the legs, and the push forces that make the dataset's fall fraction (method §3).
+  outside the legs, and the push forces that make the dataset's fall fraction (method §3);
+- the simulator the robot runs in (PyBullet from its URDF, or MuJoCo from its MJCF or URDF) and
+  the controllers it walks with: the package's C_bal and any learned policy of its team, each
+  with its own push range and shipped model (method §13):
+
+      controllers:
+        unitree_rl_gym:
+          policy: controllers/unitree_rl_gym/policy.yaml  # the team's deploy config (robot/
+                                                          # policy_config.py), its network beside it
+          push_force_n: [0.0, 800.0]     # the push range of this controller's datasets (method §3)
+          command:                       # commanded velocities drawn per run, uniform
+            vx_m_s: [0.0, 0.6]
+            vy_m_s: [-0.3, 0.3]
+            yaw_rate_rad_s: [-0.5, 0.5]
+          settle_s: 2.0                  # walking before the push window opens [s]
+          model: g1_unitree_rl_model.json   # the shipped model for this robot and controller
+      default_controller: unitree_rl_gym
+      simulator: mujoco                  # pybullet (default) or mujoco
+      mjcf: scene.xml                    # MuJoCo's model (else MuJoCo loads the URDF)
 
 Nothing here imports the simulator or ROS: the onboard monitor loads profiles too.
 """
@@ -33,6 +51,97 @@ PROFILES_DIR = Path(__file__).resolve().parent
 PROFILE_FILE = 'profile.yaml'
 #: The robot every command and node serves unless told otherwise.
 DEFAULT_ROBOT = 'asimo_like'
+
+
+#: The package's own model-based balance controller (robot/controllers.py), always available.
+C_BAL = 'c_bal'
+#: The simulators a world can be built in (sim/).
+SIMULATORS = ('pybullet', 'mujoco')
+
+
+@dataclass(frozen=True)
+class VelocityCommandRange:
+    """Uniform ranges of the velocity command a learned policy walks at, per run."""
+
+    vx_m_s: tuple[float, float] = (0.0, 0.0)
+    vy_m_s: tuple[float, float] = (0.0, 0.0)
+    yaw_rate_rad_s: tuple[float, float] = (0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        for name in ('vx_m_s', 'vy_m_s', 'yaw_rate_rad_s'):
+            low, high = getattr(self, name)
+            if not (math.isfinite(low) and math.isfinite(high) and low <= high):
+                raise ValueError(f'command.{name} must be [low, high] with low <= high, '
+                                 f'got {[low, high]}')
+
+
+@dataclass(frozen=True)
+class PolicyControllerProfile:
+    """A learned walking policy of the robot (``controllers.<name>`` of the profile)."""
+
+    name: str
+    policy_path: Path                   #: the deploy config (YAML) of the policy
+    push_force_n: tuple[float, float]   #: force range of its datasets' 0.1 s pushes [N]
+    command: VelocityCommandRange
+    #: Walking before the push window opens [s] (the window is one gait period long).
+    settle_s: float = 2.0
+    #: The shipped model for this robot and controller: a file name in the package's models/.
+    model: Optional[str] = None
+
+
+def parse_controllers(path: Path, raw: Any) -> dict[str, PolicyControllerProfile]:
+    """The ``controllers`` mapping of profile ``path`` (ValueError naming the key when wrong)."""
+    if raw is None:
+        return {}
+    if not isinstance(raw, dict):
+        raise ValueError(f'{path}: controllers must be a mapping of name -> settings')
+    out = {}
+    for name, fields in raw.items():
+        where = f'controllers.{name}'
+        if name == C_BAL:
+            raise ValueError(f'{path}: {where}: {C_BAL!r} is the package\'s own balance controller '
+                             '(its settings are the profile\'s controller section)')
+        if not isinstance(fields, dict):
+            raise ValueError(f'{path}: {where} must be a mapping')
+        unknown = sorted(set(fields) - {'policy', 'push_force_n', 'command', 'settle_s', 'model'})
+        if unknown:
+            raise ValueError(f'{path}: {where}: unknown keys {unknown}')
+        policy = fields.get('policy')
+        if not isinstance(policy, str):
+            raise ValueError(f'{path}: {where}.policy must name the policy\'s deploy config (YAML)')
+        policy_path = (path.parent / policy).resolve()
+        if not policy_path.is_file():
+            raise ValueError(f'{path}: {where}.policy names {policy!r}, which is not a file '
+                             f'(looked for {policy_path})')
+        command = fields.get('command', {}) or {}
+        if not isinstance(command, dict) or set(command) - {'vx_m_s', 'vy_m_s', 'yaw_rate_rad_s'}:
+            raise ValueError(f'{path}: {where}.command takes vx_m_s, vy_m_s and yaw_rate_rad_s, '
+                             f'each [low, high]')
+        try:
+            ranges = VelocityCommandRange(**{k: _pair(v, f'{where}.command.{k}')
+                                             for k, v in command.items()})
+            force = _pair(fields.get('push_force_n'), f'{where}.push_force_n')
+        except ValueError as error:
+            raise ValueError(f'{path}: {error}') from None
+        if force[0] < 0.0:
+            raise ValueError(f'{path}: {where}.push_force_n must be >= 0')
+        settle = fields.get('settle_s', 2.0)
+        if isinstance(settle, bool) or not isinstance(settle, (int, float)) or not 0.5 <= settle <= 60:
+            raise ValueError(f'{path}: {where}.settle_s must be a number in [0.5, 60] s')
+        model = fields.get('model')
+        if model is not None and not isinstance(model, str):
+            raise ValueError(f'{path}: {where}.model must be a file name')
+        out[str(name)] = PolicyControllerProfile(str(name), policy_path, force, ranges,
+                                                 float(settle), model)
+    return out
+
+
+def _pair(value: Any, where: str) -> tuple[float, float]:
+    if (not isinstance(value, (list, tuple)) or len(value) != 2
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                       and math.isfinite(v) for v in value) or value[0] > value[1]):
+        raise ValueError(f'{where} must be [low, high] (numbers, low <= high), got {value!r}')
+    return float(value[0]), float(value[1])
 
 
 class ProfileError(ValueError):
@@ -95,8 +204,51 @@ class RobotProfile:
     controller: dict[str, dict[str, Union[float, bool]]] = field(default_factory=dict)
     #: Joint angles [rad] of the posture the controller holds outside the legs (others: zero).
     posture: dict[str, float] = field(default_factory=dict)
-    #: The shipped model trained on this robot: a file name in the package's models/.
+    #: The shipped model trained on this robot and its default controller: a file name in the
+    #: package's models/.
     model: str = 'default_model.json'
+    #: The simulator the robot runs in unless told otherwise: 'pybullet' or 'mujoco'.
+    simulator: str = 'pybullet'
+    #: MuJoCo's model of the robot (a scene with its ground), or None: MuJoCo loads the URDF.
+    mjcf_path: Optional[Path] = None
+    #: The learned policies the robot walks with, by name (C_bal needs no entry: C_BAL).
+    controllers: dict[str, PolicyControllerProfile] = field(default_factory=dict)
+    #: The controller of its datasets and nodes unless told otherwise.
+    default_controller: str = C_BAL
+
+    # -- controllers -------------------------------------------------------------------------
+    @property
+    def controller_names(self) -> tuple[str, ...]:
+        """Every controller the robot can walk with: C_bal, then its learned policies."""
+        return (C_BAL, *self.controllers)
+
+    def controller_profile(self, name: Optional[str] = None) -> Optional[PolicyControllerProfile]:
+        """The learned policy ``name`` (default: the robot's default controller), or None for
+        C_bal; ProfileError for a controller the profile does not know."""
+        name = name or self.default_controller
+        if name == C_BAL:
+            return None
+        if name not in self.controllers:
+            raise ProfileError(f'{self.source}: robot {self.name!r} has no controller {name!r}; '
+                               f'it has {", ".join(self.controller_names)}')
+        return self.controllers[name]
+
+    def model_for(self, controller: Optional[str] = None) -> str:
+        """The shipped model of this robot and ``controller`` (default: its default one):
+        C_bal's is the profile's ``model`` (when C_bal is not the default, ProfileError)."""
+        name = controller or self.default_controller
+        policy = self.controller_profile(name)
+        if policy is None:
+            if self.default_controller != C_BAL:
+                raise ProfileError(f'{self.source}: robot {self.name!r} ships no model for '
+                                   f'{C_BAL!r}')
+            return self.model
+        return policy.model or self.model
+
+    def push_force_range_n(self, controller: Optional[str] = None) -> tuple[float, float]:
+        """The push force range of ``controller``'s datasets [N] (method §3)."""
+        policy = self.controller_profile(controller)
+        return self.push_force_n if policy is None else policy.push_force_n
 
     # -- what the monitor needs --------------------------------------------------------------
     def sensor_layout(self) -> SensorLayout:
@@ -287,6 +439,18 @@ def _parse(path: Path, raw: Any) -> RobotProfile:
     if sim_ground not in ('plane', 'slab'):
         raise ProfileError(f"{path}: sim_ground must be 'plane' or 'slab', got {sim_ground!r}")
     urdf = r.file('urdf')
+    simulator = r.text('simulator', 'pybullet')
+    if simulator not in SIMULATORS:
+        raise ProfileError(f'{path}: simulator must be one of {SIMULATORS}, got {simulator!r}')
+    mjcf = r.file('mjcf') if r.get('mjcf', None) is not None else None
+    try:
+        controllers = parse_controllers(path, r.get('controllers', None))
+    except ValueError as error:
+        raise ProfileError(str(error)) from None
+    default_controller = r.text('default_controller', C_BAL)
+    if default_controller != C_BAL and default_controller not in controllers:
+        raise ProfileError(f'{path}: default_controller {default_controller!r} is neither '
+                           f'{C_BAL!r} nor one of its controllers {sorted(controllers)}')
     return RobotProfile(
         name=r.text('name'), description=r.text('description', ''), source=path,
         urdf_path=urdf, sim_urdf_path=r.file('sim_urdf', str(urdf)),
@@ -296,4 +460,5 @@ def _parse(path: Path, raw: Any) -> RobotProfile:
         push_force_n=r.vector('push_force_n', 2, (0.0, 0.0)), gait_variety=gait_variety,
         sim_ground=sim_ground,
         controller=controller,
-        posture=posture, model=r.text('model', 'default_model.json'))
+        posture=posture, model=r.text('model', 'default_model.json'), simulator=simulator,
+        mjcf_path=mjcf, controllers=controllers, default_controller=default_controller)

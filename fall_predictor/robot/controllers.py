@@ -1,4 +1,5 @@
-"""Controllers of method §2: C_bal (walking with a balance reflex) and C_fall (freeze).
+"""The model-based controller of method §2: C_bal (walking with a balance reflex); C_fall and the
+one-way switch are the controller seam's (robot/control.py), for any walking controller.
 
 C_bal walks with ZMP preview control and closed-form leg IK. Its reflex fires when the
 horizontal linear momentum departs from the walking pattern's by more than a threshold
@@ -454,40 +455,3 @@ def controller_configs(profile: RobotProfile) -> tuple[GaitConfig, ReflexConfig,
     except TypeError as error:           # a field the configuration does not have
         raise ValueError(f'{profile.source}: controller: {error}') from error
 
-
-class FallController:
-    """C_fall: hold the target pose the balance controller had reached."""
-
-    def __init__(self, frozen_target: np.ndarray):
-        self.target = np.array(frozen_target, dtype=float)
-
-    def update(self, m: Measurement) -> np.ndarray:
-        return self.target.copy()
-
-
-@dataclass
-class ControllerSwitch:
-    """Runs C_bal until :meth:`trigger_fall`, then C_fall for good (method §2: one-way)."""
-
-    balance: BalanceController
-    fall: Optional[FallController] = None
-    t_switch: Optional[float] = None
-
-    @property
-    def mode(self) -> str:
-        return 'fall' if self.fall is not None else 'balance'
-
-    def trigger_fall(self, t: float) -> bool:
-        """Switch to C_fall; returns False if already switched."""
-        if self.fall is not None:
-            return False
-        # C_fall holds C_bal's target as it stands: the last one C_bal sent, or before its first
-        # update the posture it starts from.
-        self.fall = FallController(self.balance.target)
-        self.t_switch = t
-        return True
-
-    def update(self, m: Measurement) -> np.ndarray:
-        if self.fall is not None:
-            return self.fall.update(m)
-        return self.balance.update(m)

@@ -144,6 +144,11 @@ class PolicyConfig:
         return len(self.joint_names)
 
     @property
+    def gait_period_s(self) -> Optional[float]:
+        """The period of the policy's gait clock [s] (its phase observation), or None."""
+        return next((t.period_s for t in self.observation if t.name == 'gait_phase_sin_cos'), None)
+
+    @property
     def single_obs_size(self) -> int:
         """The length of one observation frame."""
         return sum(t.size(self.num_actions) for t in self.observation)

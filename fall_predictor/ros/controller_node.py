@@ -36,7 +36,8 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, String
 
 from fall_predictor.ros import conversions as ros_qos
-from fall_predictor.robot.controllers import BalanceController, ControllerSwitch, controller_configs
+from fall_predictor.robot.control import ControllerSwitch
+from fall_predictor.robot.controllers import BalanceController, controller_configs
 from fall_predictor.ros.robots import ROBOT_PARAM, profile_for
 from fall_predictor.ros.endpoints import create_publisher, create_subscription
 from fall_predictor.ros.health import HANDLED_ERRORS, Diagnostics, InputErrors, Report, guarded

@@ -15,7 +15,7 @@ from fall_predictor.contract.topics import IMU, LEFT_FOOT_WRENCH, RIGHT_FOOT_WRE
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.ros.endpoints import create_publisher
 from fall_predictor.sim.drivers import DriverStreams, DriverTiming
-from fall_predictor.sim.sensors import SensorParams, SensorSuite, robot_description, sensor_truth
+from fall_predictor.sim.sensors import SensorParams, SensorSuite, robot_description
 
 
 class SimulatedSensors:
@@ -45,7 +45,7 @@ class SimulatedSensors:
         """The messages of ``sim``'s current step (joint states on ``joint_state_pub``); returns
         how many joint state messages went out."""
         joint_messages = 0
-        for stream, reading in self._drivers.push(self._suite.read(sensor_truth(sim))):
+        for stream, reading in self._drivers.push(self._suite.read(sim.sensor_truth())):
             if stream == 'joints':
                 joint_state_pub.publish(messages.joint_state_msg(ros_qos.TYPES, reading))
                 joint_messages += 1

@@ -1,12 +1,15 @@
-"""The push protocol of method §3: a random gait, then a random push at a random instant of its
-walk cycle."""
+"""The push protocol of method §3: a random gait (C_bal) or a random commanded velocity (a learned
+policy), then a random push at a random instant of its walk cycle."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
+from typing import Optional
 
 import numpy as np
 
 from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import PolicyControllerProfile
 from fall_predictor.robot.controllers import GaitConfig, controller_configs
 from fall_predictor.monitor.records import PUSH_DURATION_S, PushSpec
 
@@ -79,3 +82,88 @@ def trajectory_seed(dataset_seed: int, index: int) -> np.random.Generator:
     """The random generator of trajectory ``index`` of a dataset: independent of how many
     trajectories are generated, in which order, or by how many processes."""
     return np.random.default_rng([dataset_seed, index])
+
+
+@dataclass(frozen=True)
+class CommandedPushes:
+    """method §3 for a learned walking policy: each run draws its commanded velocity (vx, vy, yaw
+    rate, uniform over the controller's ranges), walks ``settle_s`` at it, and is pushed at an
+    instant drawn uniformly over one period of the policy's gait clock (1 s for a policy without
+    one), with the protocol's force (the controller's range), direction and height draws. Onsets
+    lie on the simulation's step grid (``dt_s``)."""
+
+    controller: PolicyControllerProfile
+    cycle_s: float
+    dt_s: float
+    angle_deg: tuple[float, float] = (-180.0, 180.0)
+    height_m: tuple[float, float] = (-0.05, 0.25)
+    duration_s: float = PUSH_DURATION_S
+
+    def sample(self, rng: np.random.Generator) -> tuple[tuple[float, float, float], PushSpec]:
+        """(command, push); the order of draws is fixed so a seed always gives the same run."""
+        c = self.controller.command
+        command = (float(rng.uniform(*c.vx_m_s)), float(rng.uniform(*c.vy_m_s)),
+                   float(rng.uniform(*c.yaw_rate_rad_s)))
+        force = rng.uniform(*self.controller.push_force_n)
+        angle = rng.uniform(*self.angle_deg)
+        height = rng.uniform(*self.height_m)
+        onset = self.controller.settle_s + rng.uniform(0.0, self.cycle_s)
+        onset = round(round(onset / self.dt_s) * self.dt_s, 6)
+        return command, PushSpec(force_n=float(force), angle_deg=float(angle), height_m=float(height),
+                                 t_push=onset, duration_s=self.duration_s)
+
+    def manifest(self) -> dict:
+        """What a dataset records of the distribution."""
+        c = self.controller
+        return {'force_n': list(c.push_force_n), 'angle_deg': list(self.angle_deg),
+                'height_m': list(self.height_m), 'settle_s': c.settle_s, 'cycle_s': self.cycle_s,
+                'duration_s': self.duration_s, 'command_vx_m_s': list(c.command.vx_m_s),
+                'command_vy_m_s': list(c.command.vy_m_s),
+                'command_yaw_rate_rad_s': list(c.command.yaw_rate_rad_s)}
+
+
+class PushProtocol:
+    """The push of method §3, the same in every engine: a constant horizontal force of
+    ``force_n`` for ``duration_s`` from ``t_push``, its direction fixed at the onset at
+    ``angle_deg`` from the robot's heading, applied at a point fixed on the base, ``height_m``
+    above the CoM on the base's vertical axis at the onset. The engine asks :meth:`force_at`
+    every step and applies what it gets."""
+
+    def __init__(self) -> None:
+        self.push: Optional[PushSpec] = None
+        self._direction = np.zeros(3)
+        self._point_local = np.zeros(3)
+        self._started = False
+
+    def schedule(self, push: PushSpec) -> None:
+        if not (math.isfinite(push.force_n) and push.force_n >= 0 and push.duration_s > 0):
+            raise ValueError(f'invalid push {push}')
+        self.push = push
+        self._started = False
+
+    def clear(self) -> None:
+        self.push = None
+        self._started = False
+
+    def force_at(self, t: float, base_pos: np.ndarray, base_rot: np.ndarray,
+                 com: Optional[np.ndarray]) -> Optional[tuple[np.ndarray, np.ndarray]]:
+        """The world force [N] and its world application point [m] at time ``t``, or None when
+        no push acts. ``base_pos``, ``base_rot``: the base's position and rotation; ``com``: the
+        CoM of the previous sample (None: the base's position), read at the onset."""
+        push = self.push
+        if push is None or t < push.t_push - 1e-9:
+            return None
+        if t >= push.t_force_end - 1e-9:
+            self.clear()
+            return None
+        if not self._started:
+            # Onset: the direction in the heading frame, the point on the base's vertical axis.
+            self._started = True
+            heading = math.atan2(base_rot[1, 0], base_rot[0, 0])
+            angle = heading + math.radians(push.angle_deg)
+            self._direction = np.array([math.cos(angle), math.sin(angle), 0.0])
+            z = (base_pos if com is None else com)[2]
+            point = np.array([base_pos[0], base_pos[1], z + push.height_m])
+            self._point_local = base_rot.T @ (point - np.asarray(base_pos))
+        force = push.force_n * self._direction
+        return force, np.asarray(base_pos) + base_rot @ self._point_local

@@ -1,13 +1,15 @@
 """What the robot's own sensors report: joint encoders, a torso IMU and ankle F/T sensors.
 
-:func:`sensor_truth` reads the exact (noise-free) sensor quantities of the current PyBullet
-state; a :class:`SensorSuite` turns a stream of those into readings with white noise, a
+Each world of the simulator seam reads the exact (noise-free) sensor quantities of its state, a
+:class:`SensorTruth` (``world.sensor_truth()``: PyBullet's in :mod:`~fall_predictor.sim.
+pybullet_sensors`, MuJoCo's in :mod:`~fall_predictor.sim.mujoco_world`); a :class:`SensorSuite`
+turns a stream of those into readings with white noise, a
 constant per-run bias, quantisation and latency, seeded and deterministic. The same suite
 object serves the live simulator node (one sample per step) and offline generation
 (:func:`apply_sensors` over a recorded run): one implementation.
 
 Default parameters, per 1 kHz sample (white noise standard deviation = density x sqrt(fs/2),
-the Nyquist bandwidth of a 1 kHz sampled signal):
+the Nyquist bandwidth of the sampled signal: at another rate, the noise of that rate's band):
 
 * **Joint encoders** (:class:`EncoderParams`): a 19-bit absolute output-side encoder
   (e.g. Renishaw AksIM-2 19 bit: resolution 2 pi / 2^19 = 12 urad, noise about one count);
@@ -41,10 +43,8 @@ from dataclasses import asdict, dataclass, field
 from typing import Optional
 
 import numpy as np
-import pybullet as pb
 
 from fall_predictor.monitor import rotations
-from fall_predictor.monitor.geometry import cross3
 from fall_predictor.monitor.robot_description import SIDES
 from fall_predictor.monitor.sensor_records import SensorSample
 from fall_predictor.profiles import RobotProfile
@@ -141,72 +141,6 @@ class SensorTruth:
     right_wrench: Optional[np.ndarray]
 
 
-def _ground_wrench(sim, side: str, contacts) -> np.ndarray:
-    """Ground reaction on one sole, about the sole origin, in the sole frame."""
-    foot = sim.foot_links[side]
-    frame_pos, frame_orn = sim.link_frame_pose(foot)
-    # The foot's link frame is at the ankle centre; the sole frame has the same axes.
-    rot = np.array(pb.getMatrixFromQuaternion(frame_orn)).reshape(3, 3)
-    origin = np.asarray(frame_pos) + rot @ np.asarray(sim.profile.feet[side].sole_origin_in_foot_m)
-    # Summed in Python floats: a foot has a few contact points per step, and numpy's per-call
-    # cost on 3-vectors was a fifth of the generation's time.
-    ox, oy, oz = origin.tolist()
-    fx = fy = fz = tx = ty = tz = 0.0
-    for cp in contacts:
-        if cp[3] != foot:
-            continue
-        (nx, ny, nz), fn = cp[7], cp[9]
-        (ax, ay, az), fa = cp[11], cp[10]
-        (bx, by, bz), fb = cp[13], cp[12]
-        px, py, pz = cp[6][0] - ox, cp[6][1] - oy, cp[6][2] - oz
-        cx = nx * fn + ax * fa + bx * fb
-        cy = ny * fn + ay * fa + by * fb
-        cz = nz * fn + az * fa + bz * fb
-        fx, fy, fz = fx + cx, fy + cy, fz + cz
-        tx, ty, tz = tx + py * cz - pz * cy, ty + pz * cx - px * cz, tz + px * cy - py * cx
-    return np.concatenate([rot.T @ np.array([fx, fy, fz]), rot.T @ np.array([tx, ty, tz])])
-
-
-def sensor_truth(sim) -> SensorTruth:
-    """The exact sensor quantities of ``sim``'s current state (a :class:`Simulator`)."""
-    c = sim.client
-    profile = sim.profile
-    imu_link = sim.link_index.get(profile.imu_frame)
-    if imu_link is None:
-        # The IMU on the base link, at its frame origin: PyBullet's base frame is the base's
-        # inertial frame (same axes, origin at its CoM).
-        pos, orn = pb.getBasePositionAndOrientation(sim.robot, physicsClientId=c)
-        lin, ang = pb.getBaseVelocity(sim.robot, physicsClientId=c)
-        rot = np.array(pb.getMatrixFromQuaternion(orn)).reshape(3, 3)
-        imu_from_com = rot @ (np.asarray(IMU_POSITION_IN_TORSO_M) - sim.base_inertial_xyz)
-        omega = np.asarray(ang)
-        v_imu = np.asarray(lin) + cross3(omega, imu_from_com)
-    else:
-        # An IMU frame of its own (a massless link on a fixed joint): its pose from PyBullet, its
-        # velocity from the body it is fixed to (PyBullet's velocities of massless links are not
-        # those of their frames).
-        ls = pb.getLinkState(sim.robot, imu_link, computeForwardKinematics=1, physicsClientId=c)
-        orn = ls[5]
-        rot = np.array(pb.getMatrixFromQuaternion(orn)).reshape(3, 3)
-        parent = sim.link_parent[imu_link]
-        if parent < 0:
-            body_com, _ = pb.getBasePositionAndOrientation(sim.robot, physicsClientId=c)
-            lin, ang = pb.getBaseVelocity(sim.robot, physicsClientId=c)
-        else:
-            ps = pb.getLinkState(sim.robot, parent, computeLinkVelocity=1, computeForwardKinematics=1,
-                                 physicsClientId=c)
-            body_com, lin, ang = ps[0], ps[6], ps[7]
-        omega = np.asarray(ang)
-        v_imu = np.asarray(lin) + cross3(omega, np.asarray(ls[4]) - np.asarray(body_com))
-    contacts = sim.ground_contacts()
-    q, dq, tau = sim.joint_states()
-    wrenches = {side: _ground_wrench(sim, side, contacts) if foot.force_torque_frame else None
-                for side, foot in profile.feet.items()}
-    return SensorTruth(t=sim.t, q=q, dq=dq, tau=tau, imu_quat_xyzw=np.asarray(orn, dtype=float),
-                       imu_velocity_world=v_imu, gyro_rad_s=rot.T @ omega,
-                       left_wrench=wrenches['l'], right_wrench=wrenches['r'])
-
-
 def _quantise(x: np.ndarray, quantum: float) -> np.ndarray:
     return x if quantum <= 0 else np.rint(x / quantum) * quantum
 
@@ -291,8 +225,10 @@ class SensorSuite:
             acc_world[0] = 0.0
         self._prev_v = v[-1].copy()
         specific = _in_imu_frame(quat_true, (acc_world + np.array([0.0, 0.0, _G])).tolist())
-        sig_g = k * i.gyro_noise_density_rad_s_sqrt_hz * _NYQUIST_SQRT
-        sig_a = k * i.accel_noise_density_m_s2_sqrt_hz * _NYQUIST_SQRT
+        # White noise over the Nyquist band of the sample rate (1 kHz: sqrt(500 Hz)).
+        nyquist_sqrt = _NYQUIST_SQRT if self.dt_s == 1.0 / SAMPLE_RATE_HZ else math.sqrt(0.5 / self.dt_s)
+        sig_g = k * i.gyro_noise_density_rad_s_sqrt_hz * nyquist_sqrt
+        sig_a = k * i.accel_noise_density_m_s2_sqrt_hz * nyquist_sqrt
         m = 3 * n
         gyro = _quantise(np.array([t.gyro_rad_s for t in truths]) + self._gyro_bias
                          + sig_g * noise[:, m:m + 3], i.gyro_quantum_rad_s)

@@ -18,6 +18,7 @@ from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2, Measurement, P
 from fall_predictor.profiles import DEFAULT_ROBOT, RobotProfile, load_profile
 from fall_predictor.robot.actuation import ServoArrays, servo_arrays, servo_torques
 from fall_predictor.sim.urdf_loading import pybullet_urdf
+from fall_predictor.sim.pushes import PushProtocol
 
 GRAVITY = STANDARD_GRAVITY_M_S2
 DT_S = 0.001
@@ -98,9 +99,8 @@ class Simulator:
         self.t = 0.0
         self.tick = 0
         self._measured = None      # this step's PyBullet reads (measure)
-        self._push: Optional[PushSpec] = None
+        self._push = PushProtocol()
         self._push_force_world = np.zeros(3)
-        self._push_point_local = np.zeros(3)
         self._prev_measurement: Optional[Measurement] = None
         self._targets = np.zeros(0)
         self._torques = np.zeros(0)
@@ -130,7 +130,7 @@ class Simulator:
         self.link_names = [info[12].decode() for info in infos]
         self.link_index = {name: i for i, name in enumerate(self.link_names)}
         #: Each link's parent link (-1: the base), and the base's inertial frame origin in its
-        #: link frame: read once here, used every step (sim/sensors.sensor_truth).
+        #: link frame: read once here, used every step (sim/pybullet_sensors.sensor_truth).
         self.link_parent = [info[16] for info in infos]
         self.base_inertial_xyz = np.asarray(pb.getDynamicsInfo(self.robot, -1, physicsClientId=c)[3])
         if self.joint_names != self.profile.joint_names:
@@ -182,7 +182,7 @@ class Simulator:
         self.t = 0.0
         self.tick = 0
         self._measured = None      # this step's PyBullet reads (measure)
-        self._push = None
+        self._push.clear()
         self._push_force_world = np.zeros(3)
         self._prev_measurement = None
         self.set_joint_targets(joint_positions)
@@ -243,7 +243,7 @@ class Simulator:
         self.tick = tick
         self._measured = None      # this step's PyBullet reads (measure)
         self.t = tick * self.config.dt_s
-        self._push = None
+        self._push.clear()
         self._push_force_world = np.zeros(3)
         self._prev_measurement = measurement
         self._read_joints()
@@ -278,34 +278,84 @@ class Simulator:
 
     def schedule_push(self, push: PushSpec) -> None:
         """Apply ``push`` when simulation time reaches ``push.t_push`` (one push at a time)."""
-        if not (math.isfinite(push.force_n) and push.force_n >= 0 and push.duration_s > 0):
-            raise ValueError(f'invalid push {push}')
-        self._push = push
+        self._push.schedule(push)
 
     def _update_push(self) -> None:
-        push = self._push
-        if push is None or self.t < push.t_push - 1e-9:
-            self._push_force_world = np.zeros(3)
-            return
-        if self.t >= push.t_force_end - 1e-9:
-            self._push = None
+        if self._push.push is None or self.t < self._push.push.t_push - 1e-9:
             self._push_force_world = np.zeros(3)
             return
         base_pos, base_orn = pb.getBasePositionAndOrientation(self.robot, physicsClientId=self.client)
         rot = np.array(pb.getMatrixFromQuaternion(base_orn)).reshape(3, 3)
-        if not self._push_force_world.any():
-            # Onset: fix the direction in the heading frame and the application point on the
-            # torso, ``height_m`` above the CoM, on the torso's vertical axis.
-            heading = math.atan2(rot[1, 0], rot[0, 0])
-            angle = heading + math.radians(push.angle_deg)
-            self._push_direction = np.array([math.cos(angle), math.sin(angle), 0.0])
-            com = self._prev_measurement.com if self._prev_measurement is not None else np.asarray(base_pos)
-            point = np.array([base_pos[0], base_pos[1], com[2] + push.height_m])
-            self._push_point_local = rot.T @ (point - np.asarray(base_pos))
-        self._push_force_world = push.force_n * self._push_direction
-        point_world = np.asarray(base_pos) + rot @ self._push_point_local
+        com = self._prev_measurement.com if self._prev_measurement is not None else None
+        applied = self._push.force_at(self.t, np.asarray(base_pos), rot, com)
+        if applied is None:
+            self._push_force_world = np.zeros(3)
+            return
+        self._push_force_world, point_world = applied
         pb.applyExternalForce(self.robot, -1, self._push_force_world.tolist(), point_world.tolist(),
                               pb.WORLD_FRAME, physicsClientId=self.client)
+
+    # -- the world seam (sim/world.py) ---------------------------------------------------------
+    @property
+    def dt_s(self) -> float:
+        return self.config.dt_s
+
+    def start(self, posture) -> Measurement:
+        """A fresh world with the robot at rest in ``posture`` (robot/control.Posture; PyBullet
+        needs the base position: C_bal gives it)."""
+        if posture.base_position_m is None:
+            raise ValueError('PyBullet starts the robot at a given base position')
+        q0 = [posture.joint_angles.get(name, 0.0) for name in self.profile.joint_names]
+        return self.reset(q0, posture.base_position_m, posture.base_yaw_rad)
+
+    def apply(self, command) -> None:
+        """Hold ``command`` (robot/control.JointCommand): its targets, tracked by the robot's
+        servos (the profile's table; a command with its own gains is tracked by those, within the
+        drives' envelope)."""
+        if command.joint_names != self.joint_names:
+            index = {n: k for k, n in enumerate(command.joint_names)}
+            targets = self._targets.copy()
+            for k, name in enumerate(self.joint_names):
+                if name in index:
+                    targets[k] = command.targets_rad[index[name]]
+        else:
+            targets = command.targets_rad
+        if command.kp is not None:
+            self._command_gains(command)
+        self.set_joint_targets(targets)
+
+    def _command_gains(self, command) -> None:
+        from dataclasses import replace as _replace
+        index = {n: k for k, n in enumerate(command.joint_names)}
+        kp, kd = self.servo.kp.copy(), self.servo.kd.copy()
+        for k, name in enumerate(self.joint_names):
+            if name in index:
+                kp[k], kd[k] = command.kp[index[name]], command.kd[index[name]]
+        if not (np.array_equal(kp, self.servo.kp) and np.array_equal(kd, self.servo.kd)):
+            self.servo = _replace(self.servo, kp=kp, kd=kd)
+
+    def sensor_truth(self):
+        """The exact sensor quantities of the current state (sim/sensors.py)."""
+        from fall_predictor.sim.pybullet_sensors import sensor_truth
+        return sensor_truth(self)
+
+    def render(self, width: int, height: int, target: Sequence[float], yaw_deg: float,
+               pitch_deg: float = -12.0, distance_m: float = 2.6) -> np.ndarray:
+        """An RGB image (height, width, 3) of the world (PyBullet's TinyRenderer, headless),
+        the camera ``distance_m`` from ``target``, looking along ``yaw_deg``, ``pitch_deg``."""
+        c = self.client
+        view = pb.computeViewMatrixFromYawPitchRoll(
+            cameraTargetPosition=[float(v) for v in target], distance=distance_m, yaw=yaw_deg,
+            pitch=pitch_deg, roll=0.0, upAxisIndex=2, physicsClientId=c)
+        proj = pb.computeProjectionMatrixFOV(fov=45.0, aspect=width / height, nearVal=0.05,
+                                             farVal=10.0, physicsClientId=c)
+        _, _, rgba, _, _ = pb.getCameraImage(width, height, view, proj,
+                                             renderer=pb.ER_TINY_RENDERER, physicsClientId=c)
+        return np.reshape(np.asarray(rgba, dtype=np.uint8), (height, width, 4))[:, :, :3]
+
+    def save_state(self) -> int:
+        """A snapshot of the world to :meth:`restore` later."""
+        return pb.saveState(physicsClientId=self.client)
 
     # -- stepping and measuring ------------------------------------------------------------
     def step(self) -> Measurement:

@@ -1,13 +1,23 @@
-"""Run one push trajectory with C_bal throughout and return its time series and outcome.
+"""Run one push trajectory and return its time series and outcome, for any robot, controller and
+simulator.
 
-Every trajectory walks the same deterministic gait until its push, so the walk before the
-push need not be simulated again for each one: a :class:`WalkPrefix` simulates the unpushed
-walk once, keeps its samples and PyBullet snapshots, and pushed trajectories start from the
-last snapshot before their push. A trajectory from a prefix depends only on its push, not on
-what the prefix's simulator ran before (:meth:`Simulator.restore`); for a robot with one collision
-shape per link it equals one run from a fresh world bit for bit; for one whose links have several
-(the G1's sole spheres, whose contacts PyBullet restores only approximately) it departs from that
-run from the first step after the snapshot, as two runs whose contact forces differ slightly do
+A run is a world of the simulator seam (:mod:`fall_predictor.sim.world`: PyBullet or MuJoCo) and a
+controller of the controller seam (:mod:`fall_predictor.robot.control`: C_bal, or a team's
+learned policy), switched to C_fall for good when a fall trigger says so. Every physics step the
+world measures the exact state (the labels, and what C_bal reads); when the controller observes
+the sensors (a learned policy) or the run records them, the world's exact sensor quantities go
+through the sensor model (:class:`~fall_predictor.sim.sensors.SensorSuite`, seeded) as the run
+goes, so that what a policy saw is what the bags record. The controller decides every one of its
+periods and its command is held in between.
+
+With C_bal's fixed gait every trajectory walks the same walk until its push, so the walk before
+the push need not be simulated again for each one: a :class:`WalkPrefix` simulates the unpushed
+walk once, keeps its samples and snapshots, and pushed trajectories start from the last snapshot
+before their push. A trajectory from a prefix depends only on its push, not on what the prefix's
+simulator ran before (:meth:`Simulator.restore`); for a robot with one collision shape per link it
+equals one run from a fresh world bit for bit; for one whose links have several (the G1's sole
+spheres, whose contacts PyBullet restores only approximately) it departs from that run from the
+first step after the snapshot, as two runs whose contact forces differ slightly do
 (``test_simulator.py`` and ``test_g1.py`` check each).
 """
 from __future__ import annotations
@@ -17,15 +27,15 @@ from dataclasses import dataclass, field
 from typing import Callable, Optional
 
 import numpy as np
-import pybullet as pb
 
 from fall_predictor.profiles import RobotProfile
-from fall_predictor.robot.controllers import (BalanceController, ControllerSwitch, GaitConfig, ReflexConfig,
+from fall_predictor.robot.control import Controller, ControllerSwitch, Observation, OBSERVES_SENSORS
+from fall_predictor.robot.controllers import (BalanceController, GaitConfig, ReflexConfig,
                                               controller_configs)
 from fall_predictor.robot.stabilizer import StabilizerConfig
 from fall_predictor.monitor.records import Measurement, PushSpec
 from fall_predictor.profiles import asimo_like_urdf as rm
-from fall_predictor.sim.sensors import sensor_truth
+from fall_predictor.sim.sensors import SensorParams, SensorSuite
 from fall_predictor.sim.simulator import Simulator, SimulatorConfig
 
 #: The simulated robot, as datasets record it.
@@ -53,6 +63,9 @@ class TrajectoryResult:
     extras: dict = field(default_factory=dict)
     #: Exact sensor quantities per step (sim/sensors.py), when recorded; else empty.
     sensor_truths: list = field(default_factory=list)
+    #: The sensor model's readings per step, when the run made them (a controller that observes
+    #: the sensors saw these); else empty.
+    sensor_readings: list = field(default_factory=list)
 
     @property
     def t(self) -> np.ndarray:
@@ -78,6 +91,9 @@ class _Run:
     joint_velocities: list[np.ndarray]
     t_fallen: Optional[float] = None
     sensor_truths: Optional[list] = None     #: None: not recorded
+    #: The live sensor model and its readings (None: the run makes no readings).
+    sensors: Optional[SensorSuite] = None
+    sensor_readings: Optional[list] = None
 
 
 def _configs(sim: Simulator, gait: Optional[GaitConfig], reflex: Optional[ReflexConfig],
@@ -87,35 +103,60 @@ def _configs(sim: Simulator, gait: Optional[GaitConfig], reflex: Optional[Reflex
     return (gait or own[0], reflex or own[1], stabilizer or own[2])
 
 
-def _new_run(sim: Simulator, gait: Optional[GaitConfig], reflex: Optional[ReflexConfig],
+def _new_run(sim, gait: Optional[GaitConfig], reflex: Optional[ReflexConfig],
              walk_duration_s: float, stabilizer: Optional[StabilizerConfig] = None,
-             record_sensors: bool = False) -> _Run:
-    gait, reflex, stabilizer = _configs(sim, gait, reflex, stabilizer)
-    balance = BalanceController(gait, reflex, sim.config.dt_s, walk_duration_s=walk_duration_s,
-                                stabilizer=stabilizer, profile=sim.profile)
-    q0, torso0 = balance.initial_posture()
-    m = sim.reset(q0, torso0)
+             record_sensors: bool = False, controller: Optional[Controller] = None,
+             sensors: Optional[SensorSuite] = None) -> _Run:
+    """A run from the controller's starting posture in a fresh world: ``controller``, or C_bal
+    with the settings given (else the robot's); ``sensors``: the live sensor model (made when the
+    controller observes the sensors and none is given)."""
+    if controller is None:
+        gait, reflex, stabilizer = _configs(sim, gait, reflex, stabilizer)
+        controller = BalanceController(gait, reflex, sim.dt_s, walk_duration_s=walk_duration_s,
+                                       stabilizer=stabilizer, profile=sim.profile)
+    switch = ControllerSwitch(controller)
+    if sensors is None and switch.walking.observes == OBSERVES_SENSORS:
+        sensors = SensorSuite(SensorParams(), 0, sim.dt_s, sim.profile)
+    m = sim.start(switch.walking.initial_posture())
     q, dq, _ = sim.joint_states()
-    return _Run(ControllerSwitch(balance), m, [m], [q], [dq],
-                sensor_truths=[sensor_truth(sim)] if record_sensors else None)
+    run = _Run(switch, m, [m], [q], [dq], sensors=sensors)
+    if record_sensors or sensors is not None:
+        truth = sim.sensor_truth()
+        run.sensor_truths = [truth] if record_sensors else None
+        if sensors is not None:
+            run.sensor_readings = [sensors.read(truth)]
+    return run
 
 
-def _advance(sim: Simulator, run: _Run, t_end: float, stop_when_fallen: bool,
-             fall_trigger: Optional[Callable[[Measurement], bool]] = None) -> None:
-    """Step until ``t_end``, or until the first fallen state if ``stop_when_fallen``."""
+def _advance(sim, run: _Run, t_end: float, stop_when_fallen: bool,
+             fall_trigger: Optional[Callable[[Measurement], bool]] = None,
+             on_step: Optional[Callable] = None) -> None:
+    """Step until ``t_end``, or until the first fallen state if ``stop_when_fallen``;
+    ``on_step(world, measurement)`` after each step (a renderer, a probe)."""
     m = run.measurement
     switch = run.switch
+    every = max(1, int(round(switch.walking.period_s / sim.dt_s)))
+    record = run.sensor_truths is not None
+    suite, readings = run.sensors, run.sensor_readings
     while sim.t < t_end - 1e-9:
         if fall_trigger is not None and switch.mode == 'balance' and fall_trigger(m):
             switch.trigger_fall(m.t)
-        sim.set_joint_targets(switch.update(m))
+        if sim.tick % every == 0:
+            sensors = readings[-1] if readings else None
+            sim.apply(switch.command(Observation(m.t, m, sensors)))
         m = sim.step()
+        if on_step is not None:
+            on_step(sim, m)
         run.measurements.append(m)
         q, dq, _ = sim.joint_states()
         run.joint_positions.append(q)
         run.joint_velocities.append(dq)
-        if run.sensor_truths is not None:
-            run.sensor_truths.append(sensor_truth(sim))
+        if record or suite is not None:
+            truth = sim.sensor_truth()
+            if record:
+                run.sensor_truths.append(truth)
+            if suite is not None:
+                readings.append(suite.read(truth))
         if run.t_fallen is None and (m.com[2] < sim.profile.fallen_com_height_m or m.non_foot_contact):
             run.t_fallen = m.t
             if stop_when_fallen:
@@ -140,11 +181,11 @@ class WalkPrefix:
         run = _new_run(sim, gait, reflex, walk_duration_s, stabilizer, record_sensors)
         self.record_sensors = record_sensors
         self._snapshots: list[tuple[float, int, int, _Run]] = []
-        every = max(1, int(round(snapshot_every_s / sim.config.dt_s)))
+        every = max(1, int(round(snapshot_every_s / sim.dt_s)))
         while sim.t < until_s - 1e-9:
             if sim.tick % every == 0:
                 self._snapshot(run)
-            _advance(sim, run, sim.t + sim.config.dt_s, stop_when_fallen=True)
+            _advance(sim, run, sim.t + sim.dt_s, stop_when_fallen=True)
             if run.t_fallen is not None:
                 raise RuntimeError(f'the unpushed walk fell at {run.t_fallen:.3f} s')
         self._snapshot(run)
@@ -152,7 +193,7 @@ class WalkPrefix:
         self.until_s = until_s
 
     def _snapshot(self, run: _Run) -> None:
-        state = pb.saveState(physicsClientId=self.sim.client)
+        state = self.sim.save_state()
         frozen = _Run(copy.deepcopy(run.switch), run.measurement, [], [], [])
         self._snapshots.append((self.sim.t, self.sim.tick, state, frozen))
 
@@ -179,8 +220,17 @@ def run_trajectory(push: Optional[PushSpec], duration_s: float,
                    record_sensors: bool = False,
                    profile: Optional[RobotProfile] = None,
                    go_on_while: Optional[Callable[[list[Measurement]], bool]] = None,
-                   max_extension_s: float = 0.0) -> TrajectoryResult:
+                   max_extension_s: float = 0.0,
+                   controller: Optional[Controller] = None,
+                   sensors: Optional[SensorSuite] = None,
+                   on_step: Optional[Callable] = None) -> TrajectoryResult:
     """Simulate from the standing posture for up to ``duration_s`` seconds.
+
+    ``simulator``: the world to run in (any world of sim/world.py; default: a fresh PyBullet
+    one); ``controller``: the walking controller (default: C_bal with the settings given, else
+    the robot's); ``sensors``: the sensor model run live (its readings are in the result; a
+    controller that observes the sensors gets one with the default parameters when none is
+    given); ``on_step(world, measurement)``: called after each step.
 
     Stops early when fallen (if ``stop_when_fallen``). ``fall_trigger`` (a predictor) is asked
     every step; when it says falling, C_bal hands over to C_fall for the
@@ -201,25 +251,27 @@ def run_trajectory(push: Optional[PushSpec], duration_s: float,
         own = simulator is None and prefix is None
         sim = prefix.sim if prefix is not None else (simulator or Simulator(sim_config, profile))
         run = _new_run(sim, gait, reflex, walk_duration_s=duration_s + max_extension_s + 5.0,
-                       stabilizer=stabilizer,
-                       record_sensors=record_sensors)
+                       stabilizer=stabilizer, record_sensors=record_sensors,
+                       controller=controller, sensors=sensors)
     try:
         if push is not None:
             sim.schedule_push(push)
-        _advance(sim, run, duration_s, stop_when_fallen, fall_trigger)
+        _advance(sim, run, duration_s, stop_when_fallen, fall_trigger, on_step)
         end_s = duration_s + max_extension_s
         while (go_on_while is not None and run.t_fallen is None and sim.t < end_s - 1e-9
                and go_on_while(run.measurements)):
-            _advance(sim, run, min(sim.t + EXTENSION_STEP_S, end_s), stop_when_fallen, fall_trigger)
+            _advance(sim, run, min(sim.t + EXTENSION_STEP_S, end_s), stop_when_fallen, fall_trigger,
+                     on_step)
         t_fallen = run.t_fallen
-        event = run.switch.balance.reflex_event
+        event = getattr(run.switch.walking, 'reflex_event', None)
         return TrajectoryResult(push=push, measurements=run.measurements,
                                 joint_positions=np.array(run.joint_positions),
                                 joint_velocities=np.array(run.joint_velocities),
                                 fallen=t_fallen is not None, t_fallen=t_fallen,
                                 t_reflex=None if event is None else event.t,
                                 t_switch=run.switch.t_switch,
-                                sensor_truths=run.sensor_truths or [])
+                                sensor_truths=run.sensor_truths or [],
+                                sensor_readings=run.sensor_readings or [])
     finally:
         if own:
             sim.close()

@@ -1,0 +1,139 @@
+"""A robot profile's MuJoCo model, and the facts of it the MuJoCo world needs.
+
+* :func:`load_model`: the profile's MJCF (a scene with its ground, as a team deploys its policy
+  on it), or its URDF, given a free base and a ground plane (MuJoCo imports a URDF's root as
+  fixed, and a URDF has no ground); mesh paths resolved as for PyBullet
+  (:mod:`~fall_predictor.sim.urdf_loading`);
+* :func:`robot_geoms`: which geometries are the ground and which are the robot's;
+* :func:`fixed_frame_in_body`: where a frame of the URDF (an IMU) sits on a body MuJoCo has;
+* :func:`stand_on_ground`: the base height at which the lowest foot geometry touches the ground.
+"""
+from __future__ import annotations
+
+import math
+import os
+import xml.etree.ElementTree as ET
+from typing import Iterable
+
+# Rendering without a display (the package's renders are headless); a user's choice stands.
+os.environ.setdefault('MUJOCO_GL', 'egl')
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+
+from fall_predictor.profiles import RobotProfile  # noqa: E402
+from fall_predictor.sim.urdf_loading import resolve_urdf_text  # noqa: E402
+
+#: How far above the ground the lowest foot geometry starts [m] (it settles in a step).
+START_CLEARANCE_M = 0.001
+
+
+def load_model(profile: RobotProfile) -> mujoco.MjModel:
+    """The MuJoCo model of ``profile``'s robot (module docstring)."""
+    if profile.mjcf_path is not None:
+        return mujoco.MjModel.from_xml_path(str(profile.mjcf_path))
+    text = resolve_urdf_text(profile.sim_urdf_path.read_text())
+    spec = mujoco.MjSpec.from_string(text)
+    spec.meshdir = str(profile.sim_urdf_path.parent)
+    spec.compiler.discardvisual = False
+    root = spec.worldbody.first_body()
+    root.add_freejoint()
+    spec.worldbody.add_geom(name='ground', type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 0.05])
+    return spec.compile()
+
+
+def robot_geoms(model: mujoco.MjModel, root_body: int) -> tuple[frozenset, frozenset]:
+    """(the ground's geometries: those of the world body, the robot's colliding geometries: those
+    of the bodies under ``root_body``)."""
+    robot_bodies = {b for b in range(model.nbody) if _under(model, b, root_body)}
+    collides = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
+    ground = frozenset(g for g in range(model.ngeom) if model.geom_bodyid[g] == 0 and collides[g])
+    robot = frozenset(g for g in range(model.ngeom)
+                      if model.geom_bodyid[g] in robot_bodies and collides[g])
+    if not ground:
+        raise ValueError('the MuJoCo model has no ground geometry (a geom of the world body)')
+    return ground, robot
+
+
+def _under(model: mujoco.MjModel, body: int, root: int) -> bool:
+    while body > 0:
+        if body == root:
+            return True
+        body = int(model.body_parentid[body])
+    return False
+
+
+def fixed_frame_in_body(model: mujoco.MjModel, profile: RobotProfile, frame: str
+                        ) -> tuple[int, np.ndarray, np.ndarray]:
+    """(body id, position [m], rotation) of ``frame`` in a body of ``model``: the body or site
+    of that name, else the URDF's chain of fixed joints from ``frame`` up to a link MuJoCo has
+    (its fixed links are fused into their parents)."""
+    body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, frame)
+    if body >= 0:
+        return body, np.zeros(3), np.eye(3)
+    site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, frame)
+    if site >= 0:
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, model.site_quat[site])
+        return int(model.site_bodyid[site]), model.site_pos[site].copy(), rot.reshape(3, 3)
+    joints = {j.find('child').get('link'): j for j in ET.parse(profile.urdf_path).getroot()
+              .iter('joint') if j.get('type') == 'fixed'}
+    position, rotation, link = np.zeros(3), np.eye(3), frame
+    while link in joints:
+        origin = joints[link].find('origin')
+        xyz = np.array([float(v) for v in (origin.get('xyz', '0 0 0') if origin is not None
+                                           else '0 0 0').split()])
+        rpy = [float(v) for v in (origin.get('rpy', '0 0 0') if origin is not None
+                                  else '0 0 0').split()]
+        parent_rot = _rpy_matrix(*rpy)
+        position, rotation = xyz + parent_rot @ position, parent_rot @ rotation
+        link = joints[link].find('parent').get('link')
+        body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, link)
+        if body >= 0:
+            return body, position, rotation
+    raise ValueError(f'{profile.source}: frame {frame!r} is neither a body nor a site of the '
+                     'MuJoCo model, nor fixed in the URDF to a link the model has')
+
+
+def _rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """URDF's fixed-axis roll, pitch, yaw: R = Rz(yaw) Ry(pitch) Rx(roll)."""
+    cr, sr, cp, sp, cy, sy = (math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch),
+                              math.cos(yaw), math.sin(yaw))
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]])
+
+
+def stand_on_ground(model: mujoco.MjModel, data: mujoco.MjData, root_q: int,
+                    feet: Iterable[int]) -> None:
+    """Set the base's height (``data.qpos[root_q + 2]``) so that the lowest point of the feet's
+    colliding geometries lies :data:`START_CLEARANCE_M` above the ground (z = 0)."""
+    feet = set(feet)
+    data.qpos[root_q + 2] = 0.0
+    mujoco.mj_kinematics(model, data)
+    lowest = math.inf
+    for g in range(model.ngeom):
+        if model.geom_bodyid[g] not in feet or not (model.geom_contype[g] or model.geom_conaffinity[g]):
+            continue
+        lowest = min(lowest, _lowest_point(model, data, g))
+    if not math.isfinite(lowest):
+        raise ValueError('the feet have no colliding geometry')
+    data.qpos[root_q + 2] = START_CLEARANCE_M - lowest
+
+
+def _lowest_point(model: mujoco.MjModel, data: mujoco.MjData, geom: int) -> float:
+    """The lowest world z of a geometry: exact for spheres, capsules, boxes and meshes (their
+    vertices), else that of the box around it."""
+    kind, size = model.geom_type[geom], model.geom_size[geom]
+    centre, rot = data.geom_xpos[geom], data.geom_xmat[geom].reshape(3, 3)
+    if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
+        return float(centre[2] - size[0])
+    if kind == mujoco.mjtGeom.mjGEOM_CAPSULE:
+        return float(centre[2] - abs(rot[2, 2]) * size[1] - size[0])
+    if kind == mujoco.mjtGeom.mjGEOM_MESH:
+        mesh = model.geom_dataid[geom]
+        start, count = model.mesh_vertadr[mesh], model.mesh_vertnum[mesh]
+        vertices = model.mesh_vert[start:start + count]
+        return float((centre + vertices @ rot.T)[:, 2].min())
+    # Boxes (and the box around anything else): the corner lowest in the world.
+    half = size if kind == mujoco.mjtGeom.mjGEOM_BOX else model.geom_aabb[geom, 3:]
+    return float(centre[2] - np.abs(rot[2, :]) @ half)

@@ -1,0 +1,357 @@
+"""The robot in MuJoCo: the second engine behind the simulator seam (:mod:`fall_predictor.sim.world`).
+
+A team checks its learned policy in MuJoCo before the robot (sim2sim), on the MJCF it deploys
+with; :class:`MujocoWorld` loads that model (the profile's ``mjcf``, a scene with its ground), or
+the robot's URDF when the profile has none (a free base and a ground plane added), and gives what
+the PyBullet world gives: the exact state as a :class:`~fall_predictor.monitor.records.Measurement`
+(CoM and its momenta from MuJoCo's subtree quantities, the feet's contacts and the CoP from its
+contact forces), the exact sensor quantities (:class:`~fall_predictor.sim.sensors.SensorTruth`:
+joint encoders, the IMU at the profile's IMU frame, each foot's ground wrench where the profile
+has an F/T sensor), the pushes of the one push protocol (:class:`~fall_predictor.sim.world.
+PushProtocol`, applied as ``xfrc_applied`` on the base) and state snapshots.
+
+Drives: a command with its own PD gains (a learned policy's) is tracked as its deploy loop tracks
+it, ``kp (target - q) - kd dq`` every physics step, clamped to the command's torque limits or the
+model's (the joint's ``actuatorfrcrange``, else the actuator's ``ctrlrange``, else the URDF's
+effort); a command without gains (C_bal) is tracked by the robot's servos
+(:func:`~fall_predictor.robot.actuation.servo_torques`, the profile's table, its viscous friction
+and rotor inertia). Torques go through the model's motor actuators when it has one per joint (as
+Unitree's deploy writes ``ctrl``), else straight onto the joints.
+
+Frames come from the URDF: the IMU frame the profile names is found in the MJCF (a body or a
+site) or, as in Unitree's 12-joint G1 (no IMU site), through the URDF's fixed joints from a link
+MuJoCo has.
+"""
+from __future__ import annotations
+
+import math
+import os
+from typing import Optional
+
+# Rendering without a display (the package's renders are headless); a user's choice stands.
+os.environ.setdefault('MUJOCO_GL', 'egl')
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+
+from fall_predictor.monitor import rotations
+from fall_predictor.monitor.records import Measurement, PushSpec
+from fall_predictor.profiles import RobotProfile
+from fall_predictor.sim.mujoco_model import (fixed_frame_in_body, load_model, robot_geoms,
+                                             stand_on_ground)
+from fall_predictor.sim.pushes import PushProtocol
+
+#: Contacts reported with less normal force than this carry no load [N].
+MIN_CONTACT_FORCE_N = 1e-6
+
+
+class MujocoWorld:
+    """One robot in one MuJoCo world (module docstring); see :class:`~fall_predictor.sim.world.
+    World` for the methods."""
+
+    def __init__(self, profile: RobotProfile, dt_s: Optional[float] = None) -> None:
+        self.profile = profile
+        self.model = load_model(profile)
+        if dt_s is not None:
+            self.model.opt.timestep = float(dt_s)
+        self.data = mujoco.MjData(self.model)
+        m = self.model
+        self.dt_s = float(m.opt.timestep)
+        self.joint_names = profile.joint_names
+        ids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name) for name in self.joint_names]
+        missing = [n for n, i in zip(self.joint_names, ids) if i < 0]
+        if missing:
+            raise ValueError(f'{profile.source}: the MuJoCo model has no joint {missing}')
+        self._qadr = np.array([m.jnt_qposadr[i] for i in ids])
+        self._dadr = np.array([m.jnt_dofadr[i] for i in ids])
+        root = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE]
+        if len(root) != 1:
+            raise ValueError(f'{profile.source}: the MuJoCo model needs one free joint (the base), '
+                             f'has {len(root)}')
+        self._root_body = int(m.jnt_bodyid[root[0]])
+        self._root_q = int(m.jnt_qposadr[root[0]])
+        self._root_v = int(m.jnt_dofadr[root[0]])
+        self.total_mass = float(m.body_subtreemass[self._root_body])
+        # Motor actuators, one per joint: torques as ``ctrl`` (gear 1), as a deploy loop writes.
+        by_joint = {int(m.actuator_trnid[a, 0]): a for a in range(m.nu)
+                    if m.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
+                    and float(m.actuator_gear[a, 0]) == 1.0}
+        self._actuators = (np.array([by_joint[i] for i in ids])
+                           if all(i in by_joint for i in ids) else None)
+        self._effort = self._effort_limits(ids)
+        self.feet = {side: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, foot.foot_link)
+                     for side, foot in profile.feet.items()}
+        if min(self.feet.values()) < 0:
+            raise ValueError(f'{profile.source}: the MuJoCo model lacks a foot link '
+                             f'{[f.foot_link for f in profile.feet.values()]}')
+        self._sole = {side: np.asarray(foot.sole_origin_in_foot_m)
+                      for side, foot in profile.feet.items()}
+        self._ground, self._robot_geoms = robot_geoms(m, self._root_body)
+        self._foot_of_body = {body: side for side, body in self.feet.items()}
+        self._imu_body, self._imu_offset, self._imu_rotation = fixed_frame_in_body(
+            m, profile, profile.imu_frame)
+        self._push = PushProtocol()
+        self._servo = None
+        self._targets = np.zeros(len(ids))
+        self._kp: Optional[np.ndarray] = None
+        self._kd: Optional[np.ndarray] = None
+        self._limit = self._effort
+        self._tau = np.zeros(len(ids))
+        self._prev: Optional[Measurement] = None
+        self.t = 0.0
+        self.tick = 0
+
+    def _effort_limits(self, joint_ids: list[int]) -> np.ndarray:
+        m = self.model
+        out = []
+        for k, j in enumerate(joint_ids):
+            limit = math.inf
+            if m.jnt_actfrclimited[j]:
+                limit = float(max(abs(m.jnt_actfrcrange[j, 0]), abs(m.jnt_actfrcrange[j, 1])))
+            elif self._actuators is not None and m.actuator_ctrllimited[self._actuators[k]]:
+                limit = float(np.abs(m.actuator_ctrlrange[self._actuators[k]]).max())
+            out.append(limit)
+        limits = np.array(out)
+        if not np.isfinite(limits).all():
+            from fall_predictor.robot.actuation import servo_arrays
+            urdf = servo_arrays(1.0, self.profile, self.joint_names).effort
+            limits = np.where(np.isfinite(limits), limits, urdf)
+        return limits
+
+    # -- world ---------------------------------------------------------------------------------
+    def start(self, posture) -> Measurement:
+        """A fresh world with the robot at rest in ``posture`` (robot/control.Posture): its joint
+        angles and yaw, the base where given, else low enough that the lowest foot geometry
+        touches the ground."""
+        m, d = self.model, self.data
+        mujoco.mj_resetData(m, d)
+        q = np.array([posture.joint_angles.get(n, 0.0) for n in self.joint_names])
+        d.qpos[self._qadr] = q
+        half = 0.5 * posture.base_yaw_rad
+        d.qpos[self._root_q + 3:self._root_q + 7] = (math.cos(half), 0.0, 0.0, math.sin(half))
+        if posture.base_position_m is not None:
+            d.qpos[self._root_q:self._root_q + 3] = posture.base_position_m
+        else:
+            stand_on_ground(m, d, self._root_q, self.feet.values())
+        mujoco.mj_forward(m, d)
+        self._targets = q.copy()
+        self._tau = np.zeros(len(q))
+        self._push.clear()
+        self._prev = None
+        self.t = 0.0
+        self.tick = 0
+        return self.measure()
+
+    def apply(self, command) -> None:
+        """Hold ``command`` (robot/control.JointCommand) until the next one."""
+        if command.joint_names == self.joint_names:
+            self._targets = np.array(command.targets_rad, dtype=float)
+            kp, kd, limit = command.kp, command.kd, command.tau_limit_nm
+        else:
+            index = {n: k for k, n in enumerate(command.joint_names)}
+            pick = [index.get(n) for n in self.joint_names]
+            self._targets = np.array([self._targets[k] if i is None else command.targets_rad[i]
+                                      for k, i in enumerate(pick)])
+
+            def spread(values):
+                return None if values is None else np.array(
+                    [0.0 if i is None else values[i] for i in pick])
+            kp, kd, limit = spread(command.kp), spread(command.kd), spread(command.tau_limit_nm)
+        if kp is None:
+            self._use_servos()
+            self._kp = self._kd = None
+        else:
+            self._kp, self._kd = np.asarray(kp, float), np.asarray(kd, float)
+        self._limit = self._effort if limit is None else np.minimum(np.asarray(limit), self._effort)
+
+    def _use_servos(self) -> None:
+        """The robot's own servos (C_bal's commands): the profile's table, with its rotor inertia
+        and viscous friction on the joints (once)."""
+        if self._servo is not None:
+            return
+        from fall_predictor.robot.actuation import servo_arrays
+        self._servo = servo_arrays(1.0, self.profile, self.joint_names)
+        self.model.dof_armature[self._dadr] = self._servo.armature
+        self.model.dof_damping[self._dadr] = self._servo.damping
+
+    def schedule_push(self, push: PushSpec) -> None:
+        self._push.schedule(push)
+
+    def step(self) -> Measurement:
+        m, d = self.model, self.data
+        q, dq = d.qpos[self._qadr], d.qvel[self._dadr]
+        if self._kp is None and self._servo is not None:
+            from fall_predictor.robot.actuation import servo_torques
+            tau = servo_torques(self._servo, self._targets, q, dq)
+        else:
+            tau = self._kp * (self._targets - q) - self._kd * dq
+        tau = np.minimum(np.maximum(tau, -self._limit), self._limit)
+        self._tau = tau
+        if self._actuators is not None:
+            d.ctrl[self._actuators] = tau
+        else:
+            d.qfrc_applied[self._dadr] = tau
+        applied = self._apply_push()
+        mujoco.mj_step(m, d)
+        self.tick += 1
+        self.t = self.tick * self.dt_s
+        measurement = self.measure()
+        measurement.push_force = applied
+        return measurement
+
+    def _apply_push(self) -> np.ndarray:
+        d = self.data
+        d.xfrc_applied[self._root_body] = 0.0
+        if self._push.push is None:
+            return np.zeros(3)
+        body = self._root_body
+        rot = d.xmat[body].reshape(3, 3)
+        com = None if self._prev is None else self._prev.com
+        applied = self._push.force_at(self.t, d.xpos[body].copy(), rot, com)
+        if applied is None:
+            return np.zeros(3)
+        force, point = applied
+        # xfrc_applied acts at the body's centre of mass: the force, and its moment about it.
+        d.xfrc_applied[body, :3] = force
+        d.xfrc_applied[body, 3:] = np.cross(point - d.xipos[body], force)
+        return force.copy()
+
+    def joint_states(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        d = self.data
+        return d.qpos[self._qadr].copy(), d.qvel[self._dadr].copy(), self._tau.copy()
+
+    # -- measuring -------------------------------------------------------------------------------
+    def _contacts(self) -> tuple[dict[str, list], bool, list]:
+        """Per foot the loaded contacts (x, y, fz, force 3-vector on the robot, point), whether
+        another link touches the ground, from this step's contacts."""
+        m, d = self.model, self.data
+        per_foot: dict[str, list] = {'l': [], 'r': []}
+        non_foot = False
+        force6 = np.zeros(6)
+        for i in range(d.ncon):
+            c = d.contact[i]
+            g1, g2 = int(c.geom1), int(c.geom2)
+            if g1 in self._ground and g2 in self._robot_geoms:
+                robot_geom, sign = g2, 1.0        # the force on geom2 along the normal 1 -> 2
+            elif g2 in self._ground and g1 in self._robot_geoms:
+                robot_geom, sign = g1, -1.0
+            else:
+                continue
+            mujoco.mj_contactForce(m, d, i, force6)
+            frame = c.frame.reshape(3, 3)
+            world = sign * (frame.T @ force6[:3])
+            if world[2] <= MIN_CONTACT_FORCE_N:
+                continue
+            side = self._foot_of_body.get(int(m.geom_bodyid[robot_geom]))
+            if side is None:
+                non_foot = True
+            else:
+                per_foot[side].append((c.pos.copy(), world))
+        return per_foot, non_foot
+
+    def measure(self) -> Measurement:
+        """CoM, momenta about the CoM, heading, contacts and CoP of the current state."""
+        m, d = self.model, self.data
+        mujoco.mj_subtreeVel(m, d)
+        root = self._root_body
+        com = d.subtree_com[root].copy()
+        lin_mom = self.total_mass * d.subtree_linvel[root]
+        ang_mom = d.subtree_angmom[root].copy()
+        rot = d.xmat[root].reshape(3, 3).copy()
+        per_foot, non_foot = self._contacts()
+        rows = {side: np.array([(p[0], p[1], f[2]) for p, f in per_foot[side]], dtype=float
+                               ).reshape(-1, 3) for side in ('l', 'r')}
+        both = np.vstack([rows['l'], rows['r']])
+        total = both[:, 2].sum()
+        cop = (np.array([both[:, 2] @ both[:, 0] / total, both[:, 2] @ both[:, 1] / total, 0.0])
+               if total > 0 else np.full(3, np.nan))
+        feet = {}
+        for side, body in self.feet.items():
+            frame = d.xmat[body].reshape(3, 3)
+            p = d.xpos[body] + frame @ self._sole[side]
+            feet[side] = np.array([p[0], p[1], math.atan2(frame[1, 0], frame[0, 0])])
+        measurement = Measurement(t=self.t, com=com, lin_mom=lin_mom, ang_mom=ang_mom,
+                                  heading=math.atan2(rot[1, 0], rot[0, 0]), cop=cop,
+                                  left_contacts=rows['l'], right_contacts=rows['r'],
+                                  left_foot=feet['l'], right_foot=feet['r'],
+                                  non_foot_contact=non_foot, torso_rotation=rot)
+        self._prev = measurement
+        self._last_contacts = per_foot
+        return measurement
+
+    def sensor_truth(self):
+        """The exact sensor quantities of the current state (sim/sensors.SensorTruth)."""
+        from fall_predictor.sim.sensors import SensorTruth
+        m, d = self.model, self.data
+        body = self._imu_body
+        body_rot = d.xmat[body].reshape(3, 3)
+        velocity = np.zeros(6)
+        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, body, velocity, 0)
+        omega, v_origin = velocity[:3], velocity[3:]      # world axes, at the body's origin
+        imu_rot = body_rot @ self._imu_rotation
+        v_imu = v_origin + np.cross(omega, body_rot @ self._imu_offset)
+        q, dq, tau = self.joint_states()
+        wrenches = {side: self._ground_wrench(side) if foot.force_torque_frame else None
+                    for side, foot in self.profile.feet.items()}
+        return SensorTruth(t=self.t, q=q, dq=dq, tau=tau,
+                           imu_quat_xyzw=np.array(rotations.from_matrix(imu_rot)),
+                           imu_velocity_world=v_imu, gyro_rad_s=imu_rot.T @ omega,
+                           left_wrench=wrenches['l'], right_wrench=wrenches['r'])
+
+    def _ground_wrench(self, side: str) -> np.ndarray:
+        """The ground's reaction on one sole, about the sole origin, in the sole frame."""
+        d = self.data
+        body = self.feet[side]
+        rot = d.xmat[body].reshape(3, 3)
+        origin = d.xpos[body] + rot @ self._sole[side]
+        force, torque = np.zeros(3), np.zeros(3)
+        for point, f in self._last_contacts[side]:
+            force += f
+            torque += np.cross(point - origin, f)
+        return np.concatenate([rot.T @ force, rot.T @ torque])
+
+    def render(self, width: int, height: int, target, yaw_deg: float, pitch_deg: float = -12.0,
+               distance_m: float = 2.6) -> np.ndarray:
+        """An RGB image (height, width, 3) of the world (MuJoCo's offscreen renderer: set
+        ``MUJOCO_GL=egl`` or ``osmesa`` before MuJoCo is imported on a machine without a display),
+        the camera ``distance_m`` from ``target``, looking along ``yaw_deg``, ``pitch_deg``
+        (the angles as PyBullet's camera takes them, so that both engines' renders match)."""
+        renderer = getattr(self, '_renderer', None)
+        if renderer is None or (renderer.width, renderer.height) != (width, height):
+            self.model.vis.global_.offwidth = max(self.model.vis.global_.offwidth, width)
+            self.model.vis.global_.offheight = max(self.model.vis.global_.offheight, height)
+            renderer = self._renderer = mujoco.Renderer(self.model, height, width)
+        camera = mujoco.MjvCamera()
+        camera.lookat[:] = target
+        camera.distance = distance_m
+        camera.azimuth = yaw_deg - 90.0         # PyBullet's yaw 0 looks along +y; MuJoCo's along +x
+        camera.elevation = pitch_deg
+        renderer.update_scene(self.data, camera)
+        return renderer.render().copy()
+
+    # -- snapshots ---------------------------------------------------------------------------------
+    def save_state(self) -> np.ndarray:
+        """The world's full integration state (restored exactly by :meth:`restore`)."""
+        spec = mujoco.mjtState.mjSTATE_INTEGRATION
+        state = np.empty(mujoco.mj_stateSize(self.model, spec))
+        mujoco.mj_getState(self.model, self.data, state, spec)
+        return state
+
+    def restore(self, state: np.ndarray, tick: int, measurement: Measurement) -> None:
+        """Return to :meth:`save_state`'s snapshot taken at ``tick`` (its sample ``measurement``)."""
+        mujoco.mj_setState(self.model, self.data, state, mujoco.mjtState.mjSTATE_INTEGRATION)
+        mujoco.mj_forward(self.model, self.data)
+        self.tick = tick
+        self.t = tick * self.dt_s
+        self._push.clear()
+        self._prev = measurement
+
+    def close(self) -> None:
+        """Nothing to release (MuJoCo's model and data are freed with this object)."""
+
+    def __enter__(self) -> 'MujocoWorld':
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
