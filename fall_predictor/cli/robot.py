@@ -1,4 +1,5 @@
-"""``fall-predictor robustness``: the push robustness table of the simulated robot's C_bal."""
+"""``fall-predictor robustness`` and ``calibrate``: how hard a robot under its controller can be
+pushed: its robustness table, and the push range that fells about half of its runs."""
 from __future__ import annotations
 
 import argparse
@@ -16,8 +17,15 @@ def cmd_robustness(args) -> int:
     from fall_predictor.data.parallel import compute_backend, compute_parallel, progress_bar
     from fall_predictor.sim.robustness import RobustnessGrid, run_robustness
 
+    from fall_predictor.profiles import ProfileError
+    try:
+        controller, simulator = argtypes.controller_of(args)
+    except ProfileError as error:
+        return fail('robustness', error)
     grid = RobustnessGrid(impulses_ns=tuple(args.impulses), n_phases=args.phases,
-                          height_m=args.height, horizon_s=args.horizon)
+                          height_m=args.height, horizon_s=args.horizon, robot=args.robot,
+                          controller=controller, simulator=simulator,
+                          command=tuple(args.command or (0.0, 0.0, 0.0)))
     n_cells = len(grid.impulses_ns) * len(grid.directions_deg) * grid.n_phases
 
     def parallel_map(function, items):
@@ -52,11 +60,77 @@ def cmd_robustness(args) -> int:
     return 0
 
 
+def cmd_calibrate(args) -> int:
+    from joblib import delayed
+
+    from fall_predictor.data.parallel import compute_parallel, progress_bar
+    from fall_predictor.profiles import ProfileError, load_profile
+    from fall_predictor.sim.calibration import PROBE_FORCE_N_PER_KG, CalibrationSetup, calibrate
+
+    try:
+        controller, simulator = argtypes.controller_of(args)
+        profile = load_profile(args.robot)
+    except ProfileError as error:
+        return fail('calibrate', error)
+    probe = args.probe_force or PROBE_FORCE_N_PER_KG * profile.total_mass_kg
+    setup = CalibrationSetup(args.robot, controller, simulator, probe, args.seed, args.horizon)
+
+    def parallel_map(function, items):
+        results = []
+        with progress_bar(len(items), desc='pushes', unit='push', disable=args.json) as bar:
+            for result in compute_parallel(args.jobs, return_as='generator')(
+                    delayed(function)(item) for item in items):
+                results.append(result)
+                bar.update(1)
+        return results
+
+    start = time.perf_counter()
+    summary = calibrate(setup, args.trajectories, parallel_map, args.target)
+    summary['wall_s'] = time.perf_counter() - start
+    if args.out:
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).write_text(json.dumps(summary, indent=1, sort_keys=True) + '\n')
+    where = (f'controllers.{controller}.push_force_n' if profile.controller_profile(controller)
+             else 'push_force_n')
+    lines = [f'{summary["runs"]} pushes of up to {probe:.0f} N ({probe * 0.1:.0f} N s) of {profile.name} '
+             f'under {controller} in {simulator}: {summary["fall_fraction"]:.2f} fell '
+             f'(push to fall, median: {summary["push_to_fall_s_median"]} s)']
+    lines += [f'  {b["force_n"][0]:6.0f}-{b["force_n"][1]:6.0f} N: {b["runs"]:4d} runs, '
+              + ('-' if b['fall_fraction'] is None else f'{b["fall_fraction"]:.2f} fell')
+              for b in summary['fall_probability_by_force']]
+    low, high = summary['suggested_push_force_n']
+    lines.append(f'suggested: {where}: [{low:g}, {high:g}] (predicted fall fraction '
+                 f'{summary["predicted_fall_fraction"]:.2f}; put it in the robot profile)')
+    emit(args, {k: v for k, v in summary.items() if k != 'rows'} if args.json else summary, lines)
+    return 0
+
+
 def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser('calibrate', help='the push range that fells about half of a robot\'s runs',
+                       description='Push the robot under its controller N times with the dataset '
+                                   'protocol (its commanded velocities or gaits, directions, heights, '
+                                   'onsets), forces drawn up to --probe-force, and suggest the push '
+                                   'range [0, F] whose uniform draws fell --target of the runs (the '
+                                   'robot profile\'s push_force_n, per controller).')
+    p.add_argument('--trajectories', type=argtypes.positive_int, default=200)
+    p.add_argument('--seed', type=int, default=0)
+    p.add_argument('--probe-force', type=argtypes.positive, default=None, metavar='N',
+                   help='largest force drawn [N] (default: 30 N per kg of robot)')
+    p.add_argument('--target', type=argtypes.positive, default=0.5, help='fall fraction wanted')
+    p.add_argument('--horizon', type=argtypes.positive, default=4.0,
+                   help='seconds after the push ends before a run counts as survived')
+    p.add_argument('--jobs', type=argtypes.positive_int, default=1, help='parallel processes')
+    argtypes.add_robot_argument(p)
+    argtypes.add_controller_arguments(p)
+    p.add_argument('--out', type=Path, help='also write the JSON (every run) here')
+    p.add_argument('--json', action='store_true', help='print one JSON summary object')
+    p.set_defaults(func=cmd_calibrate)
+
     p = sub.add_parser('robustness', help='survival table of pushes over impulse, direction and gait phase',
-                       description='Push the walking robot (default gait, C_bal) with every impulse of a grid '
-                                   'from 8 directions at N phases of its walk cycle; report which it survives '
-                                   'and, per direction, the largest impulse survived at every phase.')
+                       description='Report, per direction, the largest impulse survived at every '
+                                   'phase of the walk cycle, and which pushes of a grid the walking robot '
+                                   '(C_bal\'s default gait, or a learned policy at --command) survives: '
+                                   'every impulse from 8 directions at N phases.')
     p.add_argument('--impulses', type=argtypes.positive, nargs='+',
                    default=[float(i) for i in range(5, 55, 5)], help='impulses [N s] (force x 0.1 s)')
     p.add_argument('--phases', type=argtypes.positive_int, default=8, help='onsets per walk cycle')
@@ -65,6 +139,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--horizon', type=argtypes.positive, default=3.0,
                    help='seconds after the push ends that the robot must stay up')
     p.add_argument('--jobs', type=argtypes.positive_int, default=1, help='parallel processes')
+    argtypes.add_robot_argument(p)
+    argtypes.add_controller_arguments(p)
+    p.add_argument('--command', type=argtypes.finite(float), nargs=3, default=None,
+                   metavar=('VX', 'VY', 'YAW_RATE'),
+                   help='a learned policy\'s velocity command [m/s, m/s, rad/s] (default 0 0 0)')
     argtypes.add_scheduler_argument(p, 'the pushes')
     p.add_argument('--out', type=Path, help='also write the JSON summary here')
     p.add_argument('--json', action='store_true', help='print one JSON summary object')

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -12,22 +13,44 @@ from fall_predictor.cli.args import emit as _emit, fail as _fail
 
 
 def cmd_simulate(args) -> int:
-    from fall_predictor.sim.pushes import PushDistribution
     from fall_predictor.monitor.records import PushSpec
-    from fall_predictor.sim.simulator import SimulatorConfig
+    from fall_predictor.profiles import ProfileError, load_profile
+    from fall_predictor.robot.control import make_controller
+    from fall_predictor.sim.policy_runs import commanded_pushes, physics_dt_s
+    from fall_predictor.sim.pushes import PushDistribution, robot_gait
     from fall_predictor.sim.trajectory import run_trajectory
+    from fall_predictor.sim.world import make_world
 
+    try:
+        controller_name, simulator = argtypes.controller_of(args)
+        profile = load_profile(args.robot)
+        policy = profile.controller_profile(controller_name)
+    except ProfileError as error:
+        return _fail('simulate', error)
     rng = np.random.default_rng(args.seed)
     push = None
     if args.push_force > 0:
-        onset = args.push_time if args.push_time is not None else PushDistribution().onset(rng)
+        if args.push_time is not None:
+            onset = args.push_time
+        elif policy is None:
+            onset = PushDistribution().onset(rng, robot_gait(args.robot))
+        else:
+            pushes = commanded_pushes(policy)
+            onset = round(policy.settle_s + rng.uniform(0.0, pushes.cycle_s), 3)
         push = PushSpec(args.push_force, args.push_angle, args.push_height, onset)
         if push.t_force_end > args.duration:
             print(f'error: the push ends at {push.t_force_end:.3f} s, after --duration {args.duration} s',
                   file=sys.stderr)
             return 2
+    options = {'gui': True} if args.gui and simulator == 'pybullet' else {}
+    world = make_world(profile, simulator, physics_dt_s(policy), **options)
+    controller = make_controller(profile, controller_name, args.command,
+                                 dt_s=world.dt_s, walk_duration_s=args.duration + 5.0)
     start = time.perf_counter()
-    result = run_trajectory(push, args.duration, sim_config=SimulatorConfig(gui=args.gui))
+    try:
+        result = run_trajectory(push, args.duration, simulator=world, controller=controller)
+    finally:
+        world.close()
     wall = time.perf_counter() - start
     simulated = result.measurements[-1].t
     payload = {
@@ -43,14 +66,91 @@ def cmd_simulate(args) -> int:
         'wall_s': wall,
         'real_time_factor': simulated / wall if wall > 0 else None,
         'seed': args.seed,
+        'robot': profile.name, 'controller': controller.name, 'simulator': simulator,
+        'command': None if policy is None else list(controller.velocity_command),
     }
-    lines = [f'simulated {simulated:.3f} s in {wall:.1f} s ({payload["real_time_factor"]:.2f}x real time)']
+    lines = [f'{profile.name} under {controller.name} in {simulator}: simulated {simulated:.3f} s in '
+             f'{wall:.1f} s ({payload["real_time_factor"]:.2f}x real time)']
     if push is not None:
         lines.append(f'push: {push.force_n:.0f} N for {push.duration_s:.1f} s at {push.t_push:.3f} s, '
                      f'{push.angle_deg:.0f} deg from the heading, {push.height_m:+.2f} m above the CoM')
     lines.append('reflex: ' + ('none' if result.t_reflex is None else f'fired at {result.t_reflex:.3f} s'))
     lines.append(f'outcome: FALLEN at {result.t_fallen:.3f} s' if result.fallen else 'outcome: balanced')
     _emit(args, payload, lines)
+    return 0
+
+
+def cmd_render(args) -> int:
+    """A pushed run of the robot under its controller as a strip of frames (headless renders of
+    the run's own world: PyBullet's TinyRenderer, MuJoCo's offscreen renderer)."""
+    import math
+
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    from fall_predictor.monitor.records import PushSpec
+    from fall_predictor.profiles import ProfileError, load_profile
+    from fall_predictor.robot.control import make_controller
+    from fall_predictor.sim.policy_runs import physics_dt_s
+    from fall_predictor.sim.trajectory import run_trajectory
+    from fall_predictor.sim.world import make_world
+
+    try:
+        controller_name, simulator = argtypes.controller_of(args)
+        profile = load_profile(args.robot)
+        policy = profile.controller_profile(controller_name)
+    except ProfileError as error:
+        return _fail('render', error)
+    world = make_world(profile, simulator, physics_dt_s(policy))
+    controller = make_controller(profile, controller_name, args.command, dt_s=world.dt_s,
+                                 walk_duration_s=args.onset + args.after + 5.0)
+    if hasattr(world, 'draw_ground'):           # PyBullet draws a slab ground as a plane
+        world.start(controller.initial_posture())
+        world.draw_ground()
+    push = PushSpec(args.force, args.angle, args.height, args.onset)
+    times = list(np.linspace(args.onset - args.before, args.onset + args.after, args.frames))
+    images, labels, heading = [], [], []
+    height_m = 0.42 * profile.guard_com_height_m / 0.48     # the ASIMO-like robot's view, scaled
+
+    def on_step(w, m) -> None:
+        if not heading and m.t >= args.onset - 1e-9:
+            heading.append(math.degrees(m.heading))
+        if times and m.t >= times[0] - 1e-9:
+            # The camera follows the CoM, at right angles to the push: its motion in the image plane.
+            yaw = (heading[0] if heading else math.degrees(m.heading)) + args.angle
+            images.append(w.render(320, 400, (m.com[0], m.com[1], height_m), yaw))
+            contact = ('both feet' if len(m.left_contacts) and len(m.right_contacts) else
+                       'left foot' if len(m.left_contacts) else
+                       'right foot' if len(m.right_contacts) else 'no foot')
+            labels.append(f't = {m.t - args.onset:+.2f} s\nCoM {m.com[2]:.2f} m, {contact}'
+                          + (', fallen' if m.com[2] < profile.fallen_com_height_m else ''))
+            times.pop(0)
+    try:
+        result = run_trajectory(push, args.onset + args.after + 0.01, stop_when_fallen=False,
+                                simulator=world, controller=controller, on_step=on_step)
+    finally:
+        world.close()
+    fig, axes = plt.subplots(1, len(images), figsize=(2.0 * len(images), 3.0))
+    for ax, image, label in zip(np.atleast_1d(axes), images, labels):
+        ax.imshow(image)
+        ax.set_title(label, fontsize=7)
+        ax.axis('off')
+    who = controller.name
+    if policy is not None:
+        who += ' at (' + ', '.join(f'{c:g}' for c in controller.velocity_command) + ')'
+    fig.suptitle(f'{profile.name}, {who}, {simulator}: {push.impulse_ns:.0f} N s push, '
+                 f'{args.angle:.0f}° from the heading, {args.height:.2f} m above the CoM '
+                 '(t = 0: onset)', fontsize=9)
+    fig.tight_layout()
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(args.out, dpi=110)
+    plt.close(fig)
+    payload = {'out': str(args.out), 'fallen': result.fallen, 't_fallen': result.t_fallen,
+               'frames': len(images), 'robot': profile.name, 'controller': controller.name,
+               'simulator': simulator}
+    _emit(args, payload, [f'{args.out}: {len(images)} frames, ' + (
+        f'fallen at {result.t_fallen:.3f} s' if result.fallen else 'standing at the end')])
     return 0
 
 
@@ -64,8 +164,9 @@ def cmd_bringup(args) -> int:
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser('simulate', help='walk, optionally push once, and report the outcome',
-                       description='Simulate the humanoid walking under C_bal; optionally push it once '
-                                   '(a constant force for 0.1 s on the torso) and report whether it fell.')
+                       description='Simulate a humanoid walking under its controller (C_bal, or a learned '
+                                   'policy at --command); optionally push it once (a constant force for '
+                                   '0.1 s on the torso) and report whether it fell.')
     p.add_argument('--duration', type=argtypes.positive, default=6.0, help='simulated seconds (default 6)')
     p.add_argument('--push-force', type=argtypes.finite(float), default=0.0, help='push force [N]; 0 = no push')
     p.add_argument('--push-angle', type=argtypes.finite(float), default=0.0,
@@ -74,9 +175,37 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--push-time', type=argtypes.finite(float), default=None,
                    help='push onset [s]; default: a random instant of the walk cycle drawn from --seed')
     p.add_argument('--seed', type=int, default=0, help='random seed (push onset)')
+    argtypes.add_robot_argument(p)
+    argtypes.add_controller_arguments(p)
+    p.add_argument('--command', type=argtypes.finite(float), nargs=3, default=None,
+                   metavar=('VX', 'VY', 'YAW_RATE'),
+                   help='a learned policy\'s velocity command [m/s, m/s, rad/s] (default: its deploy '
+                        'config\'s cmd_init)')
     p.add_argument('--gui', action='store_true', help='open the PyBullet GUI')
     p.add_argument('--json', action='store_true', help='print one JSON object')
     p.set_defaults(func=cmd_simulate)
+
+    p = sub.add_parser('render', help='a pushed run as a strip of frames (PNG)',
+                       description='Render a pushed run of the robot under its controller as a strip '
+                                   'of frames, the camera following the robot at right angles to the '
+                                   'push (headless: PyBullet\'s TinyRenderer, MuJoCo\'s offscreen '
+                                   'renderer with MUJOCO_GL=egl or osmesa).')
+    p.add_argument('--force', type=argtypes.finite(float), default=250.0, help='push force [N] for 0.1 s')
+    p.add_argument('--angle', type=argtypes.finite(float), default=90.0,
+                   help='push direction from the heading [deg]')
+    p.add_argument('--height', type=argtypes.finite(float), default=0.1, help='above the CoM [m]')
+    p.add_argument('--onset', type=argtypes.positive, default=2.5, help='push onset [s]')
+    p.add_argument('--after', type=argtypes.positive, default=1.6, help='seconds shown after the onset')
+    p.add_argument('--before', type=argtypes.nonnegative, default=0.1,
+                   help='seconds shown before the onset')
+    p.add_argument('--frames', type=argtypes.positive_int, default=8)
+    argtypes.add_robot_argument(p)
+    argtypes.add_controller_arguments(p)
+    p.add_argument('--command', type=argtypes.finite(float), nargs=3, default=None,
+                   metavar=('VX', 'VY', 'YAW_RATE'), help='a learned policy\'s velocity command')
+    p.add_argument('--out', type=Path, required=True, help='the PNG to write')
+    p.add_argument('--json', action='store_true')
+    p.set_defaults(func=cmd_render)
 
     p = sub.add_parser('bringup', help='start the ROS 2 nodes and push the robot N times',
                        description='Start simulator, feature, predictor and controller nodes (and '

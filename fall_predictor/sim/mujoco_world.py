@@ -192,9 +192,16 @@ class MujocoWorld:
             d.qfrc_applied[self._dadr] = tau
         applied = self._apply_push()
         mujoco.mj_step(m, d)
+        # mj_step leaves the kinematics and velocities of the state it started from: the ground
+        # forces of its contacts are those that acted over the step (kept, as PyBullet reports
+        # them); the positions and velocities are brought to the new state.
+        self._last_contacts, self._non_foot = self._contacts()
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        mujoco.mj_comVel(m, d)
         self.tick += 1
         self.t = self.tick * self.dt_s
-        measurement = self.measure()
+        measurement = self.measure(contacts_now=False)
         measurement.push_force = applied
         return measurement
 
@@ -220,9 +227,9 @@ class MujocoWorld:
         return d.qpos[self._qadr].copy(), d.qvel[self._dadr].copy(), self._tau.copy()
 
     # -- measuring -------------------------------------------------------------------------------
-    def _contacts(self) -> tuple[dict[str, list], bool, list]:
-        """Per foot the loaded contacts (x, y, fz, force 3-vector on the robot, point), whether
-        another link touches the ground, from this step's contacts."""
+    def _contacts(self) -> tuple[dict[str, list], bool]:
+        """Per foot its loaded contacts (point, force on the robot, world frame), and whether
+        another link touches the ground, from the last forward pass's contacts."""
         m, d = self.model, self.data
         per_foot: dict[str, list] = {'l': [], 'r': []}
         non_foot = False
@@ -248,8 +255,9 @@ class MujocoWorld:
                 per_foot[side].append((c.pos.copy(), world))
         return per_foot, non_foot
 
-    def measure(self) -> Measurement:
-        """CoM, momenta about the CoM, heading, contacts and CoP of the current state."""
+    def measure(self, contacts_now: bool = True) -> Measurement:
+        """CoM, momenta about the CoM, heading, contacts and CoP of the current state (the
+        contacts: those of the last step, else, ``contacts_now``, of the last forward pass)."""
         m, d = self.model, self.data
         mujoco.mj_subtreeVel(m, d)
         root = self._root_body
@@ -257,7 +265,9 @@ class MujocoWorld:
         lin_mom = self.total_mass * d.subtree_linvel[root]
         ang_mom = d.subtree_angmom[root].copy()
         rot = d.xmat[root].reshape(3, 3).copy()
-        per_foot, non_foot = self._contacts()
+        if contacts_now:
+            self._last_contacts, self._non_foot = self._contacts()
+        per_foot, non_foot = self._last_contacts, self._non_foot
         rows = {side: np.array([(p[0], p[1], f[2]) for p, f in per_foot[side]], dtype=float
                                ).reshape(-1, 3) for side in ('l', 'r')}
         both = np.vstack([rows['l'], rows['r']])
@@ -275,7 +285,6 @@ class MujocoWorld:
                                   left_foot=feet['l'], right_foot=feet['r'],
                                   non_foot_contact=non_foot, torso_rotation=rot)
         self._prev = measurement
-        self._last_contacts = per_foot
         return measurement
 
     def sensor_truth(self):

@@ -1,9 +1,11 @@
-"""Push robustness of C_bal: which impulses, from which directions, at which gait phases, the
-robot survives (the robustness table in docs/results.md).
+"""Push robustness of a robot under its controller: which impulses, from which directions, at which
+gait phases, it survives (the robustness tables in docs/results.md).
 
 Every push is the method §3 push (a constant horizontal force for 0.1 s on the torso) with the
 impulse, direction and onset on a grid: the onset at ``k / n_phases`` of one walk cycle after the
-gait has settled. A push is survived when the robot has not fallen ``horizon_s`` after it ends.
+gait has settled (C_bal's gait cycle, two steps; a learned policy's gait clock, walking at a
+given command after its settling time). A push is survived when the robot has not fallen
+``horizon_s`` after it ends.
 """
 from __future__ import annotations
 
@@ -14,8 +16,7 @@ from typing import Callable, Optional, Sequence
 import numpy as np
 
 from fall_predictor.monitor.records import PUSH_DURATION_S, PushSpec
-from fall_predictor.robot.controllers import GaitConfig
-from fall_predictor.sim.pushes import PushDistribution
+from fall_predictor.sim.pushes import PushDistribution, robot_gait
 
 
 @dataclass(frozen=True)
@@ -27,6 +28,12 @@ class RobustnessGrid:
     n_phases: int = 8
     height_m: float = 0.1            #: application height above the CoM (mid method §3 range)
     horizon_s: float = 3.0
+    #: The robot (a profile's name or path), its walking controller (None: the profile's) and the
+    #: simulator (None: the profile's); a learned policy walks at ``command`` (vx, vy, yaw rate).
+    robot: str = 'asimo_like'
+    controller: Optional[str] = None
+    simulator: Optional[str] = None
+    command: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         if not self.impulses_ns or min(self.impulses_ns) <= 0:
@@ -34,13 +41,24 @@ class RobustnessGrid:
         if self.n_phases < 1 or not self.directions_deg or self.horizon_s <= 0:
             raise ValueError('need at least one phase and one direction, and a positive horizon')
 
-    def pushes(self, gait: GaitConfig = GaitConfig()) -> list[tuple[int, int, int, PushSpec]]:
+    def walk(self) -> tuple[float, float, float]:
+        """(settling time [s], walk cycle [s], physics step [s]) of the robot's controller."""
+        from fall_predictor.profiles import load_profile
+        from fall_predictor.sim.policy_runs import commanded_pushes
+        profile = load_profile(self.robot)
+        policy = profile.controller_profile(self.controller)
+        if policy is None:
+            dist = PushDistribution()
+            return dist.settle_s, dist.walk_cycle_s(robot_gait(self.robot)), 0.001
+        pushes = commanded_pushes(policy)
+        return policy.settle_s, pushes.cycle_s, pushes.dt_s
+
+    def pushes(self) -> list[tuple[int, int, int, PushSpec]]:
         """(impulse index, direction index, phase index, push) for every cell of the grid."""
-        dist = PushDistribution()
-        cycle = dist.walk_cycle_s(gait)
+        settle_s, cycle, dt_s = self.walk()
         out = []
         for k in range(self.n_phases):
-            onset = round(dist.settle_s + cycle * k / self.n_phases, 3)
+            onset = round(round((settle_s + cycle * k / self.n_phases) / dt_s) * dt_s, 6)
             for d, angle in enumerate(self.directions_deg):
                 for i, impulse in enumerate(self.impulses_ns):
                     out.append((i, d, k, PushSpec(impulse / PUSH_DURATION_S, angle, self.height_m, onset)))
@@ -83,7 +101,8 @@ def run_robustness(grid: RobustnessGrid = RobustnessGrid(),
             ``map`` (one process) if None.
     """
     cells = grid.pushes()
-    items = [(grid.horizon_s, push) for *_, push in cells]
+    setup = (grid.robot, grid.controller, grid.simulator, tuple(grid.command))
+    items = [(grid.horizon_s, push, setup) for *_, push in cells]
     results = list(map_fn(survives, items) if map_fn else map(survives, items))
     survived = np.zeros((len(grid.impulses_ns), len(grid.directions_deg), grid.n_phases), dtype=bool)
     for (i, d, k, _), ok in zip(cells, results):
@@ -92,19 +111,40 @@ def run_robustness(grid: RobustnessGrid = RobustnessGrid(),
             **survival_table(grid, survived)}
 
 
-_PREFIX = threading.local()
+_WORKER = threading.local()
 
 
-def survives(item: tuple[float, PushSpec]) -> bool:
-    """Whether the robot walking the default gait survives ``push`` (one walk per worker
-    thread, simulated once and restored from snapshots)."""
-    from fall_predictor.sim.simulator import Simulator
+def survives(item: tuple) -> bool:
+    """Whether the robot survives ``push``: item = (horizon [s], push, (robot, controller,
+    simulator, command)). C_bal walks its default gait (one walk per worker thread, simulated once
+    and restored from snapshots); a learned policy walks from a fresh world every time (its
+    recurrent state and live sensors start with the run)."""
+    from fall_predictor.profiles import load_profile
+    from fall_predictor.robot.control import make_controller
+    from fall_predictor.sim.policy_runs import physics_dt_s
     from fall_predictor.sim.trajectory import WalkPrefix, run_trajectory
+    from fall_predictor.sim.world import make_world
 
-    horizon_s, push = item
-    if getattr(_PREFIX, 'prefix', None) is None:
-        dist = PushDistribution()
-        until = dist.settle_s + dist.walk_cycle_s() + 0.01
-        _PREFIX.prefix = WalkPrefix(Simulator(), until_s=until, walk_duration_s=until + 60.0)
-    result = run_trajectory(push, push.t_force_end + horizon_s, prefix=_PREFIX.prefix)
+    horizon_s, push, (robot, controller, simulator, command) = item
+    profile = load_profile(robot)
+    policy = profile.controller_profile(controller)
+    key = (robot, controller, simulator)
+    cache = getattr(_WORKER, 'cache', None)
+    if cache is None or cache[0] != key:
+        world = make_world(profile, simulator, physics_dt_s(policy))
+        if policy is None:
+            dist = PushDistribution()
+            until = dist.settle_s + dist.walk_cycle_s(robot_gait(robot)) + 0.01
+            cache = (key, WalkPrefix(world, until_s=until, walk_duration_s=until + 60.0), None)
+        else:
+            cache = (key, world, make_controller(profile, controller, command))
+        _WORKER.cache = cache
+    if policy is None:
+        result = run_trajectory(push, push.t_force_end + horizon_s, prefix=cache[1])
+    else:
+        control = cache[2]
+        control.velocity_command = tuple(command)
+        control.policy.reset()
+        result = run_trajectory(push, push.t_force_end + horizon_s, simulator=cache[1],
+                                controller=control)
     return not result.fallen
