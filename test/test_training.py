@@ -121,7 +121,8 @@ def test_cli_trains_boosted_trees_that_evaluate_from_their_file_as_in_memory(fix
     model = tmp_path / 'boosted.json'
     code, out, err = run_cli(capsys, 'train', '--data', str(fixture_dataset), '--tau-plus', '-0.25',
                              '--learner', 'boosting', '--param', 'max_iter=20',
-                             '--param', 'decision_threshold=0.5', '--out', str(model), '--json')
+                             '--param', 'decision_threshold=0.5', '--tau-his', '0', '--out', str(model),
+                             '--json')
     assert code == 0, err
     lists, metadata = load_model(model)
     assert lists.boosted and metadata.learner_name == 'BoostedTreesLearner'

@@ -28,14 +28,24 @@ def generation_config(args):
     from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
     from fall_predictor.sim.pushes import PushDistribution
 
+    from fall_predictor.profiles.profile import C_BAL
+
     profile = load_profile(args.robot)
+    controller, simulator = argtypes.controller_of(args)
     standing = bool(profile.controller.get('gait', {}).get('standing', False))
     extra = {} if args.robot == DEFAULT_ROBOT else {
         'robot': args.robot, 'push_distribution': PushDistribution.for_robot(profile)}
+    if controller != C_BAL:
+        extra['controller'] = controller
+    if simulator != 'pybullet':
+        extra['simulator'] = simulator
+    noise = args.sensor_noise
+    if controller != C_BAL and noise is None:
+        noise = 1.0                 # a learned policy walks on its sensors: the bags hold them
     return GenerationConfig(seed=args.seed, horizon_after_push_s=args.horizon,
                             settle_extension_s=args.settle_extension,
                             gait_variety=not (args.fixed_gait or standing) and profile.gait_variety,
-                            sensor_noise_scale=args.sensor_noise,
+                            sensor_noise_scale=noise,
                             sensor_timing=_sensor_timing(args, profile), **extra)
 
 
@@ -43,7 +53,11 @@ def cmd_generate(args) -> int:
     from fall_predictor.data.dataset import DatasetError, read_manifest
     from fall_predictor.data.generation import generate_dataset
 
-    config = generation_config(args)
+    from fall_predictor.profiles import ProfileError
+    try:
+        config = generation_config(args)
+    except ProfileError as error:
+        return _fail('generate', error)
     start = time.perf_counter()
     try:
         rows = generate_dataset(args.out, args.trajectories, args.seed, jobs=args.jobs, config=config,
@@ -108,22 +122,40 @@ def cmd_stats(args) -> int:
 
 
 def cmd_import_bags(args) -> int:
-    from fall_predictor.data.dataset import DatasetError
+    from fall_predictor.data.dataset import PUSH_UNKNOWN, DatasetError, read_manifest
     from fall_predictor.data.generation import ImportReport, import_recordings
-    from fall_predictor.data.robot_import import import_robot_recordings, is_robot_recording
+    from fall_predictor.data.robot_import import (import_robot_recordings, is_robot_recording,
+                                                  read_push_times)
     from fall_predictor.profiles import ProfileError
 
     try:
+        push_times = read_push_times(args.push_times) if args.push_times is not None else None
         if all(is_robot_recording(bag) for bag in args.bags):       # a robot's own topics
             urdf = args.urdf.read_text() if args.urdf is not None else None
-            report = ImportReport(*import_robot_recordings(args.bags, args.out, urdf, args.robot))
+            report = ImportReport(*import_robot_recordings(args.bags, args.out, urdf, args.robot,
+                                                           push_times))
+        elif push_times is not None:
+            return _fail('import-bags', '--push-times is for a robot\'s own recordings; these '
+                                        'recorder_node bags carry their pushes')
         else:
             report = import_recordings(args.bags, args.out)
     except (DatasetError, OSError, ProfileError) as error:
         return _fail('import-bags', error)
+    pushes = read_manifest(args.out).get('push_times')
+    no_push = [r.trajectory_id for r in report.rows if r.push_source == PUSH_UNKNOWN]
     payload = {'out': str(args.out), 'imported': len(report.rows),
-               'fallen': sum(r.fallen for r in report.rows), 'rejected': report.rejected}
+               'fallen': sum(r.fallen for r in report.rows), 'rejected': report.rejected,
+               'push_times': pushes, 'without_push_time': no_push}
     lines = [f'{len(report.rows)} recordings imported into {args.out} ({payload["fallen"]} fallen)']
+    if pushes is not None:
+        lines.append(f'push times: {pushes["push_topic"]} from the push topic, {pushes["push_times_file"]} '
+                     f'from --push-times, {pushes["unknown"]} without one')
+        if no_push:
+            lines.append(f'{len(no_push)} recordings without a push time ({", ".join(no_push[:5])}'
+                         f'{" ..." if len(no_push) > 5 else ""}): their t_push is the recording\'s start, '
+                         'as before (alarms count from it; none is "before the push")')
+        for name in pushes.get('file_entries_unused', []):
+            lines.append(f'warning: --push-times names {name}, which is not among the recordings')
     lines += [f'REJECTED {bag}: {why}' for bag, why in report.rejected.items()]
     _emit(args, payload, lines)
     return 0 if report.rows else 1
@@ -131,9 +163,11 @@ def cmd_import_bags(args) -> int:
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser('generate', help='generate push trajectories as rosbag2 (MCAP) bags',
-                       description='Generate N push trajectories (method §3, C_bal throughout) into DIR: one '
-                                   'rosbag2 bag per trajectory plus an index. Deterministic per seed; '
-                                   'rerunning finishes an interrupted run without redoing finished trajectories.')
+                       description='Generate N push trajectories (method §3, the walking controller '
+                                   'throughout: C_bal, or a learned policy at a commanded velocity drawn '
+                                   'per run) into DIR: one rosbag2 bag per trajectory plus an index. '
+                                   'Deterministic per seed; rerunning finishes an interrupted run without '
+                                   'redoing finished trajectories.')
     p.add_argument('--trajectories', type=argtypes.positive_int, required=True)
     p.add_argument('--seed', type=int, default=0)
     p.add_argument('--out', type=Path, required=True, help='dataset directory')
@@ -151,6 +185,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--joint-rate-hz', type=argtypes.positive, default=500.0,
                    help='joint state rate with --sensor-timing robot [Hz]')
     add_robot_argument(p)
+    argtypes.add_controller_arguments(p)
     p.add_argument('--fixed-gait', action='store_true',
                    help='every trajectory walks the default gait (faster: the walk is simulated once per '
                         'process) instead of drawing its gait (method §3 amendment)')
@@ -174,11 +209,20 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    'C_bal throughout: `bringup --record DIR --no-fall-trigger`), or a robot\'s '
                                    '`ros2 bag record` of /joint_states, /imu/data, /left_foot/wrench, '
                                    '/right_foot/wrench (and /robot_description): falls are then found from the '
-                                   'estimated CoM height and the IMU tilt (docs/method.md).')
+                                   'estimated CoM height and the IMU tilt (docs/method.md), the push onset '
+                                   'from a /fall_predictor/push message (geometry_msgs/WrenchStamped, its '
+                                   'stamp the onset) or --push-times; without one a recording\'s push time '
+                                   'is its start.')
     p.add_argument('bags', nargs='+', type=Path, help='bag directories')
     p.add_argument('--urdf', type=Path, default=None, help='the robot\'s URDF, for recordings without '
                    '/robot_description')
     p.add_argument('--out', type=Path, required=True, help='new dataset directory')
+    p.add_argument('--push-times', type=Path, default=None, metavar='CSV',
+                   help='push onsets of a robot\'s recordings without a /fall_predictor/push message: a '
+                        'CSV with a header and the columns bag (the recording as given here, or its '
+                        'directory name) and t_push_s (the onset in the recording\'s own stamp time, '
+                        'seconds, e.g. 1718000012.250) or t_push_ns (the same as an integer stamp); a '
+                        'time outside the recording refuses it')
     add_robot_argument(p)
     p.add_argument('--json', action='store_true')
     p.set_defaults(func=cmd_import_bags)

@@ -12,27 +12,36 @@ from fall_predictor.cli.args import emit as _emit, fail as _fail
 
 def cmd_train(args) -> int:
     from fall_predictor.data.dataset import DatasetError
-    from fall_predictor.learning.training import make_learner, train_model
+    from fall_predictor.learning.training import make_learner
+    from fall_predictor.learning.window_choice import WindowSearch, train_choosing_window
     from fall_predictor.monitor.model_file import ModelFileError, save_model
 
     try:
         make_learner(args.learner, dict(args.param))
+        chosen_by = {name: value for name, value in (('max_fpr', args.max_fpr), ('folds', args.folds))
+                     if value is not None}
+        search = WindowSearch(**chosen_by)
     except ValueError as error:
         return _fail('train', error)
     start = time.perf_counter()
     try:
         state = argtypes.resolved_state(args)
-        lists, metadata = train_model(args.data, args.tau_plus, args.learner, dict(args.param),
-                                      args.stride, jobs=args.jobs,
-                                      recommended_tau_his_s=args.tau_his_recommended,
-                                      skip_unreadable=args.skip_unreadable, progress=not args.json,
-                                      state=state, mirror=args.mirror, attitude=args.attitude)
+        trained = train_choosing_window(args.data, args.tau_plus, args.learner, dict(args.param),
+                                        args.stride, jobs=args.jobs, tau_his_s=args.tau_his,
+                                        search=search, skip_unreadable=args.skip_unreadable,
+                                        progress=not args.json, state=state, mirror=args.mirror,
+                                        attitude=args.attitude)
+        lists, metadata, window = trained.lists, trained.metadata, trained.window
         save_model(args.out, lists, metadata)
     except (DatasetError, ModelFileError, ValueError) as error:
         return _fail('train', error)
     wall = time.perf_counter() - start
+    refused = trained.report.refused_total
     payload = {'model': str(args.out), 'tau_plus_s': metadata.tau_plus_s,
                'recommended_tau_his_s': metadata.recommended_tau_his_s,
+               'tau_his_chosen': None if window is None else window.to_json(),
+               'tau_his_not_chosen': trained.not_chosen,
+               'refused_samples': refused.total,
                'learner': {'name': metadata.learner_name, 'params': metadata.learner_params},
                'sample_stride': args.stride, 'state': metadata.state, 'mirror': metadata.mirror,
                'n_inputs': lists.n_inputs,
@@ -40,9 +49,27 @@ def cmd_train(args) -> int:
                'dataset_fingerprint': metadata.dataset_fingerprint,
                'mean_rule_size': lists.mean_rule_size, 'rule_sizes': list(lists.rule_sizes),
                'depths': list(lists.depths), 'wall_s': wall}
-    _emit(args, payload, [f'wrote {args.out}: {metadata.learner_name} on the {metadata.state} state, tau_plus '
-                          f'{metadata.tau_plus_s:+.3f} s, stride {args.stride}, mean rule size '
-                          f'{lists.mean_rule_size:.1f}, depths {list(lists.depths)} ({wall:.1f} s)'])
+    lines = [f'wrote {args.out}: {metadata.learner_name} on the {metadata.state} state, tau_plus '
+             f'{metadata.tau_plus_s:+.3f} s, stride {args.stride}, mean rule size '
+             f'{lists.mean_rule_size:.1f}, depths {list(lists.depths)} ({wall:.1f} s)']
+    if trained.not_chosen is not None:
+        lines.append(f'no tau_his stored: {trained.not_chosen}')
+    elif window is None:
+        lines.append(f'tau_his {metadata.recommended_tau_his_s:.3f} s (given), stored in the model')
+    else:
+        chosen = window.chosen
+        lines.append(f'tau_his {window.tau_his_s:.3f} s chosen by {window.folds}-fold cross-validation '
+                     f'on this data (the longest lead at FPR <= {window.search.max_fpr:g}): FPR '
+                     f'{chosen.fpr:.3f} ({chosen.n_false_positives}/{chosen.n_balanced}), tau_lead '
+                     f'{chosen.tau_lead_s:.3f} s, misses {chosen.n_missed}/{chosen.n_fallen}; stored '
+                     'in the model')
+        if not window.within_budget:
+            lines.append(f'warning: no window met FPR <= {window.search.max_fpr:g} on held-out folds: '
+                         'the one with the fewest false alarms was chosen')
+    if refused.total:
+        lines.append(f'{refused.total} samples refused ({refused.estimator} by the estimator, '
+                     f'{refused.features} by the feature extractor): left out as holes, as onboard')
+    _emit(args, payload, lines)
     return 0
 
 
@@ -92,13 +119,22 @@ def cmd_evaluate(args) -> int:
                                     guard_com_height_m=metadata.feature_settings.guard_com_height_m,
                                     fall_direction=metadata.fall_direction)
         dataset_guard = dataset_guard_com_height_m(args.data)
+        per_run = None
+        if args.per_run is not None:
+            from fall_predictor.learning.per_run import write_per_run
+            per_run = write_per_run(args.per_run, evaluation.run_records(), {
+                'model': str(args.model), 'data': str(args.data), 'state': state,
+                'tau_his_s': tau_his, 'guard_com_height_m': evaluation.guard_com_height_m})
     except (DatasetError, ModelFileError) as error:
         return _fail('evaluate', error)
+    except OSError as error:
+        return _fail('evaluate', f'--per-run {args.per_run}: {error}')
     payload = {'model': str(args.model), 'data': str(args.data), 'state': state,
                'model_state': metadata.state, 'decision_threshold': lists.decision_threshold,
                **evaluation_json(evaluation),
                'trained_on_this_dataset': metadata.dataset_fingerprint == evaluation.dataset_fingerprint,
-               'dataset_guard_com_height_m': dataset_guard}
+               'dataset_guard_com_height_m': dataset_guard,
+               'per_run': None if per_run is None else str(per_run)}
     r = evaluation.result
     lines = [f'{r.n_trajectories} trajectories ({r.n_fallen} fallen), {state} state (model trained on '
              f'the {metadata.state} state), tau_his {tau_his:.3f} s'
@@ -114,9 +150,17 @@ def cmd_evaluate(args) -> int:
              f'decision lists alone (CoM guard off): tau_lead {r.tau_lead_lists_only_s:.3f} s, '
              f'misses {r.n_missed_lists_only}/{r.n_fallen}; CoM guard alone: tau_lead '
              f'{r.tau_lead_guard_only_s:.3f} s',
-             f'pre-push false alarms: {r.n_pre_push_alarms_balanced} balanced, '
-             f'{r.n_pre_push_alarms_fallen} fallen trajectories',
+             f'pre-push false alarms: {r.n_pre_push_alarms} runs alarmed before their push '
+             f'({r.n_pre_push_alarms_balanced} balanced, {r.n_pre_push_alarms_fallen} fallen trajectories)'
+             + (f'; {payload["n_runs_push_time_unknown"]} runs without a push time (alarms counted '
+                'from their start)' if payload['n_runs_push_time_unknown'] else ''),
              f'mean rule size {r.mean_rule_size:.2f}']
+    if payload['refused_samples']:
+        lines.append(f'{payload["refused_samples"]} samples refused ({payload["refused_samples_estimator"]} '
+                     f'by the estimator, {payload["refused_samples_features"]} by the feature extractor) '
+                     f'in {len(evaluation.refused)} runs: holes, as onboard (a DEGRADED state)')
+    if per_run is not None:
+        lines.append(f'per run: {per_run}')
     lines += when_where_lines(payload)
     if payload['trained_on_this_dataset']:
         lines.append('warning: the model was trained on this dataset; these numbers are not a '
@@ -230,8 +274,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                        description='Train one decision list per foot contact mode (method §8) on every '
                                    'trajectory of a dataset and write the JSON model file. Falling states '
                                    'before t_height_drop + tau_plus are withheld; balanced states weigh 4, '
-                                   'falling states 1 (per 1 kHz sample). Exit code 2 if the dataset or a '
-                                   'setting cannot be used.')
+                                   'falling states 1 (per 1 kHz sample). The history window tau_his the '
+                                   'model runs with is chosen by cross-validation on the same data unless '
+                                   'given (--tau-his) and stored in the model. Exit code 2 if the dataset or '
+                                   'a setting cannot be used.')
     p.add_argument('--data', type=Path, required=True, help='dataset directory')
     p.add_argument('--tau-plus', type=argtypes.finite(float), required=True,
                    help='tau_plus [s]: falling states are trained on from t_height_drop + tau_plus '
@@ -245,9 +291,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--attitude', action='store_true',
                    help='the classifiers also read the floating base\'s attitude (fused roll and '
                         'pitch, its angular velocity about x and y: method §8c); boosted trees only')
-    p.add_argument('--tau-his-recommended', type=argtypes.nonnegative, default=None,
-                   help='history window [s] to store as the model\'s run-time default')
-    p.add_argument('--jobs', type=argtypes.positive_int, default=1, help='processes loading features')
+    p.add_argument('--tau-his', '--tau-his-recommended', dest='tau_his', type=argtypes.nonnegative,
+                   default=None, metavar='SECONDS',
+                   help='history window [s] stored as the model\'s run-time default (default: chosen '
+                        'by cross-validation on --data, the longest lead at FPR <= --max-fpr, as the '
+                        'sweep chooses operating points)')
+    p.add_argument('--max-fpr', type=argtypes.finite(float), default=None, metavar='FPR',
+                   help='FPR budget of the window\'s choice (default 0.06, FP-L2\'s)')
+    p.add_argument('--folds', type=argtypes.at_least_two, default=None,
+                   help='cross-validation folds of the window\'s choice, each one more training '
+                        '(default 10; at most one per trajectory)')
+    p.add_argument('--jobs', type=argtypes.positive_int, default=1,
+                   help='processes loading features and training the window\'s folds')
     p.add_argument('--skip-unreadable', action='store_true',
                    help='leave out unreadable bags instead of failing')
     p.add_argument('--json', action='store_true', help='print one JSON object')
@@ -268,8 +323,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    'method §5\'s '
                                    'metrics: FPR, tau_lead, misses, pre-push false alarms, oracle lead, lead '
                                    'fraction and mean rule size; with --baselines also the Pareto fronts of '
-                                   'the hand-coded baselines. Not cross-validated: use a dataset the model '
-                                   'was not trained on. Exit code 2 if the model or dataset cannot be used.')
+                                   'the hand-coded baselines; with --per-run, each run\'s alarms. Samples '
+                                   'the estimator or the feature extractor refuses are holes, as onboard, '
+                                   'and counted (refused_samples). Not cross-validated: use a dataset the '
+                                   'model was not trained on. Exit code 2 if the model or dataset cannot be '
+                                   'used.')
     p.add_argument('--data', type=Path, required=True, help='dataset directory')
     p.add_argument('--model', type=Path, required=True, help='model file (JSON)')
     p.add_argument('--tau-his', type=argtypes.nonnegative, default=None,
@@ -279,6 +337,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                         'model\'s); the other half of their operating point beside --tau-his')
     p.add_argument('--baselines', action='store_true',
                    help='also evaluate the CoM-height, momentum and capture-point baselines')
+    p.add_argument('--per-run', type=Path, default=None, metavar='FILE',
+                   help='also write one row per run: trajectory id, fallen, push time, fall time, first '
+                        'alarm, lead or false alarm, alarm onsets before the push, refused samples '
+                        '(CSV; JSON when FILE ends in .json)')
     argtypes.add_state_argument(p)
     p.add_argument('--jobs', type=argtypes.positive_int, default=1)
     p.add_argument('--skip-unreadable', action='store_true',

@@ -16,6 +16,14 @@ Features come from one of two states (``state``): ``'true'``, the simulator's ex
 ``state_estimator_node`` runs, with the same default configuration) estimates from the bag's
 sensor topics. Labels (pushes, falls) always come from the true state.
 
+A sample the estimator or the feature extractor refuses is a hole in the data, as it is onboard
+(``monitor/chain.py``: a DEGRADED state, no prediction): an estimate the estimator could not make
+or would not trust (a sensor missing, a fallen robot's CoM dead-reckoned below the ground), a
+measurement the :class:`~fall_predictor.monitor.features.FeatureExtractor` refuses (a jump faster
+than physics allows, a time that does not increase). It is left out of the features, counted per
+trajectory (:class:`RefusedSamples`, :attr:`LoadReport.refused`) and never an error; the history
+window spans such a hole as the onboard monitor does (:mod:`fall_predictor.learning.metrics`).
+
 A bag that cannot be read is reported with its file named and skipped; the rest of the dataset
 stays usable.
 """
@@ -27,23 +35,25 @@ import json
 import os
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Optional
+from typing import Any, Iterable, Optional, Sequence
 
 import numpy as np
 
 from fall_predictor.data.bagio import BagError, read_trajectory
 from fall_predictor.data.cache import bag_fingerprint, cached_arrays
 from fall_predictor.data.outcomes import unsettled_at_horizon
-from fall_predictor.monitor.features import FeatureSettings, extract_features
+from fall_predictor.monitor.features import FeatureSettings
 from fall_predictor.monitor.fileio import atomic_output
-from fall_predictor.monitor.records import FEATURE_NAMES, N_FEATURES, PushSpec, TrajectoryFeatures
+from fall_predictor.monitor.plausibility import ImplausibleSample
+from fall_predictor.monitor.records import (FEATURE_NAMES, N_FEATURES, Measurement, PushSpec,
+                                            TrajectoryFeatures)
 
 FORMAT = 'fall_predictor/dataset/v1'
 #: Feature columns of the horizontal momentum (whether a trajectory settled, data/outcomes.py).
 LIN_MOM_X, LIN_MOM_Y = FEATURE_NAMES.index('lin_mom_x'), FEATURE_NAMES.index('lin_mom_y')
 # v3: LR lateral edges fold FRONT/BACK; v4: + cp; v5: + the base's attitude; v6: its angular
-# velocity from its turn (v5: differenced fused angles)
-CACHE_FORMAT = 'fall_predictor/features-cache/v6'
+# velocity from its turn (v5: differenced fused angles); v7: refused samples left out and counted
+CACHE_FORMAT = 'fall_predictor/features-cache/v7'
 #: The robot's URDF of an imported robot dataset whose bags hold no /robot_description.
 ROBOT_URDF_FILE = 'robot.urdf'
 #: Where features can come from (module docs); the CLI default is ``'estimated'``.
@@ -77,11 +87,39 @@ class IndexRow:
     gait_single_support_s: Optional[float] = None
     gait_step_width_m: Optional[float] = None
     gait_standing: Optional[bool] = None
+    #: The velocity a learned policy was commanded to walk at (None: C_bal's datasets).
+    command_vx_m_s: Optional[float] = None
+    command_vy_m_s: Optional[float] = None
+    command_yaw_rate_rad_s: Optional[float] = None
+    #: Where ``t_push`` comes from in a robot's recordings (data/robot_import.py): its push
+    #: topic (:data:`PUSH_FROM_TOPIC`), a push-times file (:data:`PUSH_FROM_FILE`), or nowhere
+    #: (:data:`PUSH_UNKNOWN`: ``t_push`` is the recording's start). None: as the dataset was
+    #: made (a simulated push, a recorder's push topic; unknown in a robot's recordings imported
+    #: before this field): :func:`push_time_known`.
+    push_source: Optional[str] = None
 
     @property
     def push(self) -> PushSpec:
         return PushSpec(self.force_n, self.angle_deg, self.height_m, self.t_push,
                         round(self.t_force_end - self.t_push, 6))
+
+
+#: :attr:`IndexRow.push_source` values.
+PUSH_FROM_TOPIC, PUSH_FROM_FILE, PUSH_UNKNOWN = 'push_topic', 'push_times_file', 'unknown'
+
+
+def push_time_known(row: IndexRow, robot_recordings: bool) -> bool:
+    """Whether ``row.t_push`` is a push's onset, not the recording's start standing in for an
+    unknown one (``robot_recordings``: the dataset holds a robot's recordings, whose rows made
+    before :attr:`IndexRow.push_source` existed had no push time)."""
+    if row.push_source is None:
+        return not robot_recordings
+    return row.push_source != PUSH_UNKNOWN
+
+
+def is_robot_recordings(manifest: dict[str, Any]) -> bool:
+    """Whether a dataset's manifest is that of a robot's own recordings (no true state)."""
+    return manifest.get('ground_truth') is False
 
 
 def trajectory_id(index: int) -> str:
@@ -161,6 +199,74 @@ def write_index_csv(out: Path, rows: Iterable[IndexRow]) -> Path:
     return path
 
 
+# -- refused samples ----------------------------------------------------------------------------
+@dataclass(frozen=True)
+class RefusedSamples:
+    """The samples of one trajectory left out as holes (module docs)."""
+
+    estimator: int = 0              #: estimates the state estimator refused (a fault instead)
+    features: int = 0               #: measurements the feature extractor refused
+    first: str = ''                 #: the first of them: its time [s] and why
+
+    @property
+    def total(self) -> int:
+        return self.estimator + self.features
+
+    def to_json(self) -> dict[str, Any]:
+        return {'estimator': self.estimator, 'features': self.features, 'total': self.total,
+                'first': self.first}
+
+    @classmethod
+    def summed(cls, refused: Iterable['RefusedSamples']) -> 'RefusedSamples':
+        """The counts of several trajectories' refused samples added up (``first``: none)."""
+        refused = list(refused)
+        return cls(sum(r.estimator for r in refused), sum(r.features for r in refused))
+
+
+def usable_features(measurements: Sequence[Measurement], settings: FeatureSettings = FeatureSettings(),
+                    attitude: bool = True
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[tuple[float, str]]]:
+    """The features of the measurements the extractor accepts, as the onboard chain computes them
+    (``monitor/chain.py``): one :class:`~fall_predictor.monitor.features.FeatureExtractor` over
+    the whole recording; a measurement it refuses (ValueError, among them
+    :class:`~fall_predictor.monitor.plausibility.ImplausibleSample`) leaves it unchanged and is a
+    hole. Returns the indices of the accepted measurements, their inputs (N, 15), or (N, 19)
+    with ``attitude``, their contact modes, and the refused ones as ``(t [s], why)``."""
+    extractor = settings.extractor(attitude=attitude)
+    kept: list[int] = []
+    rows: list[np.ndarray] = []
+    modes: list[int] = []
+    refused: list[tuple[float, str]] = []
+    for i, m in enumerate(measurements):
+        try:
+            x, mode = extractor.update(m)
+        except (ValueError, ImplausibleSample) as error:
+            refused.append((float(m.t), f'measurement refused: {error}'))
+            continue
+        kept.append(i)
+        rows.append(x)
+        modes.append(mode)
+    X = np.array(rows).reshape(len(rows), extractor.n_outputs)
+    return np.array(kept, dtype=np.int64), X, np.array(modes, dtype=np.int64), refused
+
+
+def _refused_arrays(estimator: list[tuple[float, str]], features: list[tuple[float, str]]
+                    ) -> dict[str, np.ndarray]:
+    """The cache entry's record of the refused samples (:class:`RefusedSamples`)."""
+    first = min(estimator + features, default=None, key=lambda refusal: refusal[0])
+    return {'refused_estimator': np.asarray(len(estimator)),
+            'refused_features': np.asarray(len(features)),
+            'refused_first': np.asarray('' if first is None else f'{first[0]:.3f} s: {first[1]}')}
+
+
+def refused_samples(arrays: dict[str, np.ndarray]) -> RefusedSamples:
+    """The refused samples a cache entry records (none in entries of other derived data)."""
+    if 'refused_estimator' not in arrays:
+        return RefusedSamples()
+    return RefusedSamples(int(arrays['refused_estimator']), int(arrays['refused_features']),
+                          str(arrays['refused_first']))
+
+
 # -- feature cache ------------------------------------------------------------------------------
 @dataclass
 class LoadReport:
@@ -176,17 +282,27 @@ class LoadReport:
     #: trajectory id -> why it is left out: not fallen, but not settled when its recording
     #: ended (:func:`~fall_predictor.data.outcomes.unsettled_at_horizon`; method §4)
     unsettled: dict[str, str] = field(default_factory=dict)
+    #: trajectory id -> the samples left out of it as holes (module docs), for those with any
+    refused: dict[str, RefusedSamples] = field(default_factory=dict)
+
+    @property
+    def refused_total(self) -> RefusedSamples:
+        """The refused samples of all the trajectories loaded, summed."""
+        return RefusedSamples.summed(self.refused.values())
 
 
-def _measurements(bag: Path, state: str) -> list:
+def _measurements(bag: Path, state: str) -> tuple[list[Measurement], list[tuple[float, str]]]:
+    """The measurements of a bag's ``state`` and the estimates the estimator refused (none for
+    the true state)."""
     if state == 'true':
-        return read_trajectory(bag).measurements
+        return read_trajectory(bag).measurements or [], []
     # Imported here: Pinocchio is loaded only by those who estimate.
-    from fall_predictor.data.estimation import estimated_measurements
+    from fall_predictor.data.estimation import estimated_run
     data_dir = bag.parent.parent                              # DATA/bags/<id> -> DATA
     urdf_file = data_dir / ROBOT_URDF_FILE
-    return estimated_measurements(bag, urdf=urdf_file.read_text() if urdf_file.exists() else None,
-                                  robot=dataset_robot(data_dir))
+    run = estimated_run(bag, urdf=urdf_file.read_text() if urdf_file.exists() else None,
+                        robot=dataset_robot(data_dir))
+    return run.measurements, run.refused
 
 
 def dataset_robot(data_dir: Path) -> str:
@@ -241,24 +357,29 @@ def cached_feature_arrays(out: Path, row: IndexRow, settings: FeatureSettings = 
     """The derived arrays of one trajectory (from its cache entry when up to date) and whether
     they were computed now: ``t`` [s], features ``X``, contact ``mode``, the base's ``attitude``
     (method §8c), ``foot_force_n`` and the capture point's signed distance to the support polygon
-    ``cp_distance_m`` (NaN when the dataset gives no robot mass), all from the same ``state``.
-    Raises OSError or BagError."""
+    ``cp_distance_m`` (NaN when the dataset gives no robot mass), all from the same ``state``,
+    at the samples neither the estimator nor the feature extractor refused; and the record of
+    those (:func:`refused_samples`). Raises OSError or BagError."""
     from fall_predictor.monitor.capture_point import capture_point_distances
 
     bag = out / row.bag
 
     def from_bag() -> dict[str, np.ndarray]:
-        ms = _measurements(bag, state)
-        if not ms:
+        measured, refused_estimates = _measurements(bag, state)
+        if not measured:
             raise BagError(f'{bag}: no {state} state to compute features from')
-        inputs, mode = extract_features(ms, settings.rate_window_s, settings.sample_period_s,
-                                        settings.edge_tolerance_m, attitude=True)
+        kept, inputs, mode, refused_features = usable_features(measured, settings)
+        if not kept.size:
+            raise BagError(f'{bag}: the feature extractor refused every sample, the first: '
+                           f'{refused_features[0][1]}')
+        ms = [measured[i] for i in kept]
         foot_force = np.array([[m.left_contacts[:, 2].sum(), m.right_contacts[:, 2].sum()] for m in ms])
         mass = _total_mass_or_none(out)
         cp = capture_point_distances(ms, mass) if mass is not None else np.full(len(ms), np.nan)
         return {'t': np.array([m.t for m in ms]), 'X': inputs[:, :N_FEATURES], 'mode': mode,
                 'attitude': inputs[:, N_FEATURES:],
-                'foot_force_n': foot_force.reshape(len(ms), 2), 'cp_distance_m': cp}
+                'foot_force_n': foot_force.reshape(len(ms), 2), 'cp_distance_m': cp,
+                **_refused_arrays(refused_estimates, refused_features)}
 
     # Features computed with other settings are another kind of derived data.
     kind = f'{CACHE_FORMAT}?{json.dumps(asdict(settings), sort_keys=True)}&state={state}'
@@ -267,18 +388,20 @@ def cached_feature_arrays(out: Path, row: IndexRow, settings: FeatureSettings = 
 
 
 def _load_or_build(out: Path, row: IndexRow, settings: FeatureSettings, state: str = 'true'
-                   ) -> tuple[Optional[TrajectoryFeatures], Optional[str], bool]:
-    """Features of one trajectory (cached), or the error that kept them from being read."""
+                   ) -> tuple[Optional[TrajectoryFeatures], Optional[str], bool, RefusedSamples]:
+    """Features of one trajectory (cached), or the error that kept them from being read; whether
+    they were computed now, and the samples refused."""
     bag = out / row.bag
     try:
         arrays, built = cached_feature_arrays(out, row, settings, state)
     except OSError as exc:
-        return None, f'{bag}: {exc}', False
+        return None, f'{bag}: {exc}', False, RefusedSamples()
     except BagError as exc:
-        return None, str(exc), False
+        return None, str(exc), False, RefusedSamples()
     return TrajectoryFeatures(row.trajectory_id, arrays['t'], arrays['X'], arrays['mode'], row.fallen,
                               row.t_push, row.t_force_end, row.t_fallen, row.t_height_drop,
-                              arrays['foot_force_n'], arrays['attitude']), None, built
+                              arrays['foot_force_n'], arrays['attitude']), None, built, \
+        refused_samples(arrays)
 
 
 def load_features(data_dir: str | os.PathLike, jobs: int = 1, progress: bool = True,
@@ -287,7 +410,8 @@ def load_features(data_dir: str | os.PathLike, jobs: int = 1, progress: bool = T
 
     ``state`` is ``'true'`` or ``'estimated'`` (module docs; see :func:`resolve_state` for a
     dataset without sensor topics). A bag that cannot be read is reported in ``errors`` (with
-    its file named) and skipped; the rest of the dataset stays usable.
+    its file named) and skipped; the rest of the dataset stays usable. Samples the estimator or
+    the feature extractor refuses are holes, counted in ``refused`` (module docs).
     """
     from joblib import delayed
     from tqdm import tqdm
@@ -302,10 +426,10 @@ def load_features(data_dir: str | os.PathLike, jobs: int = 1, progress: bool = T
     desc = 'features' if state == 'true' else 'estimation + features'
     results = local_parallel(jobs)(delayed(_load_or_build)(out, row, settings, state)
                                    for row in tqdm(rows, desc=desc, unit='traj', disable=not progress))
-    trajectories, errors, rebuilt, unsettled = [], {}, 0, {}
+    trajectories, errors, rebuilt, unsettled, refused = [], {}, 0, {}, {}
     mass_kg = _mass_or_none(out)
     h = hashlib.sha256()
-    for row, (traj, error, built) in zip(rows, results):
+    for row, (traj, error, built, holes) in zip(rows, results):
         if traj is None:
             errors[row.trajectory_id] = error
             continue
@@ -317,8 +441,10 @@ def load_features(data_dir: str | os.PathLike, jobs: int = 1, progress: bool = T
             unsettled[row.trajectory_id] = why
             continue
         trajectories.append(traj)
+        if holes.total:
+            refused[row.trajectory_id] = holes
     return LoadReport(trajectories, errors, rebuilt, h.hexdigest()[:16], settings, state, note,
-                      unsettled)
+                      unsettled, refused)
 
 
 def _mass_or_none(out: Path) -> Optional[float]:

@@ -66,13 +66,38 @@ def _stamped(e: Estimate) -> Measurement:
     return replace(e.measurement, t=e.stamp_ns / 1e9)
 
 
+@dataclass(frozen=True)
+class EstimatedRun:
+    """What the estimator made of a bag's sensor topics: the measurements (at their stamps'
+    times), and the estimates it refused instead, each as ``(stamp [s], fault)``: a sensor
+    missing or out of its bounds, an estimate no humanoid can be in (a fallen robot's CoM
+    dead-reckoned below the ground). A refused estimate is a hole in the data, as it is onboard,
+    where the node publishes the fault and the monitor a DEGRADED state."""
+
+    measurements: list[Measurement]
+    refused: list[tuple[float, str]]
+
+
+def estimated_run(path: str | os.PathLike[str], config: EstimatorConfig = EstimatorConfig(),
+                  urdf: Optional[str] = None, robot: str = DEFAULT_ROBOT) -> EstimatedRun:
+    """The state the estimator gives from a bag's sensor topics alone, as the live node runs it:
+    default configuration, the world frame the robot starts in, no ground truth; the estimates it
+    refused apart (:class:`EstimatedRun`)."""
+    measurements: list[Measurement] = []
+    refused: list[tuple[float, str]] = []
+    for e in run_pipeline(path, urdf, config, robot=robot):
+        if e.measurement is None:
+            refused.append((e.stamp_ns / 1e9, e.fault))
+        else:
+            measurements.append(_stamped(e))
+    return EstimatedRun(measurements, refused)
+
+
 def estimated_measurements(path: str | os.PathLike[str], config: EstimatorConfig = EstimatorConfig(),
                            urdf: Optional[str] = None, robot: str = DEFAULT_ROBOT) -> list[Measurement]:
-    """The state the estimator gives from a bag's sensor topics alone, as the live node runs it:
-    default configuration, the world frame the robot starts in, no ground truth (samples without
-    an estimate are left out, as the node publishes a fault for them)."""
-    return [_stamped(e) for e in run_pipeline(path, urdf, config, robot=robot)
-            if e.measurement is not None]
+    """The measurements of :func:`estimated_run` (samples without an estimate are left out, as
+    the node publishes a fault for them)."""
+    return estimated_run(path, config, urdf, robot).measurements
 
 
 def aligned_config(path: str | os.PathLike[str], urdf: str, truth: dict,

@@ -6,7 +6,11 @@ see :mod:`fall_predictor.learning.crossval`); :func:`baseline_curves` evaluates 
 momentum and capture-point baselines over threshold grids. The capture point's distances are
 computed with the features and kept in the feature cache
 (:func:`capture_point_distances_cached`). The CLI
-subcommand ``evaluate`` is a thin wrapper.
+subcommand ``evaluate`` is a thin wrapper; its per-run rows are
+:mod:`fall_predictor.learning.per_run`'s, from the same alarms.
+
+Samples the estimator or the feature extractor refused are holes, as onboard
+(:mod:`fall_predictor.data.dataset`): :class:`ModelEvaluation` counts them (``refused``).
 
 JSON has no NaN or infinity: :func:`json_float` writes them as null.
 """
@@ -20,10 +24,13 @@ from typing import Any, Optional, Sequence
 
 import numpy as np
 
-from fall_predictor.data.dataset import DatasetError, dataset_guard_com_height_m, read_index
+from fall_predictor.data.dataset import (PUSH_UNKNOWN, DatasetError, RefusedSamples,
+                                         dataset_guard_com_height_m, is_robot_recordings,
+                                         push_time_known, read_index, read_manifest)
 from fall_predictor.learning.baselines import (CurvePoint, capture_point_curve, com_height_curve,
                                                momentum_curve, pareto_front)
 from fall_predictor.learning.metrics import EvaluationResult, evaluate_lists
+from fall_predictor.learning.per_run import RunRecord, run_records
 from fall_predictor.learning.training import PathLike, load_dataset, model_inputs
 from fall_predictor.monitor.decision_list import PerModeDecisionLists
 from fall_predictor.monitor.records import GUARD_COM_HEIGHT_M, TrajectoryFeatures
@@ -142,7 +149,7 @@ def evaluation_result_json(result: EvaluationResult) -> dict[str, Any]:
     """The fields of ``result`` (NaN and infinity -> null; intervals as ``[low, high]``), plus the
     short names of the method §11 figures: ``misses_lists_only`` and ``tau_lead_lists_only``."""
     payload = {key: _json_value(value) for key, value in dataclasses.asdict(result).items()
-               if key != 'leads_s'}
+               if key not in ('leads_s', 'alarms')}
     payload['misses_lists_only'] = result.n_missed_lists_only
     payload['tau_lead_lists_only'] = json_float(result.tau_lead_lists_only_s)
     return payload
@@ -181,6 +188,31 @@ class ModelEvaluation:
     direction_error_deg_momentum: Optional[dict[str, Any]] = None
     #: which direction ``direction_error_deg`` is: 'learned' or 'momentum'
     fall_direction: str = 'momentum'
+    #: trajectory id -> the samples left out of it as holes, for those with any
+    refused: dict[str, RefusedSamples] = field(default_factory=dict)
+    #: per trajectory evaluated (the result's order): where its push time comes from
+    #: (``'unknown'``: none; :func:`push_sources`)
+    push_sources: dict[str, str] = field(default_factory=dict)
+    #: the trajectories as evaluated, in the result's order (the per-run rows)
+    trajectories: tuple[TrajectoryFeatures, ...] = ()
+
+    @property
+    def refused_total(self) -> RefusedSamples:
+        """The refused samples of all the trajectories evaluated, summed."""
+        return RefusedSamples.summed(self.refused.values())
+
+    def run_records(self) -> list[RunRecord]:
+        """One :class:`~fall_predictor.learning.per_run.RunRecord` per trajectory evaluated."""
+        return run_records(self.trajectories, self.result.alarms, self.push_sources, self.refused)
+
+
+def push_sources(data_dir: PathLike) -> dict[str, str]:
+    """Per trajectory id, where its push time comes from: the index row's ``push_source``,
+    ``'simulation'`` for a dataset's own (simulated or recorded) pushes, ``'unknown'`` where the
+    recording's start stands in for it (:func:`~fall_predictor.data.dataset.push_time_known`)."""
+    robot = is_robot_recordings(read_manifest(data_dir))
+    return {row.trajectory_id: (row.push_source or 'simulation') if push_time_known(row, robot)
+            else PUSH_UNKNOWN for row in read_index(data_dir)}
 
 
 def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: float,
@@ -214,8 +246,8 @@ def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: f
              else float(guard_com_height_m))
     report = load_dataset(data_dir, jobs, skip_unreadable, progress, state)
     trajectories = model_inputs(report.trajectories, lists.reads_attitude)
-    result = evaluate_lists(trajectories, lists, (tau_his_s,),
-                            guard_com_height_m=guard)[float(tau_his_s)]
+    result = evaluate_lists(trajectories, lists, (tau_his_s,), guard_com_height_m=guard,
+                            keep_alarms=True)[float(tau_his_s)]
     curves = None
     if baselines:
         distances = capture_point_distances_cached(data_dir, trajectories, jobs, progress, state)
@@ -236,7 +268,8 @@ def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: f
     return ModelEvaluation(result, float(tau_his_s), report.fingerprint, dict(report.errors),
                            curves, ttf_error, direction_error, cp_error, guard,
                            dict(report.unsettled), momentum_error,
-                           'momentum' if fall_direction is None else 'learned')
+                           'momentum' if fall_direction is None else 'learned',
+                           dict(report.refused), push_sources(data_dir), tuple(trajectories))
 
 
 def evaluation_json(evaluation: ModelEvaluation) -> dict[str, Any]:
@@ -252,7 +285,14 @@ def evaluation_json(evaluation: ModelEvaluation) -> dict[str, Any]:
         'direction_error_deg': evaluation.direction_error_deg,
         'direction_error_deg_capture_point': evaluation.direction_error_deg_capture_point,
         'direction_error_deg_momentum': evaluation.direction_error_deg_momentum,
-        'fall_direction': evaluation.fall_direction}
+        'fall_direction': evaluation.fall_direction,
+        'refused_samples': evaluation.refused_total.total,
+        'refused_samples_estimator': evaluation.refused_total.estimator,
+        'refused_samples_features': evaluation.refused_total.features,
+        'refused_by_trajectory': {tid: r.to_json() for tid, r in evaluation.refused.items()},
+        'n_runs_push_time_unknown': sum(
+            evaluation.push_sources.get(t.trajectory_id, PUSH_UNKNOWN) == PUSH_UNKNOWN
+            for t in evaluation.trajectories)}
     if evaluation.baselines is not None:
         payload['baselines'] = {name: [curve_point_json(p) for p in pareto_front(curve)]
                                 for name, curve in evaluation.baselines.named().items()}

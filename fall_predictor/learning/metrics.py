@@ -11,7 +11,9 @@ trajectory from a reset state):
 * **pre-push false alarms**: trajectories (balanced or fallen) with a falling output before
   ``t_push``, counted separately for the two outcomes. On a fallen trajectory such an alarm
   does not change ``t_predict`` (still the first output at or after the push) and does not
-  count in FPR; on a balanced trajectory it is also a false positive.
+  count in FPR; on a balanced trajectory it is also a false positive. Per trajectory, its
+  alarm onsets before the push (the falling output turning on) are counted too
+  (:class:`TrajectoryAlarms`, kept per trajectory in :attr:`EvaluationResult.alarms`).
 * **oracle lead**: mean over fallen trajectories of ``t_fallen - t_push``.
 * **lists alone / guard alone** (method §11): the same lead and misses computed from the decision
   lists' windowed output with the CoM guard off (``tau_lead_lists_only_s``,
@@ -21,40 +23,73 @@ trajectory from a reset state):
   ``tau_lead_ci95`` and ``tau_lead_lists_only_ci95`` are bootstrap 95 % intervals over the
   fallen trajectories (:mod:`fall_predictor.learning.intervals`).
 
+**Holes** (samples the estimator or the feature extractor refused, left out of a trajectory's
+arrays: :mod:`fall_predictor.data.dataset`) are handled as the onboard monitor handles them
+(:class:`~fall_predictor.monitor.fall_monitor.FallMonitor`): the history window spans a hole of
+at most :data:`MAX_GAP_S`, and restarts after a longer one (:func:`run_durations`).
+
 Rates and means over an empty set are NaN (:func:`mean_or_nan`, :func:`std_or_nan`; also used
 to average over cross-validation folds). Cross-validation itself is in
 :mod:`fall_predictor.learning.crossval`.
 """
 from __future__ import annotations
 
+import inspect
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Optional, Sequence
 
 import numpy as np
 
 from fall_predictor.learning.intervals import bootstrap_mean_interval, wilson_interval
 from fall_predictor.monitor.decision_list import PerModeDecisionLists
+from fall_predictor.monitor.fall_monitor import FallMonitor
 from fall_predictor.monitor.predictor import (check_sample_times, falling_run_durations,
                                               first_true_time, guard_predictions, windowed_falling)
 from fall_predictor.monitor.records import FALLING, GUARD_COM_HEIGHT_M, TrajectoryFeatures
 
 
+#: The longest hole [s] the onboard monitor's history window spans (its ``max_gap_s``: the window
+#: restarts after a longer one); read from :class:`FallMonitor`, so that there is one value.
+MAX_GAP_S: float = float(inspect.signature(FallMonitor).parameters['max_gap_s'].default)
+
+
+def run_durations(t: np.ndarray, flags: np.ndarray, max_gap_s: float = MAX_GAP_S) -> np.ndarray:
+    """:func:`~fall_predictor.monitor.predictor.falling_run_durations` of ``flags`` at the
+    sample times ``t`` [s], with a run broken where consecutive samples are more than
+    ``max_gap_s`` [s] apart (a hole after which the onboard window restarts): the run then
+    starts again at the sample after the hole."""
+    t = np.asarray(t, dtype=float)
+    flags = np.asarray(flags, dtype=bool)
+    starts = np.flatnonzero(np.diff(t) > max_gap_s) + 1
+    if not starts.size:
+        return falling_run_durations(t, flags)
+    bounds = [0, *starts.tolist(), t.size]
+    return np.concatenate([falling_run_durations(t[a:b], flags[a:b])
+                           for a, b in zip(bounds[:-1], bounds[1:])])
+
+
 @dataclass(frozen=True, slots=True)
 class TrajectoryAlarms:
-    """When a predictor first said falling on one trajectory (times [s], None if never)."""
+    """When a predictor said falling on one trajectory (times [s], None if never)."""
 
     first_alarm_t: Optional[float]              #: first falling output anywhere
     first_alarm_after_push_t: Optional[float]   #: first falling output at or after t_push
     pre_push_alarm: bool                        #: a falling output before t_push
+    #: times the falling output turned on before t_push (a count beside the alarm times, which
+    #: identify the alarms: not compared)
+    pre_push_onsets: int = field(default=0, compare=False)
 
 
 def trajectory_alarms(t: np.ndarray, falling: np.ndarray, t_push: float) -> TrajectoryAlarms:
     """Alarm times of one trajectory from its per-sample falling outputs."""
     first = first_true_time(t, falling)
+    falling = np.asarray(falling, dtype=bool)
+    onsets = falling & ~np.concatenate(([False], falling[:-1]))
     return TrajectoryAlarms(first_alarm_t=first,
                             first_alarm_after_push_t=first_true_time(t, falling, t_push),
-                            pre_push_alarm=first is not None and first < t_push)
+                            pre_push_alarm=first is not None and first < t_push,
+                            pre_push_onsets=int(np.count_nonzero(onsets & (np.asarray(t) < t_push))))
 
 
 @dataclass(frozen=True)
@@ -81,6 +116,9 @@ class EvaluationResult:
     tau_lead_guard_only_s: float = math.nan         #: lead of the CoM guard by itself
     #: per fallen trajectory, its lead [s] (0 for a miss): for pooled intervals; not in JSON
     leads_s: tuple[float, ...] = ()
+    #: per trajectory, in the order evaluated, its alarms, when asked for (``keep_alarms``: the
+    #: per-run report); not in JSON
+    alarms: tuple[TrajectoryAlarms, ...] = ()
 
     @property
     def n_pre_push_alarms(self) -> int:
@@ -124,11 +162,14 @@ def _leads(trajectories: Sequence[TrajectoryFeatures],
 def evaluate(trajectories: Sequence[TrajectoryFeatures], alarms: Sequence[TrajectoryAlarms],
              mean_rule_size: Optional[float] = None,
              lists_only_alarms: Optional[Sequence[TrajectoryAlarms]] = None,
-             guard_only_alarms: Optional[Sequence[TrajectoryAlarms]] = None) -> EvaluationResult:
+             guard_only_alarms: Optional[Sequence[TrajectoryAlarms]] = None,
+             keep_alarms: bool = False) -> EvaluationResult:
     """method §5 metrics from each trajectory's alarm times (``alarms[i]`` for ``trajectories[i]``).
 
     ``lists_only_alarms`` (the predictor with the CoM guard off) and ``guard_only_alarms`` (the
-    CoM guard by itself), when given, fill the lists-alone and guard-alone fields.
+    CoM guard by itself), when given, fill the lists-alone and guard-alone fields. With
+    ``keep_alarms`` the result keeps ``alarms`` (:attr:`EvaluationResult.alarms`; off by default:
+    sweeps make thousands of results).
     """
     for name, records in (('alarm', alarms), ('lists-only alarm', lists_only_alarms),
                           ('guard-only alarm', guard_only_alarms)):
@@ -166,17 +207,21 @@ def evaluate(trajectories: Sequence[TrajectoryFeatures], alarms: Sequence[Trajec
         lead_fraction=tau_lead_s / oracle_lead_s if oracle_lead_s > 0 else math.nan,
         mean_rule_size=mean_rule_size,
         fpr_ci95=wilson_interval(false_positives, n_balanced),
-        tau_lead_ci95=bootstrap_mean_interval(leads), leads_s=tuple(leads), **extra)
+        tau_lead_ci95=bootstrap_mean_interval(leads), leads_s=tuple(leads),
+        alarms=tuple(alarms) if keep_alarms else (), **extra)
 
 
 def evaluate_atomic(trajectories: Sequence[TrajectoryFeatures], atomic: Sequence[np.ndarray],
                     tau_his_values: Sequence[float] = (0.0,), dt_s: float = 0.001,
                     guard_com_height_m: float = GUARD_COM_HEIGHT_M,
-                    mean_rule_size: Optional[float] = None) -> dict[float, EvaluationResult]:
+                    mean_rule_size: Optional[float] = None,
+                    keep_alarms: bool = False) -> dict[float, EvaluationResult]:
     """Evaluate per-sample atomic predictions (bool (N,) per trajectory) for several windows.
 
     The CoM guard and the history window are applied as by
-    :class:`~fall_predictor.monitor.predictor.OnlinePredictor`; returns ``{tau_his_s: result}``.
+    :class:`~fall_predictor.monitor.predictor.OnlinePredictor`, the window restarting after a
+    hole longer than :data:`MAX_GAP_S` as in the onboard monitor (:func:`run_durations`);
+    returns ``{tau_his_s: result}`` (each with its per-trajectory alarms with ``keep_alarms``).
     """
     if len(trajectories) != len(atomic):
         raise ValueError(f'{len(trajectories)} trajectories but {len(atomic)} atomic arrays')
@@ -188,9 +233,9 @@ def evaluate_atomic(trajectories: Sequence[TrajectoryFeatures], atomic: Sequence
         if np.shape(atomic_falling) != t.shape:
             raise ValueError(f'trajectory {traj.trajectory_id}: atomic predictions do not match its samples')
         guard = guard_predictions(traj.X, guard_com_height_m)
-        durations = falling_run_durations(t, atomic_falling | guard)
-        lists_durations = falling_run_durations(t, atomic_falling)
-        guard_durations = falling_run_durations(t, guard)
+        durations = run_durations(t, atomic_falling | guard)
+        lists_durations = run_durations(t, atomic_falling)
+        guard_durations = run_durations(t, guard)
         for tau_his_s, records in alarms.items():
             falling = windowed_falling(durations, tau_his_s, dt_s)
             records.append(trajectory_alarms(t, falling, traj.t_push))
@@ -200,17 +245,28 @@ def evaluate_atomic(trajectories: Sequence[TrajectoryFeatures], atomic: Sequence
             guard_only[tau_his_s].append(trajectory_alarms(t, guard_falling, traj.t_push))
     return {tau_his_s: evaluate(trajectories, records, mean_rule_size,
                                 lists_only_alarms=lists_only[tau_his_s],
-                                guard_only_alarms=guard_only[tau_his_s])
+                                guard_only_alarms=guard_only[tau_his_s], keep_alarms=keep_alarms)
             for tau_his_s, records in alarms.items()}
+
+
+def windowed_prediction(lists: PerModeDecisionLists, traj: TrajectoryFeatures, tau_his_s: float,
+                        guard_com_height_m: float = GUARD_COM_HEIGHT_M, dt_s: float = 0.001
+                        ) -> np.ndarray:
+    """Bool (N,): the falling output of ``lists`` on one trajectory with the CoM guard and the
+    history window ``tau_his_s`` [s], as :func:`evaluate_atomic` computes it (holes included)."""
+    t = check_sample_times(traj.t)
+    candidate = (lists.predict(traj.X, traj.mode) == FALLING) | guard_predictions(traj.X, guard_com_height_m)
+    return windowed_falling(run_durations(t, candidate), tau_his_s, dt_s)
 
 
 def evaluate_lists(trajectories: Sequence[TrajectoryFeatures], lists: PerModeDecisionLists,
                    tau_his_values: Sequence[float], dt_s: float = 0.001,
-                   guard_com_height_m: float = GUARD_COM_HEIGHT_M) -> dict[float, EvaluationResult]:
+                   guard_com_height_m: float = GUARD_COM_HEIGHT_M,
+                   keep_alarms: bool = False) -> dict[float, EvaluationResult]:
     """Evaluate a learned predictor for several ``tau_his`` [s] at once: ``{tau_his_s: result}``.
 
     The decision lists run once per trajectory; the window is applied per ``tau_his``.
     """
     atomic = [lists.predict(traj.X, traj.mode) == FALLING for traj in trajectories]
     return evaluate_atomic(trajectories, atomic, tau_his_values, dt_s, guard_com_height_m,
-                           lists.mean_rule_size)
+                           lists.mean_rule_size, keep_alarms)

@@ -194,19 +194,43 @@ def train_model(data_dir: PathLike, tau_plus_s: float, learner_name: str = 'tree
     The model's feature settings are those the features were computed with, and the CoM guard of
     the dataset's robot (:func:`~fall_predictor.data.dataset.dataset_guard_com_height_m`): the
     guard the model is evaluated and run with.
+
+    ``train`` chooses the window when not given one
+    (:func:`~fall_predictor.learning.window_choice.train_choosing_window`).
     """
+    learner = check_training_settings(tau_plus_s, learner_name, learner_params, recommended_tau_his_s,
+                                      attitude)
+    check_sample_stride(sample_stride)
+    report = load_dataset(data_dir, jobs, skip_unreadable, progress, state)
+    return train_on_report(report, data_dir, tau_plus_s, learner, sample_stride,
+                           recommended_tau_his_s, mirror, attitude)
+
+
+def check_training_settings(tau_plus_s: float, learner_name: str,
+                            learner_params: Optional[Mapping[str, Any]],
+                            recommended_tau_his_s: Optional[float], attitude: bool) -> RuleListLearner:
+    """The learner of :func:`train_model`'s settings, or ValueError naming the one that cannot be
+    used (checked before any data is read)."""
     if not math.isfinite(tau_plus_s):
         raise ValueError(f'tau_plus_s must be finite, got {tau_plus_s!r}')
     if recommended_tau_his_s is not None and not (math.isfinite(recommended_tau_his_s)
                                                   and recommended_tau_his_s >= 0.0):
         raise ValueError(f'recommended_tau_his_s must be >= 0, got {recommended_tau_his_s!r}')
     learner = make_learner(learner_name, learner_params)
-    sample_stride = check_sample_stride(sample_stride)
-    report = load_dataset(data_dir, jobs, skip_unreadable, progress, state)
-    require_outcomes(report.trajectories, data_dir, need_balanced=False)
     if attitude and N_INPUTS_WITH_ATTITUDE not in learner.input_sizes:
         raise ValueError(f'{learner_name}: this learner reads the 15 features only; the base\'s '
                          'attitude needs boosted trees (--learner boosting)')
+    return learner
+
+
+def train_on_report(report: LoadReport, data_dir: PathLike, tau_plus_s: float,
+                    learner: RuleListLearner, sample_stride: int = DEFAULT_SAMPLE_STRIDE,
+                    recommended_tau_his_s: Optional[float] = None, mirror: bool = False,
+                    attitude: bool = False) -> tuple[PerModeDecisionLists, ModelMetadata]:
+    """:func:`train_model` on a dataset already loaded (``report``, of ``data_dir``) with a
+    learner from :func:`check_training_settings`."""
+    sample_stride = check_sample_stride(sample_stride)
+    require_outcomes(report.trajectories, data_dir, need_balanced=False)
     lists = fit_strided(model_inputs(report.trajectories, attitude), tau_plus_s, learner,
                         sample_stride, mirror=mirror)
     # the time-to-fall trees and the robot mass (fall direction) ship in the model.

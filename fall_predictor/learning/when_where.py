@@ -28,7 +28,6 @@ from fall_predictor.data.dataset import DatasetError, cached_bag_arrays, read_in
 from fall_predictor.monitor.decision_list import PerModeDecisionLists
 from fall_predictor.monitor.fall_direction import (angular_error_rad, capture_point_direction,
                                                    momentum_direction)
-from fall_predictor.monitor.predictor import predict_trajectory
 from fall_predictor.monitor.records import GUARD_COM_HEIGHT_M, N_FEATURES, TrajectoryFeatures
 from fall_predictor.monitor.time_to_fall import TimeToFallRegressor
 
@@ -41,15 +40,17 @@ def trigger_indices(trajectories: Sequence[TrajectoryFeatures], lists: PerModeDe
                     ) -> list[Optional[int]]:
     """Per trajectory, the sample index of the in-time trigger on a fallen trajectory (first
     falling output in ``[t_push, t_fallen)``, CoM guard on at ``guard_com_height_m`` [m]: the
-    model's), else None. A model that reads the base's attitude gets it (method §8c)."""
+    model's), else None. A model that reads the base's attitude gets it (method §8c). The
+    falling output is ``evaluate``'s (:func:`~fall_predictor.learning.metrics.windowed_prediction`:
+    the window restarts after a hole as onboard)."""
+    from fall_predictor.learning.metrics import windowed_prediction
     from fall_predictor.learning.training import model_inputs
     out: list[Optional[int]] = []
     for traj in model_inputs(trajectories, lists.reads_attitude):
         if not traj.fallen:
             out.append(None)
             continue
-        falling = predict_trajectory(lists, traj.X, traj.mode, traj.t, tau_his_s,
-                                     guard_com_height_m=guard_com_height_m).falling
+        falling = windowed_prediction(lists, traj, tau_his_s, guard_com_height_m)
         hits = np.flatnonzero(falling & (traj.t >= traj.t_push) & (traj.t < traj.t_fallen))
         out.append(int(hits[0]) if hits.size else None)
     return out

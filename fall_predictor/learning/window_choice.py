@@ -1,0 +1,158 @@
+"""The history window ``tau_his`` a model is trained with, chosen on its training data.
+
+A model file carries the window it runs with (``recommended_tau_his_s``: the monitor's and
+``evaluate``'s default). The shipped models got theirs from nested cross-validation of a sweep
+(method §11); a model trained on a robot's own recordings needs one as well, chosen the same way
+and on its training data alone. :func:`choose_tau_his` does what a sweep does for one setting of
+the training (learner, ``tau_plus``, stride, mirror images, attitude, the robot's CoM guard):
+
+* k-fold cross-validation by trajectory, stratified by outcome
+  (:func:`~fall_predictor.learning.crossval.cross_validate_grid`): one training per fold, every
+  window of the sweep's grid (:data:`~fall_predictor.learning.sweep_results.DEFAULT_TAU_HIS_VALUES_S`)
+  evaluated on the held-out fold;
+* the held-out folds pooled per window (false positives over balanced trajectories, leads over
+  fallen ones: :func:`~fall_predictor.learning.nested.pool_results`);
+* the sweep's rule for an operating point (:func:`~fall_predictor.learning.nested.choose_setting`):
+  the longest pooled lead among the windows whose pooled FPR is within the budget ``max_fpr``
+  (ties: the smaller window); if none is, the lowest FPR. It is the choice a sweep makes over all
+  its folds, the one ``sweep --test-data`` trains its chosen predictors with.
+
+The default budget is FP-L2's, FPR <= 0.06 (method §9), the operating point of the shipped
+default model. The cross-validation needs two falls (every training then holds one) and a run
+that does not fall (an FPR); with fewer, the window cannot be chosen
+(:class:`WindowNotChosen`): ``train`` then stores none and says why, and to give one
+(``--tau-his``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Mapping, Optional, Sequence
+
+from fall_predictor.data.dataset import LoadReport
+from fall_predictor.learning.crossval import cross_validate_grid
+from fall_predictor.learning.learners import RuleListLearner
+from fall_predictor.learning.nested import PooledFigures, choose_setting, pool_results, pooled_json
+from fall_predictor.learning.selection import PAPER_PREDICTORS
+from fall_predictor.learning.sweep_results import DEFAULT_TAU_HIS_VALUES_S
+from fall_predictor.learning.training import (DEFAULT_SAMPLE_STRIDE, PathLike, check_training_settings,
+                                              load_dataset, model_inputs, require_outcomes,
+                                              train_on_report)
+from fall_predictor.monitor.decision_list import PerModeDecisionLists
+from fall_predictor.monitor.model_file import ModelMetadata
+from fall_predictor.monitor.records import GUARD_COM_HEIGHT_M, TrajectoryFeatures
+
+#: The default FPR budget: FP-L2's (method §9).
+DEFAULT_MAX_FPR = next(p.fpr for p in PAPER_PREDICTORS if p.name == 'FP-L2')
+#: Cross-validation folds of the choice (fewer when there are fewer trajectories).
+DEFAULT_FOLDS = 10
+
+
+class WindowNotChosen(ValueError):
+    """The training data cannot choose a window (too few falls or no run that does not fall)."""
+
+
+@dataclass(frozen=True)
+class WindowSearch:
+    """How :func:`choose_tau_his` chooses: the FPR budget, the folds and their seed, the grid [s]."""
+
+    max_fpr: float = DEFAULT_MAX_FPR
+    folds: int = DEFAULT_FOLDS
+    seed: int = 0
+    tau_his_values_s: tuple[float, ...] = DEFAULT_TAU_HIS_VALUES_S
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.max_fpr <= 1.0:
+            raise ValueError(f'max_fpr must be in [0, 1], got {self.max_fpr!r}')
+        if isinstance(self.folds, bool) or not isinstance(self.folds, int) or self.folds < 2:
+            raise ValueError(f'folds must be an int >= 2, got {self.folds!r}')
+        object.__setattr__(self, 'tau_his_values_s', tuple(float(v) for v in self.tau_his_values_s))
+
+
+@dataclass(frozen=True)
+class WindowChoice:
+    """The window chosen, and the cross-validated figures it was chosen on."""
+
+    tau_his_s: float
+    search: WindowSearch
+    folds: int                                   #: the folds used (at most ``search.folds``)
+    within_budget: bool                          #: its pooled FPR meets ``search.max_fpr``
+    per_window: dict[float, PooledFigures]       #: every window's pooled held-out figures
+
+    @property
+    def chosen(self) -> PooledFigures:
+        return self.per_window[self.tau_his_s]
+
+    def to_json(self) -> dict[str, Any]:
+        return {'tau_his_s': self.tau_his_s, 'rule': 'the longest cross-validated lead at FPR <= '
+                f'{self.search.max_fpr:g} (else the lowest FPR); ties: the smaller window',
+                'max_fpr': self.search.max_fpr, 'folds': self.folds, 'seed': self.search.seed,
+                'within_budget': self.within_budget, 'chosen': pooled_json(self.chosen),
+                'per_window': [{'tau_his_s': tau, **pooled_json(p)}
+                               for tau, p in sorted(self.per_window.items())]}
+
+
+def choose_tau_his(trajectories: Sequence[TrajectoryFeatures], learner: RuleListLearner,
+                   tau_plus_s: float, search: WindowSearch = WindowSearch(),
+                   sample_stride: int = DEFAULT_SAMPLE_STRIDE,
+                   guard_com_height_m: float = GUARD_COM_HEIGHT_M, mirror: bool = False,
+                   jobs: int = 1, progress: bool = False) -> WindowChoice:
+    """The history window of a model trained with these settings on ``trajectories`` (module
+    docs: the inputs as the model reads them, :func:`~fall_predictor.learning.training.model_inputs`).
+    :class:`WindowNotChosen` when they hold fewer than two falls or no run that does not fall."""
+    n_fallen = sum(bool(t.fallen) for t in trajectories)
+    n_balanced = len(trajectories) - n_fallen
+    if n_fallen < 2 or n_balanced < 1:
+        raise WindowNotChosen(f'tau_his cannot be chosen by cross-validation on {n_fallen} fallen and '
+                              f'{n_balanced} balanced trajectories (it needs 2 fallen and 1 '
+                              'balanced): give the window (--tau-his)')
+    folds = min(search.folds, len(trajectories))
+    fits = cross_validate_grid(trajectories, learner, (tau_plus_s,), search.tau_his_values_s, folds,
+                               search.seed, sample_stride, jobs=jobs, progress=progress,
+                               guard_com_height_m=guard_com_height_m, mirror=mirror)
+    per_window = {tau: pool_results([fit.results[tau] for fit in fits])
+                  for tau in search.tau_his_values_s}
+    _, tau_his_s = choose_setting({(float(tau_plus_s), tau): figures
+                                   for tau, figures in per_window.items()}, search.max_fpr)
+    return WindowChoice(tau_his_s, search, folds,
+                        per_window[tau_his_s].fpr <= search.max_fpr + 1e-12, per_window)
+
+
+@dataclass(frozen=True)
+class TrainedModel:
+    """What ``train`` made: the model, its metadata, how its window was chosen (None: given, or
+    not chosen: ``not_chosen`` says why), and the dataset as loaded."""
+
+    lists: PerModeDecisionLists
+    metadata: ModelMetadata
+    window: Optional[WindowChoice]
+    report: LoadReport
+    not_chosen: Optional[str] = None
+
+
+def train_choosing_window(data_dir: PathLike, tau_plus_s: float, learner_name: str = 'tree',
+                          learner_params: Optional[Mapping[str, Any]] = None,
+                          sample_stride: int = DEFAULT_SAMPLE_STRIDE, jobs: int = 1,
+                          tau_his_s: Optional[float] = None, search: WindowSearch = WindowSearch(),
+                          skip_unreadable: bool = False, progress: bool = False,
+                          state: str = 'true', mirror: bool = False,
+                          attitude: bool = False) -> TrainedModel:
+    """:func:`~fall_predictor.learning.training.train_model` with the model's window stored:
+    ``tau_his_s`` [s] when given, else the one :func:`choose_tau_his` chooses on the same data
+    (the dataset is loaded once); none when it cannot choose (:attr:`TrainedModel.not_chosen`)."""
+    from fall_predictor.data.dataset import dataset_guard_com_height_m
+
+    learner = check_training_settings(tau_plus_s, learner_name, learner_params, tau_his_s, attitude)
+    report = load_dataset(data_dir, jobs, skip_unreadable, progress, state)
+    require_outcomes(report.trajectories, data_dir, need_balanced=False)
+    window, not_chosen = None, None
+    if tau_his_s is None:
+        try:
+            window = choose_tau_his(model_inputs(report.trajectories, attitude), learner, tau_plus_s,
+                                    search, sample_stride, dataset_guard_com_height_m(data_dir),
+                                    mirror, jobs, progress)
+            tau_his_s = window.tau_his_s
+        except WindowNotChosen as why:
+            not_chosen = str(why)
+    lists, metadata = train_on_report(report, data_dir, tau_plus_s, learner, sample_stride,
+                                      tau_his_s, mirror, attitude)
+    return TrainedModel(lists, metadata, window, report, not_chosen)

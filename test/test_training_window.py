@@ -1,0 +1,115 @@
+"""``train`` chooses the history window ``tau_his`` on its training data and stores it in the
+model (fall_predictor/learning/window_choice.py); ``evaluate`` then runs the model with it.
+
+Known answers come from the hand-made G1 dataset of ``robot_datasets`` trained with a
+``tau_plus`` so late (10 s after the CoM starts to drop) that no state is labelled falling: the
+lists stay empty and the G1's CoM guard (0.55 m) alone decides. From the geometry there: a fall
+is below the guard from 0.251 s and down at 0.300 s (lead 0.049 s - tau_his, a miss from a
+window of 0.049 s on); a squat is below it from 0.251 to 0.309 s, a run of 0.058 s, so every
+window up to 0.044 s of the grid alarms on it (FPR 1) and none from 0.06 s does (FPR 0).
+"""
+import json
+
+import pytest
+
+from fall_predictor import cli
+from fall_predictor.data.dataset import dataset_guard_com_height_m
+from fall_predictor.learning.crossval import cross_validate_grid
+from fall_predictor.learning.nested import nested_operating_point
+from fall_predictor.learning.training import load_dataset, make_learner
+from fall_predictor.learning.window_choice import WindowSearch, choose_tau_his, train_choosing_window
+from fall_predictor.monitor.model_file import load_model
+
+from learning_fixtures import fixture_dataset  # noqa: F401  (a pytest fixture)
+from robot_datasets import G1_GUARD_LEAD_S, write_robot_dataset
+
+#: Falling states from t_height_drop + 10 s: none (module docs).
+NO_FALLING_LABELS_TAU_PLUS_S = 10.0
+
+
+def run_cli(capsys, *argv: str) -> tuple[int, str, str]:
+    code = cli.main(list(argv))
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def test_the_guards_window_from_geometry(tmp_path):
+    data = write_robot_dataset(tmp_path / 'g1', 'g1')
+    trained = train_choosing_window(data, NO_FALLING_LABELS_TAU_PLUS_S)
+    assert not any(trained.lists.depths)                          # the guard alone decides
+    window = trained.window
+    assert window.folds == 4                                      # one per trajectory
+    for tau, figures in window.per_window.items():
+        assert figures.fpr == (1.0 if tau <= 0.044 else 0.0), tau
+        expected_lead = G1_GUARD_LEAD_S - tau if tau < G1_GUARD_LEAD_S else 0.0     # else a miss
+        assert figures.tau_lead_s == pytest.approx(expected_lead, abs=1e-9), tau
+    # FPR <= 0.06: only windows of 0.06 s and longer, all without lead: the smallest of them
+    assert window.tau_his_s == 0.06 and window.within_budget
+    assert trained.metadata.recommended_tau_his_s == 0.06
+    # any FPR: the longest lead, no window
+    assert train_choosing_window(data, NO_FALLING_LABELS_TAU_PLUS_S,
+                                 search=WindowSearch(max_fpr=1.0)).window.tau_his_s == 0.0
+    # a window given is stored as given, nothing chosen
+    given = train_choosing_window(data, NO_FALLING_LABELS_TAU_PLUS_S, tau_his_s=0.03)
+    assert given.window is None and given.metadata.recommended_tau_his_s == 0.03
+
+
+def test_the_window_is_the_sweeps_choice_over_its_folds(fixture_dataset):
+    """The same cross-validation through the sweep's own nested selection
+    (:func:`~fall_predictor.learning.nested.nested_operating_point`): the window ``train``
+    chooses is the one the sweep selects over all its folds, at every budget."""
+    trajectories = load_dataset(fixture_dataset).trajectories
+    learner = make_learner('tree')
+    guard = dataset_guard_com_height_m(fixture_dataset)
+    fits = cross_validate_grid(trajectories, learner, (-0.25,), WindowSearch().tau_his_values_s,
+                               folds=8, seed=0, guard_com_height_m=guard)
+    for budget in (0.0, 0.06, 0.5):
+        chosen = choose_tau_his(trajectories, learner, -0.25, WindowSearch(max_fpr=budget),
+                                guard_com_height_m=guard)
+        assert chosen.folds == 8
+        assert (-0.25, chosen.tau_his_s) == nested_operating_point(fits, budget).selected_in_hindsight
+
+
+def test_cli_train_stores_the_window_and_evaluate_uses_it(tmp_path, capsys):
+    data = write_robot_dataset(tmp_path / 'g1', 'g1')
+    model = tmp_path / 'model.json'
+    code, out, err = run_cli(capsys, 'train', '--data', str(data), '--tau-plus=10', '--out', str(model),
+                             '--json')
+    assert code == 0, err
+    trained = json.loads(out)
+    assert trained['recommended_tau_his_s'] == 0.06 and trained['tau_his_chosen']['max_fpr'] == 0.06
+    assert trained['tau_his_chosen']['chosen']['fpr'] == 0.0
+    assert load_model(model)[1].recommended_tau_his_s == 0.06
+    code, out, err = run_cli(capsys, 'train', '--data', str(data), '--tau-plus=10', '--out', str(model))
+    assert code == 0 and 'tau_his 0.060 s chosen by 4-fold cross-validation' in out, err
+    # evaluate runs the model with its window: no false alarm on the squats (all falls missed)
+    code, out, err = run_cli(capsys, 'evaluate', '--data', str(data), '--model', str(model), '--json')
+    assert code == 0, err
+    evaluation = json.loads(out)
+    assert evaluation['tau_his_s'] == 0.06
+    assert (evaluation['n_false_positives'], evaluation['n_missed']) == (0, 2)
+    # --max-fpr moves the choice; --tau-his fixes the window
+    code, out, err = run_cli(capsys, 'train', '--data', str(data), '--tau-plus=10', '--max-fpr', '1',
+                             '--out', str(model), '--json')
+    assert code == 0 and json.loads(out)['recommended_tau_his_s'] == 0.0, err
+    code, out, err = run_cli(capsys, 'train', '--data', str(data), '--tau-plus=10', '--tau-his', '0.03',
+                             '--out', str(model), '--json')
+    assert code == 0, err
+    assert json.loads(out)['recommended_tau_his_s'] == 0.03 and json.loads(out)['tau_his_chosen'] is None
+    assert load_model(model)[1].recommended_tau_his_s == 0.03
+    code, _, err = run_cli(capsys, 'train', '--data', str(data), '--tau-plus=10', '--max-fpr', '2',
+                           '--out', str(model))
+    assert code == 2 and 'max_fpr' in err
+
+
+def test_too_few_falls_to_choose_a_window_say_so(tmp_path, capsys):
+    """One fall: the fold holding it would train on none. The model is written without a
+    window, the output says why, and evaluate asks for one as before."""
+    data = write_robot_dataset(tmp_path / 'g1', 'g1', n_fallen=1, n_balanced=2)
+    model = tmp_path / 'model.json'
+    code, out, err = run_cli(capsys, 'train', '--data', str(data), '--tau-plus=10', '--out', str(model))
+    assert code == 0, err
+    assert 'no tau_his stored: tau_his cannot be chosen by cross-validation on 1 fallen' in out
+    assert load_model(model)[1].recommended_tau_his_s is None
+    code, _, err = run_cli(capsys, 'evaluate', '--data', str(data), '--model', str(model))
+    assert code == 2 and 'recommends no tau_his' in err
