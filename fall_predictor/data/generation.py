@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Optional
 import numpy as np
 
 from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
+from fall_predictor.profiles.profile import C_BAL
 from fall_predictor.data.bag_writer import BagWriter
 from fall_predictor.data.bagio import BagError, read_trajectory
 from fall_predictor.data.dataset import (FORMAT, DatasetError, IndexRow, read_index, trajectory_id,
@@ -45,12 +46,13 @@ def _default_push_distribution() -> PushDistribution:
     return PushDistribution()
 
 
-def simulated_robot(robot: str = DEFAULT_ROBOT) -> dict[str, Any]:
+def simulated_robot(robot: str = DEFAULT_ROBOT, c_bal: bool = True) -> dict[str, Any]:
     """What a dataset records about the simulated robot (the capture-point baseline needs its
-    mass; its name is its profile's)."""
+    mass; its name is its profile's), with C_bal's drive settings when C_bal walks it."""
     from fall_predictor.sim.trajectory import ROBOT_CONTROL
     profile = load_profile(robot)
-    return {'name': profile.name, 'total_mass_kg': profile.total_mass_kg, **ROBOT_CONTROL}
+    return {'name': profile.name, 'total_mass_kg': profile.total_mass_kg,
+            **(ROBOT_CONTROL if c_bal else {})}
 
 
 @dataclass(frozen=True)
@@ -79,18 +81,41 @@ class GenerationConfig:
     sensor_timing: Optional[dict] = None
     #: The simulated robot: a robot profile's name (or path).
     robot: str = DEFAULT_ROBOT
+    #: The walking controller: None or 'c_bal' (the package's C_bal), or a learned policy the
+    #: robot's profile names (its push range and commanded velocities replace the gait draws).
+    controller: Optional[str] = None
+    #: The simulator: None (PyBullet, the datasets made before MuJoCo) or 'pybullet' / 'mujoco'.
+    simulator: Optional[str] = None
+
+    @property
+    def policy(self):
+        """The learned policy's profile entry (profiles/controllers.py), or None for C_bal."""
+        if self.controller in (None, C_BAL):
+            return None
+        return load_profile(self.robot).controller_profile(self.controller)
 
     def manifest(self) -> dict:
         out = {'format': FORMAT, 'seed': self.seed, 'horizon_after_push_s': self.horizon_after_push_s,
                'settle_extension_s': self.settle_extension_s,
                'pre_push_s': self.pre_push_s, 'joint_state_rate_hz': self.joint_state_rate_hz,
                'gait_variety': self.gait_variety,
-               'push_distribution': asdict(self.push_distribution), 'robot': simulated_robot(self.robot)}
+               'push_distribution': asdict(self.push_distribution),
+               'robot': simulated_robot(self.robot, self.policy is None)}
         if self.sensor_noise_scale is not None:
             from fall_predictor.sim.sensors import SensorParams
             out['sensors'] = SensorParams(noise_scale=self.sensor_noise_scale).to_dict()
             if self.sensor_timing is not None:
                 out['sensor_timing'] = self.timing().to_dict()
+        if self.simulator not in (None, 'pybullet'):
+            out['simulator'] = self.simulator
+        policy = self.policy
+        if policy is not None:
+            # The run's draws are the policy's: the gait fields say nothing of it.
+            out['simulator'] = self.simulator or load_profile(self.robot).simulator
+            from fall_predictor.sim.policy_runs import commanded_pushes, policy_manifest
+            out['controller'] = policy_manifest(policy)
+            out['push_distribution'] = commanded_pushes(policy).manifest()
+            del out['gait_variety']
         return out
 
     def timing(self):
@@ -134,24 +159,59 @@ def _walk_prefix(config: GenerationConfig):
     on its own push, not on the worker's earlier ones:
     :meth:`~fall_predictor.sim.simulator.Simulator.restore`)."""
     from fall_predictor.sim.pushes import robot_gait
-    from fall_predictor.sim.simulator import Simulator
     from fall_predictor.sim.trajectory import WalkPrefix
 
     dist = config.push_distribution
     cycle_s = dist.walk_cycle_s(robot_gait(config.robot))
     until = dist.settle_s + cycle_s
     record = config.sensor_noise_scale is not None
-    return _WORKER.get(('prefix', config.robot, dist.settle_s, cycle_s, record),
-                       lambda: WalkPrefix(Simulator(profile=load_profile(config.robot)), until_s=until,
+    return _WORKER.get(('prefix', config.robot, config.simulator, dist.settle_s, cycle_s, record),
+                       lambda: WalkPrefix(_worker_simulator(config.robot, config.simulator), until_s=until,
                                           walk_duration_s=(until + config.horizon_after_push_s
                                                            + config.settle_extension_s + 5.0),
                                           record_sensors=record))
 
 
-def _worker_simulator(robot: str = DEFAULT_ROBOT):
-    """One simulator per worker thread and robot, reset for every trajectory."""
-    from fall_predictor.sim.simulator import Simulator
-    return _WORKER.get(('simulator', robot), lambda: Simulator(profile=load_profile(robot)))
+def _worker_simulator(robot: str = DEFAULT_ROBOT, simulator: Optional[str] = None,
+                      dt_s: Optional[float] = None):
+    """One world per worker thread, robot, simulator and step, started again for every
+    trajectory (PyBullet by default)."""
+    from fall_predictor.sim.world import make_world
+    return _WORKER.get(('simulator', robot, simulator, dt_s),
+                       lambda: make_world(load_profile(robot), simulator or 'pybullet', dt_s))
+
+
+def _worker_policy(config: 'GenerationConfig'):
+    """One learned policy per worker thread and deploy config (its network read once)."""
+    from fall_predictor.sim.policy_runs import load_learned_policy
+    return _WORKER.get(('policy', str(config.policy.policy_path)),
+                       lambda: load_learned_policy(config.policy))
+
+
+def _policy_start(config: 'GenerationConfig', index: int, rng) -> tuple:
+    """A learned policy's run: (its command, its push, run_trajectory's arguments: the world,
+    the policy walking at the command, the live sensor model seeded as the bag's readings)."""
+    from fall_predictor.sim.policy_runs import commanded_pushes, policy_run
+    command, push = commanded_pushes(config.policy).sample(rng)
+    learned = _worker_policy(config)
+    profile = load_profile(config.robot)
+    world = _worker_simulator(config.robot, config.simulator or profile.simulator,
+                              learned.physics_dt_s)
+    noise = 1.0 if config.sensor_noise_scale is None else config.sensor_noise_scale
+    return command, push, policy_run(profile, config.policy, learned, command, noise,
+                                     _sensor_seed(config, index), world)
+
+
+def _sensor_seed(config: 'GenerationConfig', index: int) -> int:
+    """The seed of trajectory ``index``'s sensor noise."""
+    return int(np.random.SeedSequence([config.seed, index, 10]).generate_state(1)[0])
+
+
+def _command_fields(command) -> dict:
+    if command is None:
+        return {}
+    return {'command_vx_m_s': round(command[0], 6), 'command_vy_m_s': round(command[1], 6),
+            'command_yaw_rate_rad_s': round(command[2], 6)}
 
 
 def _gait_fields(gait) -> dict:
@@ -181,9 +241,13 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
     cpu0, wall0 = time.thread_time(), time.perf_counter()
     tid = trajectory_id(index)
     rng = trajectory_seed(config.seed, index)
-    if config.gait_variety:
+    command = None
+    if config.policy is not None:
+        gait = None
+        command, push, start = _policy_start(config, index, rng)
+    elif config.gait_variety:
         gait, push = config.push_distribution.sample_with_gait(rng)
-        start = {'gait': gait, 'simulator': _worker_simulator(config.robot)}
+        start = {'gait': gait, 'simulator': _worker_simulator(config.robot, config.simulator)}
     else:
         gait, push = None, config.push_distribution.sample(rng, robot_gait(config.robot))
         start = {'prefix': _walk_prefix(config)}
@@ -226,7 +290,7 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
                    height_m=push.height_m, t_push=push.t_push, t_force_end=push.t_force_end,
                    fallen=result.fallen, t_fallen=result.t_fallen, t_height_drop=t_height_drop,
                    t_reflex=result.t_reflex, t_start=measurements[0].t, t_end=measurements[-1].t,
-                   samples=len(measurements), **_gait_fields(gait))
+                   samples=len(measurements), **_gait_fields(gait), **_command_fields(command))
     cost = trajectory_cost(time.thread_time() - cpu0, time.perf_counter() - wall0, simulated_s)
     return SimulatedTrajectory(row, files, cost)
 
@@ -257,8 +321,10 @@ def _sensor_readings(config: GenerationConfig, index: int, result, bag: BagWrite
     write_sensor_params(bag, {**params.to_dict(), 'timing': config.timing().to_dict()})
     profile = load_profile(config.robot)
     write_robot_description(bag, result.measurements[first].t, robot_description(profile))
-    seed = int(np.random.SeedSequence([config.seed, index, 10]).generate_state(1)[0])
-    return apply_sensors(result.sensor_truths, params, seed=seed, profile=profile)
+    if result.sensor_readings:
+        return result.sensor_readings       # made as the run went: what its controller saw
+    return apply_sensors(result.sensor_truths, params, seed=_sensor_seed(config, index),
+                         profile=profile)
 
 
 def commit(out: Path, simulated: SimulatedTrajectory) -> IndexRow:
