@@ -81,16 +81,8 @@ KEEP = ('n_balanced', 'n_false_positives', 'fpr', 'fpr_ci95', 'n_fallen', 'tau_l
 
 
 def scores(lists, traj) -> np.ndarray:
-    """Per sample the boosted score of its mode (a mode held by a constant list: +-inf)."""
-    out = np.empty(len(traj.mode))
-    for mode in np.unique(traj.mode):
-        rows = traj.mode == mode
-        classifier = lists.lists[mode]
-        if isinstance(classifier, BoostedTrees):
-            out[rows] = classifier.score(traj.X[rows])
-        else:
-            out[rows] = np.where(classifier.predict(traj.X[rows]) == FALLING, np.inf, -np.inf)
-    return out
+    """Per sample the boosted score of its mode (a mode held by a decision list: +-inf)."""
+    return lists.score(traj.X, traj.mode)
 
 
 def fold_results(lists, trajs, kind: str, thresholds, guard_m: float) -> dict:
@@ -308,6 +300,8 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument('--trajectories', type=int, default=None, metavar='N',
                         help='a random subset of N development trajectories, both outcomes in '
                              'their shares (seed 0): a learning curve')
+    parser.add_argument('--budgets', type=lambda s: tuple(float(v) for v in s.split(',')),
+                        default=BUDGETS, help=f'FPR budgets of the nested choices (default {BUDGETS})')
     parser.add_argument('--jobs', type=int, default=2)
     parser.add_argument('--out', type=Path, default=None)
     args = parser.parse_args(argv)
@@ -390,7 +384,7 @@ def main(argv: list[str] | None = None) -> dict:
     chosen_on_dev = {}
     for name in rules:
         out['nested'][name] = {}
-        for budget in BUDGETS:
+        for budget in args.budgets:
             point = nested_over_grid(grids[name], budget)
             out['nested'][name][str(budget)] = {'chosen_per_fold': point.chosen, **figures(point.outer),
                                                 'chosen_on_all_folds': point.selected_in_hindsight}
@@ -410,7 +404,7 @@ def main(argv: list[str] | None = None) -> dict:
         final_boosting = {}             # tau_plus -> the boosted trees on all the development data
         for name, learner in learners.items():
             kind = 'tree' if name == 'tree' else 'boosting'
-            needed = sorted({chosen_on_dev[(name, b)][0] for b in BUDGETS}
+            needed = sorted({chosen_on_dev[(name, b)][0] for b in args.budgets}
                             | {setting[0] for n, setting in fixed if n == name})
             row, results = {}, {}
             for tau_plus in needed:
@@ -424,7 +418,7 @@ def main(argv: list[str] | None = None) -> dict:
                 if hasattr(lists, 'mean_rule_size'):
                     row[f'tau_plus:{tau_plus}'] = {'mean_rule_size': lists.mean_rule_size,
                                                    'cost': cost_us(lists, inputs(name, test))}
-            for budget in BUDGETS:
+            for budget in args.budgets:
                 tau_plus, thr, tau_his = chosen_on_dev[(name, budget)]
                 payload = evaluation_result_json(results[tau_plus][thr][tau_his])
                 row[str(budget)] = {'tau_plus_s': tau_plus, 'decision_threshold': thr, 'tau_his_s': tau_his,
@@ -441,7 +435,7 @@ def main(argv: list[str] | None = None) -> dict:
             # The CUSUM rule on the same final boosted trees (fitted above where a budget of the
             # history window chose the same tau_plus), at each budget's chosen setting only.
             row = {}
-            for budget in BUDGETS:
+            for budget in args.budgets:
                 tau_plus, drift, level = chosen_on_dev[('boosting_cusum', budget)]
                 if tau_plus not in final_boosting:
                     final_boosting[tau_plus] = fit(learners['boosting'], inputs('boosting', trajs),

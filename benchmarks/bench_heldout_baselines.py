@@ -64,6 +64,8 @@ def main() -> None:
     parser.add_argument('--test', type=Path, required=True)
     parser.add_argument('--model', action='append', default=[],
                         help='model file, or FILE@TAU_HIS (repeatable)')
+    parser.add_argument('--budgets', type=lambda s: tuple(float(v) for v in s.split(',')),
+                        default=BUDGETS, help=f'FPR budgets (default {BUDGETS})')
     parser.add_argument('--jobs', type=int, default=2)
     parser.add_argument('--out', type=Path, required=True)
     args = parser.parse_args()
@@ -79,7 +81,7 @@ def main() -> None:
     for name in sets['dev'][0]:
         dev_points = grid(sets['dev'][1], *sets['dev'][0][name], guards['dev'])
         test_thresholds, test_atomic = sets['test'][0][name]
-        for budget in BUDGETS:
+        for budget in args.budgets:
             th, tau_his, dev_result = choose(dev_points, budget)
             atomic = [test_atomic(i, th) for i in range(len(sets['test'][1]))]
             test_result = evaluate_atomic(sets['test'][1], atomic, (tau_his,), 0.001,

@@ -113,3 +113,32 @@ def test_too_few_falls_to_choose_a_window_say_so(tmp_path, capsys):
     assert load_model(model)[1].recommended_tau_his_s is None
     code, _, err = run_cli(capsys, 'evaluate', '--data', str(data), '--model', str(model))
     assert code == 2 and 'recommends no tau_his' in err
+
+
+def test_boosted_trees_choose_their_threshold_with_the_window(fixture_dataset):
+    """With decision thresholds, each fold's model is scored once: its figures at threshold d are
+    those of the same cross-validation of a learner whose own threshold is d (an independent
+    computation, one cross-validation per threshold), and the pair chosen is the best of them by
+    the rule; the model trained carries the chosen threshold."""
+    trajectories = load_dataset(fixture_dataset).trajectories
+    guard = dataset_guard_com_height_m(fixture_dataset)
+    thresholds = (-2.0, 2.0)
+    search = WindowSearch(max_fpr=0.2, folds=3, decision_thresholds=thresholds)
+    learner = make_learner('boosting', {'max_iter': 5})
+    chosen = choose_tau_his(trajectories, learner, -0.25, search, guard_com_height_m=guard)
+    for d in thresholds:
+        own = choose_tau_his(trajectories, make_learner('boosting', {'max_iter': 5,
+                                                                      'decision_threshold': d}),
+                             -0.25, WindowSearch(max_fpr=0.2, folds=3), guard_com_height_m=guard)
+        for tau, figures in own.per_window.items():
+            assert chosen.per_setting[d, tau].fpr == figures.fpr, (d, tau)
+            assert chosen.per_setting[d, tau].tau_lead_s == pytest.approx(figures.tau_lead_s), (d, tau)
+    best = max((s for s, p in chosen.per_setting.items() if p.fpr <= 0.2),
+               key=lambda s: (chosen.per_setting[s].tau_lead_s, -s[0], -s[1]))
+    assert (chosen.decision_threshold, chosen.tau_his_s) == best
+    trained = train_choosing_window(fixture_dataset, -0.25, 'boosting', {'max_iter': 5},
+                                    search=search)
+    assert trained.lists.decision_threshold == chosen.decision_threshold
+    assert trained.metadata.recommended_tau_his_s == chosen.tau_his_s
+    with pytest.raises(ValueError, match='boosted trees only'):
+        train_choosing_window(fixture_dataset, -0.25, 'tree', search=search)

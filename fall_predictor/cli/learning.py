@@ -18,7 +18,8 @@ def cmd_train(args) -> int:
 
     try:
         make_learner(args.learner, dict(args.param))
-        chosen_by = {name: value for name, value in (('max_fpr', args.max_fpr), ('folds', args.folds))
+        chosen_by = {name: value for name, value in (('max_fpr', args.max_fpr), ('folds', args.folds),
+                                                     ('decision_thresholds', args.decision_thresholds))
                      if value is not None}
         search = WindowSearch(**chosen_by)
     except ValueError as error:
@@ -58,6 +59,9 @@ def cmd_train(args) -> int:
         lines.append(f'tau_his {metadata.recommended_tau_his_s:.3f} s (given), stored in the model')
     else:
         chosen = window.chosen
+        if window.decision_threshold is not None:
+            lines.append(f'decision threshold {window.decision_threshold:g} chosen with the window, '
+                         f'among {", ".join(f"{d:g}" for d in window.search.decision_thresholds)}')
         lines.append(f'tau_his {window.tau_his_s:.3f} s chosen by {window.folds}-fold cross-validation '
                      f'on this data (the longest lead at FPR <= {window.search.max_fpr:g}): FPR '
                      f'{chosen.fpr:.3f} ({chosen.n_false_positives}/{chosen.n_balanced}), tau_lead '
@@ -301,6 +305,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--folds', type=argtypes.at_least_two, default=None,
                    help='cross-validation folds of the window\'s choice, each one more training '
                         '(default 10; at most one per trajectory)')
+    p.add_argument('--decision-thresholds', type=lambda text: tuple(float(v) for v in text.split(',')),
+                   default=None, metavar='D1,D2,...',
+                   help='boosted trees: choose the decision threshold [log-odds] among these with the '
+                        'window, by the same cross-validation (e.g. 0,1,2,3,4,5,6); default: the '
+                        'learner\'s own (--param decision_threshold=...)')
     p.add_argument('--jobs', type=argtypes.positive_int, default=1,
                    help='processes loading features and training the window\'s folds')
     p.add_argument('--skip-unreadable', action='store_true',

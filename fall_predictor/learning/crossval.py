@@ -13,7 +13,7 @@ import math
 import os
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Optional, Sequence
 
 import numpy as np
@@ -58,6 +58,8 @@ class FoldFit:
     depths: tuple[int, ...]                  #: rules per contact mode
     fit_s: float                             #: wall time of the training [s]
     results: dict[float, EvaluationResult]   #: per tau_his [s], on the test fold
+    #: With decision thresholds asked for (boosted trees): per threshold [log-odds], per tau_his.
+    by_threshold: dict[float, dict[float, EvaluationResult]] = field(default_factory=dict)
 
     @property
     def mean_rule_size(self) -> float:
@@ -75,17 +77,20 @@ class _Trajectories:
 
 def _fit_and_predict(trajectories: _Trajectories, train_index: np.ndarray, test_index: np.ndarray,
                      tau_plus_s: float, learner: RuleListLearner, sample_stride: int,
-                     mirror: bool = False
-                     ) -> tuple[list[np.ndarray], tuple[int, ...], tuple[int, ...], float]:
+                     mirror: bool = False, scores: bool = False
+                     ) -> tuple[list[np.ndarray], tuple[int, ...], tuple[int, ...], float,
+                                Optional[list[np.ndarray]]]:
     """Train on the trajectories ``train_index`` (with their mirror images if ``mirror``);
-    atomic falling predictions (bool per sample) on those of ``test_index``."""
+    atomic falling predictions (bool per sample) on those of ``test_index``, and with ``scores``
+    the scores the model thresholds (``PerModeDecisionLists.score``)."""
     train = [trajectories.items[i] for i in train_index]
     test = [trajectories.items[i] for i in test_index]
     start = time.perf_counter()
     lists = fit_strided(train, tau_plus_s, learner, sample_stride, mirror=mirror)
     fit_s = time.perf_counter() - start
     atomic = [lists.predict(traj.X, traj.mode) == FALLING for traj in test]
-    return atomic, lists.rule_sizes, lists.depths, fit_s
+    score = [lists.score(traj.X, traj.mode) for traj in test] if scores else None
+    return atomic, lists.rule_sizes, lists.depths, fit_s, score
 
 
 def _training_subset(train_index: np.ndarray, trajectories: Sequence[TrajectoryFeatures],
@@ -119,7 +124,8 @@ def cross_validate_grid(trajectories: Sequence[TrajectoryFeatures], learner: Rul
                         train_sizes: Sequence[Optional[int]] = (None,), jobs: int = 1,
                         progress: bool = False,
                         guard_com_height_m: float = GUARD_COM_HEIGHT_M,
-                        mirror: bool = False) -> list[FoldFit]:
+                        mirror: bool = False,
+                        decision_thresholds: Sequence[float] = ()) -> list[FoldFit]:
     """k-fold cross-validation by trajectory over a grid: one training per (training size,
     tau_plus, fold), all ``tau_his_values`` [s] evaluated from its atomic predictions.
 
@@ -132,7 +138,9 @@ def cross_validate_grid(trajectories: Sequence[TrajectoryFeatures], learner: Rul
     with the CoM guard ``guard_com_height_m`` [m]: the robot's (a dataset's callers pass
     :func:`~fall_predictor.data.dataset.dataset_guard_com_height_m`; the default is the
     ASIMO-like robot's). With ``mirror`` each training also learns from its trajectories'
-    left-right mirror images (the test folds stay as recorded).
+    left-right mirror images (the test folds stay as recorded). With ``decision_thresholds``
+    (boosted trees) each fold's model is also evaluated at each of them
+    (:attr:`FoldFit.by_threshold`), from one pass of scores.
     """
     from joblib import delayed
     from tqdm import tqdm
@@ -161,19 +169,23 @@ def cross_validate_grid(trajectories: Sequence[TrajectoryFeatures], learner: Rul
         shared = _Trajectories(_shared_memory_view(trajectories, folder) if jobs > 1 else trajectories)
         outputs = compute_parallel(jobs, return_as='generator')(
             delayed(_fit_and_predict)(shared, chosen, test_index, tau_plus_s, learner, sample_stride,
-                                      mirror)
+                                      mirror, bool(decision_thresholds))
             for _, tau_plus_s, _, chosen, test_index in tasks)
         fits = []
         for (fold, tau_plus_s, n_train, chosen, test_index), output in tqdm(
                 zip(tasks, outputs), total=len(tasks), desc='trainings', unit='fit',
                 disable=not progress):
-            atomic, rule_sizes, depths, fit_s = output
+            atomic, rule_sizes, depths, fit_s, scores = output
             test = [trajectories[i] for i in test_index]
+            size = float(np.mean(rule_sizes))
             results = evaluate_atomic(test, atomic, tau_his_values,
-                                      guard_com_height_m=guard_com_height_m,
-                                      mean_rule_size=float(np.mean(rule_sizes)))
+                                      guard_com_height_m=guard_com_height_m, mean_rule_size=size)
+            by_threshold = {float(d): evaluate_atomic(test, [s > d for s in scores], tau_his_values,
+                                                      guard_com_height_m=guard_com_height_m,
+                                                      mean_rule_size=size)
+                            for d in decision_thresholds}
             fits.append(FoldFit(fold, tau_plus_s, n_train, int(chosen.size), tuple(rule_sizes),
-                                tuple(depths), fit_s, results))
+                                tuple(depths), fit_s, results, by_threshold))
     return fits
 
 

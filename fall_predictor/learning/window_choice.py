@@ -17,6 +17,10 @@ the training (learner, ``tau_plus``, stride, mirror images, attitude, the robot'
   (ties: the smaller window); if none is, the lowest FPR. It is the choice a sweep makes over all
   its folds, the one ``sweep --test-data`` trains its chosen predictors with.
 
+For boosted trees the decision threshold is the operating point's other half (method §8a):
+given ``decision_thresholds``, each fold's model is scored once and evaluated at every threshold
+and window, and the pair is chosen by the same rule (:func:`choose_operating_point`).
+
 The default budget is FP-L2's, FPR <= 0.06 (method §9), the operating point of the shipped
 default model. The cross-validation needs two falls (every training then holds one) and a run
 that does not fall (an FPR); with fewer, the window cannot be chosen
@@ -59,6 +63,9 @@ class WindowSearch:
     folds: int = DEFAULT_FOLDS
     seed: int = 0
     tau_his_values_s: tuple[float, ...] = DEFAULT_TAU_HIS_VALUES_S
+    #: Boosted trees: the decision thresholds [log-odds] chosen among with the window (empty:
+    #: the model's own threshold, the window alone).
+    decision_thresholds: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.max_fpr <= 1.0:
@@ -66,6 +73,10 @@ class WindowSearch:
         if isinstance(self.folds, bool) or not isinstance(self.folds, int) or self.folds < 2:
             raise ValueError(f'folds must be an int >= 2, got {self.folds!r}')
         object.__setattr__(self, 'tau_his_values_s', tuple(float(v) for v in self.tau_his_values_s))
+        thresholds = tuple(float(v) for v in self.decision_thresholds)
+        if any(v != v for v in thresholds):
+            raise ValueError('decision thresholds must be numbers')
+        object.__setattr__(self, 'decision_thresholds', tuple(sorted(set(thresholds))))
 
 
 @dataclass(frozen=True)
@@ -77,18 +88,28 @@ class WindowChoice:
     folds: int                                   #: the folds used (at most ``search.folds``)
     within_budget: bool                          #: its pooled FPR meets ``search.max_fpr``
     per_window: dict[float, PooledFigures]       #: every window's pooled held-out figures
+    #: Boosted trees with thresholds searched: the one chosen, and every (threshold, window)'s
+    #: figures (``per_window`` is then the chosen threshold's).
+    decision_threshold: Optional[float] = None
+    per_setting: Optional[dict[tuple[float, float], PooledFigures]] = None
 
     @property
     def chosen(self) -> PooledFigures:
         return self.per_window[self.tau_his_s]
 
     def to_json(self) -> dict[str, Any]:
-        return {'tau_his_s': self.tau_his_s, 'rule': 'the longest cross-validated lead at FPR <= '
-                f'{self.search.max_fpr:g} (else the lowest FPR); ties: the smaller window',
-                'max_fpr': self.search.max_fpr, 'folds': self.folds, 'seed': self.search.seed,
-                'within_budget': self.within_budget, 'chosen': pooled_json(self.chosen),
-                'per_window': [{'tau_his_s': tau, **pooled_json(p)}
-                               for tau, p in sorted(self.per_window.items())]}
+        what = 'window' if self.decision_threshold is None else '(decision threshold, window)'
+        out = {'tau_his_s': self.tau_his_s, 'rule': 'the longest cross-validated lead at FPR <= '
+               f'{self.search.max_fpr:g} (else the lowest FPR); ties: the smaller {what}',
+               'max_fpr': self.search.max_fpr, 'folds': self.folds, 'seed': self.search.seed,
+               'within_budget': self.within_budget, 'chosen': pooled_json(self.chosen),
+               'per_window': [{'tau_his_s': tau, **pooled_json(p)}
+                              for tau, p in sorted(self.per_window.items())]}
+        if self.decision_threshold is not None:
+            out['decision_threshold'] = self.decision_threshold
+            out['per_setting'] = [{'decision_threshold': d, 'tau_his_s': tau, **pooled_json(p)}
+                                  for (d, tau), p in sorted(self.per_setting.items())]
+        return out
 
 
 def choose_tau_his(trajectories: Sequence[TrajectoryFeatures], learner: RuleListLearner,
@@ -108,13 +129,26 @@ def choose_tau_his(trajectories: Sequence[TrajectoryFeatures], learner: RuleList
     folds = min(search.folds, len(trajectories))
     fits = cross_validate_grid(trajectories, learner, (tau_plus_s,), search.tau_his_values_s, folds,
                                search.seed, sample_stride, jobs=jobs, progress=progress,
-                               guard_com_height_m=guard_com_height_m, mirror=mirror)
+                               guard_com_height_m=guard_com_height_m, mirror=mirror,
+                               decision_thresholds=search.decision_thresholds)
+    if search.decision_thresholds:
+        per_setting = {(d, tau): pool_results([fit.by_threshold[d][tau] for fit in fits])
+                       for d in search.decision_thresholds for tau in search.tau_his_values_s}
+        threshold, tau_his_s = choose_setting(per_setting, search.max_fpr)
+        per_window = {tau: per_setting[threshold, tau] for tau in search.tau_his_values_s}
+        return WindowChoice(tau_his_s, search, folds,
+                            per_window[tau_his_s].fpr <= search.max_fpr + 1e-12, per_window,
+                            threshold, per_setting)
     per_window = {tau: pool_results([fit.results[tau] for fit in fits])
                   for tau in search.tau_his_values_s}
     _, tau_his_s = choose_setting({(float(tau_plus_s), tau): figures
                                    for tau, figures in per_window.items()}, search.max_fpr)
     return WindowChoice(tau_his_s, search, folds,
                         per_window[tau_his_s].fpr <= search.max_fpr + 1e-12, per_window)
+
+
+#: The name the choice goes by when it includes a boosted model's decision threshold.
+choose_operating_point = choose_tau_his
 
 
 @dataclass(frozen=True)
@@ -142,6 +176,8 @@ def train_choosing_window(data_dir: PathLike, tau_plus_s: float, learner_name: s
     from fall_predictor.data.dataset import dataset_guard_com_height_m
 
     learner = check_training_settings(tau_plus_s, learner_name, learner_params, tau_his_s, attitude)
+    if search.decision_thresholds and learner_name != 'boosting':
+        raise ValueError('decision thresholds are chosen for boosted trees only (--learner boosting)')
     report = load_dataset(data_dir, jobs, skip_unreadable, progress, state)
     require_outcomes(report.trajectories, data_dir, need_balanced=False)
     window, not_chosen = None, None
@@ -155,4 +191,6 @@ def train_choosing_window(data_dir: PathLike, tau_plus_s: float, learner_name: s
             not_chosen = str(why)
     lists, metadata = train_on_report(report, data_dir, tau_plus_s, learner, sample_stride,
                                       tau_his_s, mirror, attitude)
+    if window is not None and window.decision_threshold is not None:
+        lists = lists.with_decision_threshold(window.decision_threshold)
     return TrainedModel(lists, metadata, window, report, not_chosen)

@@ -316,6 +316,23 @@ class PerModeDecisionLists:
             out[rows] = self.lists[mode].predict(X[rows])
         return out
 
+    def score(self, X: np.ndarray, modes: np.ndarray) -> np.ndarray:
+        """Per row of ``X`` the score its mode's classifier thresholds (floats, (N,)): boosted
+        trees' log-odds, a decision list's +inf (falling) or -inf (balanced); ``predict`` at any
+        decision threshold ``d`` is ``score > d``, so a model's operating points come from one
+        pass over the data."""
+        X = np.asarray(X, dtype=float)
+        modes = np.asarray(modes)
+        out = np.empty(X.shape[0])
+        for mode in np.unique(modes):
+            rows = modes == mode
+            classifier = self.lists[mode]
+            if isinstance(classifier, BoostedTrees):
+                out[rows] = classifier.score(X[rows])
+            else:
+                out[rows] = np.where(classifier.predict(X[rows]) == FALLING, np.inf, -np.inf)
+        return out
+
     def format(self, feature_names: Sequence[str] = FEATURE_NAMES,
                mode_names: Sequence[str] = CONTACT_MODE_NAMES) -> str:
         """All 16 lists in Fig. 8 form, one block per mode."""
