@@ -56,7 +56,6 @@ from fall_predictor.learning.metrics import evaluate_atomic
 from fall_predictor.learning.mirror import ATTITUDE_MIRROR_SIGNS, MIRROR_ID_SUFFIX
 from fall_predictor.learning.nested import nested_over_grid, pool_results
 from fall_predictor.learning.training import fit_strided, load_dataset, make_learner, model_inputs
-from fall_predictor.monitor.boosted_trees import BoostedTrees
 from fall_predictor.monitor.records import ATTITUDE_NAMES, FALLING, N_CONTACT_MODES
 
 # --window: the features and their changes over these lags, as the temporal-window benchmark
