@@ -166,3 +166,34 @@ def test_a_robot_without_an_mjcf_is_loaded_from_its_urdf() -> None:
     for side, wrench in (('l', truth.left_wrench), ('r', truth.right_wrench)):
         forces = sum((f for _, f in world._last_contacts[side]), np.zeros(3))
         assert np.linalg.norm(wrench[:3]) == pytest.approx(np.linalg.norm(forces), rel=1e-9)
+
+
+def test_a_sole_frame_turned_from_its_foot_link(tmp_path) -> None:
+    """A foot link whose axes are not x forward, z up (as some robots' URDFs have them): the sole
+    frame turned by the profile's ``sole_rpy_in_foot`` (URDF roll, pitch, yaw) has the same axes in
+    the monitor's robot description (Pinocchio) as in the simulator's measurement, and a yaw of
+    90 degrees turns the foot's heading by 90 degrees."""
+    import math
+    import shutil
+
+    import pinocchio as pin
+    import yaml
+
+    from fall_predictor.monitor.rotations import rpy_matrix
+    folder = tmp_path / 'g1'
+    shutil.copytree(G1.source.parent, folder)
+    raw = yaml.safe_load((folder / 'profile.yaml').read_text())
+    for side in ('l', 'r'):
+        raw['feet'][side]['sole_rpy_in_foot'] = [0.0, 0.0, math.pi / 2]
+    (folder / 'profile.yaml').write_text(yaml.safe_dump(raw))
+    turned = load_profile(folder / 'profile.yaml')
+    robot = turned.sensor_layout().description(turned.urdf_xml())
+    pin.framesForwardKinematics(robot.model, robot.data, pin.neutral(robot.model))
+    sole = robot.data.oMf[robot.model.getFrameId('left_sole')].rotation
+    link = robot.data.oMf[robot.model.getFrameId('left_ankle_roll_link')].rotation
+    np.testing.assert_allclose(sole, link @ rpy_matrix(0.0, 0.0, math.pi / 2), atol=1e-12)
+    straight, rotated = MujocoWorld(G1, dt_s=DT_S), MujocoWorld(turned, dt_s=DT_S)
+    posture = make_controller(G1).initial_posture()
+    a, b = straight.start(posture), rotated.start(posture)
+    assert b.left_foot[2] == pytest.approx(a.left_foot[2] + math.pi / 2, abs=1e-9)
+    np.testing.assert_allclose(b.left_foot[:2], a.left_foot[:2], atol=1e-12)

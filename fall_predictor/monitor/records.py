@@ -65,8 +65,10 @@ STANDARD_GRAVITY_M_S2 = 9.81
 class SoleGeometry:
     """One sole: its frame, and the rectangle of its underside (centred on the frame origin).
 
-    ``link`` and ``origin_xyz`` add the frame to the model when the URDF lacks it: fixed to
-    ``link`` at ``origin_xyz`` [m] in the link's frame, with the link's axes.
+    ``link``, ``origin_xyz`` and ``origin_rpy`` add the frame to the model when the URDF lacks it:
+    fixed to ``link`` at ``origin_xyz`` [m] in the link's frame, turned from the link's axes by
+    ``origin_rpy`` (URDF's roll, pitch, yaw [rad]; a sole frame has x forward and z up when the
+    robot stands).
     """
 
     frame: str
@@ -74,6 +76,7 @@ class SoleGeometry:
     width_m: float
     link: Optional[str] = None
     origin_xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    origin_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         if not (0.0 < self.length_m < 1.0 and 0.0 < self.width_m < 1.0):

@@ -15,6 +15,8 @@ from typing import Sequence
 import numpy as np
 import pinocchio as pin
 
+from fall_predictor.monitor import rotations
+
 from fall_predictor.monitor.plausibility import JointBounds
 from fall_predictor.monitor.records import SoleGeometry
 
@@ -100,7 +102,8 @@ class RobotDescription:
                 f'the URDF has no frame {sole.frame!r} and the robot profile gives no link of the '
                 f'URDF to put it on (link {sole.link!r}): the estimator needs both sole frames')
         parent = self.model.frames[self.model.getFrameId(sole.link)]
-        placement = parent.placement * pin.SE3(np.eye(3), np.asarray(sole.origin_xyz, dtype=float))
+        placement = parent.placement * pin.SE3(rotations.rpy_matrix(*sole.origin_rpy),
+                                               np.asarray(sole.origin_xyz, dtype=float))
         self.model.addFrame(pin.Frame(sole.frame, parent.parentJoint, self.model.getFrameId(sole.link),
                                       placement, pin.FrameType.OP_FRAME))
 

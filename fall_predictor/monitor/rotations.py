@@ -103,3 +103,12 @@ def yaw(q: Sequence[float]) -> float:
 def about_z(angle_rad: float) -> Quaternion:
     """The rotation by ``angle_rad`` about the z axis."""
     return (0.0, 0.0, math.sin(angle_rad / 2), math.cos(angle_rad / 2))
+
+
+def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """The rotation of URDF's fixed-axis roll, pitch, yaw [rad]: ``Rz(yaw) Ry(pitch) Rx(roll)``."""
+    cr, sr, cp, sp, cy, sy = (math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch),
+                              math.cos(yaw), math.sin(yaw))
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]])

@@ -161,10 +161,18 @@ class FootProfile:
     sole_origin_in_foot_m: tuple[float, float, float]
     #: The frame the foot's force/torque sensor reports in; None: the foot has no F/T sensor.
     force_torque_frame: Optional[str]
+    #: The sole frame's axes turned from the foot link's (URDF roll, pitch, yaw [rad]): for a
+    #: foot link whose axes are not x forward, z up when the robot stands.
+    sole_rpy_in_foot_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def sole(self) -> SoleGeometry:
         return SoleGeometry(self.sole_frame, self.sole_length_m, self.sole_width_m,
-                            self.foot_link, self.sole_origin_in_foot_m)
+                            self.foot_link, self.sole_origin_in_foot_m, self.sole_rpy_in_foot_rad)
+
+    def sole_rotation_in_foot(self):
+        """The sole frame's rotation in the foot link's frame (a 3 x 3 array)."""
+        from fall_predictor.monitor.rotations import rpy_matrix
+        return rpy_matrix(*self.sole_rpy_in_foot_rad)
 
 
 @dataclass(frozen=True)
@@ -400,7 +408,7 @@ def _parse(path: Path, raw: Any) -> RobotProfile:
             side, f.text('foot_link'), f.text('sole_frame'),
             f.number('sole_length_m', 0.01, 1.0), f.number('sole_width_m', 0.01, 1.0),
             f.vector('sole_origin_in_foot_m', 3, (0.0, 0.0, 0.0)),
-            f.text('force_torque_frame', None))
+            f.text('force_torque_frame', None), f.vector('sole_rpy_in_foot', 3, (0.0, 0.0, 0.0)))
     groups_raw = r.child('joint_groups')
     groups = {}
     for group, joints in groups_raw.raw.items():

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import os
 import xml.etree.ElementTree as ET
+from pathlib import Path
 from typing import Iterable
 
 # Rendering without a display (the package's renders are headless); a user's choice stands.
@@ -20,6 +21,7 @@ os.environ.setdefault('MUJOCO_GL', 'egl')
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
+from fall_predictor.monitor.rotations import rpy_matrix  # noqa: E402
 from fall_predictor.profiles import RobotProfile  # noqa: E402
 from fall_predictor.sim.urdf_loading import resolve_urdf_text  # noqa: E402
 
@@ -27,10 +29,21 @@ from fall_predictor.sim.urdf_loading import resolve_urdf_text  # noqa: E402
 START_CLEARANCE_M = 0.001
 
 
+#: Attributes MJCF files of older MuJoCo releases carry that this one refuses, and why they can
+#: go: ``<flag sensornoise>`` (MuJoCo's sensor noise, dropped in 3.x: the package's own sensor
+#: model makes the readings).
+OBSOLETE_ATTRIBUTES = {'sensornoise': 'MuJoCo no longer has sensor noise (the package models its own sensors)'}
+
+
 def load_model(profile: RobotProfile) -> mujoco.MjModel:
-    """The MuJoCo model of ``profile``'s robot (module docstring)."""
+    """The MuJoCo model of ``profile``'s robot (module docstring). An MJCF that names an attribute
+    this MuJoCo no longer has (:data:`OBSOLETE_ATTRIBUTES`) is read without it, with a warning;
+    any other error says which file MuJoCo could not read."""
     if profile.mjcf_path is not None:
-        return mujoco.MjModel.from_xml_path(str(profile.mjcf_path))
+        try:
+            return mujoco.MjModel.from_xml_path(str(profile.mjcf_path))
+        except ValueError as error:
+            return _without_obsolete_attributes(profile.mjcf_path, error)
     text = resolve_urdf_text(profile.sim_urdf_path.read_text())
     spec = mujoco.MjSpec.from_string(text)
     spec.meshdir = str(profile.sim_urdf_path.parent)
@@ -39,6 +52,29 @@ def load_model(profile: RobotProfile) -> mujoco.MjModel:
     root.add_freejoint()
     spec.worldbody.add_geom(name='ground', type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 0.05])
     return spec.compile()
+
+
+def _without_obsolete_attributes(path, error: ValueError) -> mujoco.MjModel:
+    """``path`` read again without the obsolete attributes MuJoCo refused; ValueError (naming the
+    file) for any other error."""
+    import re
+    import warnings
+
+    found = re.search(r"unrecognized attribute: '(\w+)'", str(error))
+    if found is None or found.group(1) not in OBSOLETE_ATTRIBUTES:
+        raise ValueError(f'MuJoCo cannot read {path}: {error}') from None
+    text = Path(path).read_text()
+    for name, why in OBSOLETE_ATTRIBUTES.items():
+        pattern = re.compile(rf'\s{name}\s*=\s*(["\'])[^"\']*\1')
+        if pattern.search(text):
+            text = pattern.sub('', text)
+            warnings.warn(f'{path}: attribute {name!r} left out ({why})')
+    spec = mujoco.MjSpec.from_string(text)
+    spec.modelfiledir = str(Path(path).resolve().parent)
+    try:
+        return spec.compile()
+    except ValueError as again:
+        raise ValueError(f'MuJoCo cannot read {path}: {again}') from None
 
 
 def robot_geoms(model: mujoco.MjModel, root_body: int) -> tuple[frozenset, frozenset]:
@@ -84,7 +120,7 @@ def fixed_frame_in_body(model: mujoco.MjModel, profile: RobotProfile, frame: str
                                            else '0 0 0').split()])
         rpy = [float(v) for v in (origin.get('rpy', '0 0 0') if origin is not None
                                   else '0 0 0').split()]
-        parent_rot = _rpy_matrix(*rpy)
+        parent_rot = rpy_matrix(*rpy)
         position, rotation = xyz + parent_rot @ position, parent_rot @ rotation
         link = joints[link].find('parent').get('link')
         body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, link)
@@ -92,15 +128,6 @@ def fixed_frame_in_body(model: mujoco.MjModel, profile: RobotProfile, frame: str
             return body, position, rotation
     raise ValueError(f'{profile.source}: frame {frame!r} is neither a body nor a site of the '
                      'MuJoCo model, nor fixed in the URDF to a link the model has')
-
-
-def _rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """URDF's fixed-axis roll, pitch, yaw: R = Rz(yaw) Ry(pitch) Rx(roll)."""
-    cr, sr, cp, sp, cy, sy = (math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch),
-                              math.cos(yaw), math.sin(yaw))
-    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-                     [-sp, cp * sr, cp * cr]])
 
 
 def stand_on_ground(model: mujoco.MjModel, data: mujoco.MjData, root_q: int,

@@ -85,6 +85,7 @@ class MujocoWorld:
                              f'{[f.foot_link for f in profile.feet.values()]}')
         self._sole = {side: np.asarray(foot.sole_origin_in_foot_m)
                       for side, foot in profile.feet.items()}
+        self._sole_rot = {side: foot.sole_rotation_in_foot() for side, foot in profile.feet.items()}
         self._ground, self._robot_geoms = robot_geoms(m, self._root_body)
         self._foot_of_body = {body: side for side, body in self.feet.items()}
         self._imu_body, self._imu_offset, self._imu_rotation = fixed_frame_in_body(
@@ -278,7 +279,8 @@ class MujocoWorld:
         for side, body in self.feet.items():
             frame = d.xmat[body].reshape(3, 3)
             p = d.xpos[body] + frame @ self._sole[side]
-            feet[side] = np.array([p[0], p[1], math.atan2(frame[1, 0], frame[0, 0])])
+            sole = frame @ self._sole_rot[side]
+            feet[side] = np.array([p[0], p[1], math.atan2(sole[1, 0], sole[0, 0])])
         measurement = Measurement(t=self.t, com=com, lin_mom=lin_mom, ang_mom=ang_mom,
                                   heading=math.atan2(rot[1, 0], rot[0, 0]), cop=cop,
                                   left_contacts=rows['l'], right_contacts=rows['r'],
@@ -310,8 +312,9 @@ class MujocoWorld:
         """The ground's reaction on one sole, about the sole origin, in the sole frame."""
         d = self.data
         body = self.feet[side]
-        rot = d.xmat[body].reshape(3, 3)
-        origin = d.xpos[body] + rot @ self._sole[side]
+        frame = d.xmat[body].reshape(3, 3)
+        origin = d.xpos[body] + frame @ self._sole[side]
+        rot = frame @ self._sole_rot[side]
         force, torque = np.zeros(3), np.zeros(3)
         for point, f in self._last_contacts[side]:
             force += f

@@ -16,7 +16,10 @@ def _ground_wrench(sim, side: str, contacts) -> np.ndarray:
     frame_pos, frame_orn = sim.link_frame_pose(foot)
     # The foot's link frame is at the ankle centre; the sole frame has the same axes.
     rot = np.array(pb.getMatrixFromQuaternion(frame_orn)).reshape(3, 3)
-    origin = np.asarray(frame_pos) + rot @ np.asarray(sim.profile.feet[side].sole_origin_in_foot_m)
+    foot_profile = sim.profile.feet[side]
+    origin = np.asarray(frame_pos) + rot @ np.asarray(foot_profile.sole_origin_in_foot_m)
+    if any(foot_profile.sole_rpy_in_foot_rad):       # sole axes turned from the foot link's
+        rot = rot @ foot_profile.sole_rotation_in_foot()
     # Summed in Python floats: a foot has a few contact points per step, and numpy's per-call
     # cost on 3-vectors was a fifth of the generation's time.
     ox, oy, oz = origin.tolist()

@@ -178,6 +178,10 @@ class Simulator:
                                   for i in self.bodies])
         self._sole_offsets = {side: np.asarray(foot.sole_origin_in_foot_m)
                               for side, foot in self.profile.feet.items()}
+        #: The sole frames' axes in the foot links' (None: the same axes, the common case).
+        self._sole_rotations = {side: None if not any(foot.sole_rpy_in_foot_rad)
+                                else foot.sole_rotation_in_foot()
+                                for side, foot in self.profile.feet.items()}
         self.total_mass = float(self.masses.sum())
         self.t = 0.0
         self.tick = 0
@@ -466,6 +470,8 @@ class Simulator:
             state = links[self._row[lk]]
             frame_rot = np.array(pb.getMatrixFromQuaternion(state[5])).reshape(3, 3)
             fp = np.asarray(state[4]) + frame_rot @ self._sole_offsets[side]
+            if self._sole_rotations[side] is not None:
+                frame_rot = frame_rot @ self._sole_rotations[side]
             feet[side] = np.array([fp[0], fp[1], math.atan2(frame_rot[1, 0], frame_rot[0, 0])])
         meas = Measurement(t=self.t, com=com, lin_mom=lin_mom, ang_mom=ang, heading=heading, cop=cop,
                            left_contacts=left, right_contacts=right, left_foot=feet['l'],
