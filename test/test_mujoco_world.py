@@ -32,7 +32,7 @@ def free_base(world: MujocoWorld) -> MujocoWorld:
     damping 0.001, friction loss 0.1: on the base they act as a small outside friction and mass,
     0.1 N, 0.3 N s over 3 s of walking), so that nothing but gravity, the ground and a push acts
     on the robot as a whole."""
-    base = slice(world._root_v, world._root_v + 6)
+    base = world.base_dofs
     world.model.dof_frictionloss[base] = world.model.dof_damping[base] = 0.0
     world.model.dof_armature[base] = 0.0
     return world
@@ -197,3 +197,35 @@ def test_a_sole_frame_turned_from_its_foot_link(tmp_path) -> None:
     a, b = straight.start(posture), rotated.start(posture)
     assert b.left_foot[2] == pytest.approx(a.left_foot[2] + math.pi / 2, abs=1e-9)
     np.testing.assert_allclose(b.left_foot[:2], a.left_foot[:2], atol=1e-12)
+
+
+def test_a_base_on_slide_and_ball_joints_is_a_floating_base(tmp_path) -> None:
+    """Some teams' MJCFs (humanoid-gym's) free the base with three slide joints and a ball joint
+    instead of a free joint: the same robot then starts at the same pose and falls the same."""
+    import re
+    import shutil
+    import yaml
+
+    folder = tmp_path / 'g1'
+    shutil.copytree(G1.source.parent, folder)
+    xml = (folder / 'g1_12dof.xml').read_text()
+    slides = ('<joint name="base_x" type="slide" axis="1 0 0" limited="false"/>'
+              '<joint name="base_y" type="slide" axis="0 1 0" limited="false"/>'
+              '<joint name="base_z" type="slide" axis="0 0 1" limited="false"/>'
+              '<joint name="base_ball" type="ball" limited="false"/>')
+    xml = re.sub(r'<joint name="floating_base_joint" type="free"[^>]*/>', slides, xml)
+    (folder / 'g1_12dof.xml').write_text(xml)
+    raw = yaml.safe_load((folder / 'profile.yaml').read_text())
+    (folder / 'profile.yaml').write_text(yaml.safe_dump(raw))
+    sliding = load_profile(folder / 'profile.yaml')
+    posture = make_controller(G1).initial_posture()
+    free, slid = MujocoWorld(G1, dt_s=DT_S), MujocoWorld(sliding, dt_s=DT_S)
+    assert len(slid.base_dofs) == 6 and slid.total_mass == pytest.approx(free.total_mass)
+    a, b = free.start(Posture(posture.joint_angles, 0.4)), slid.start(Posture(posture.joint_angles, 0.4))
+    np.testing.assert_allclose(b.com, a.com, atol=1e-9)
+    assert b.heading == pytest.approx(0.4)
+    for world in (free, slid):
+        world.apply(hold(world, posture))
+    for _ in range(100):
+        a, b = free.step(), slid.step()
+    np.testing.assert_allclose(b.com, a.com, atol=2e-3)       # the same fall, other coordinates

@@ -6,6 +6,8 @@
   (:mod:`~fall_predictor.sim.urdf_loading`);
 * :func:`robot_geoms`: which geometries are the ground and which are the robot's;
 * :func:`fixed_frame_in_body`: where a frame of the URDF (an IMU) sits on a body MuJoCo has;
+* :class:`FloatingBase`: the robot's base, free in the world through a free joint or, as some
+  teams' MJCFs have it (humanoid-gym's), three slide joints and a ball joint;
 * :func:`stand_on_ground`: the base height at which the lowest foot geometry touches the ground.
 """
 from __future__ import annotations
@@ -14,7 +16,7 @@ import math
 import os
 import xml.etree.ElementTree as ET
 from pathlib import Path
-from typing import Iterable
+from typing import Iterable, Optional, Sequence
 
 # Rendering without a display (the package's renders are headless); a user's choice stands.
 os.environ.setdefault('MUJOCO_GL', 'egl')
@@ -130,12 +132,63 @@ def fixed_frame_in_body(model: mujoco.MjModel, profile: RobotProfile, frame: str
                      'MuJoCo model, nor fixed in the URDF to a link the model has')
 
 
-def stand_on_ground(model: mujoco.MjModel, data: mujoco.MjData, root_q: int,
+class FloatingBase:
+    """The body that carries the robot, free in the world: a free joint, or three slide joints
+    along the world's axes and a ball joint on a body of the world (the same six degrees of
+    freedom). ValueError, in words, for a model with neither."""
+
+    def __init__(self, model: mujoco.MjModel, source: object = 'the MuJoCo model') -> None:
+        free = [j for j in range(model.njnt) if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE]
+        if len(free) == 1:
+            j = free[0]
+            self.body = int(model.jnt_bodyid[j])
+            adr = int(model.jnt_qposadr[j])
+            self._position = [adr, adr + 1, adr + 2]
+            self._quat = adr + 3
+            self.dofs = list(range(int(model.jnt_dofadr[j]), int(model.jnt_dofadr[j]) + 6))
+            self._offset = np.zeros(3)
+            return
+        for body in range(1, model.nbody):
+            if model.body_parentid[body] != 0:
+                continue
+            joints = [j for j in range(model.njnt) if model.jnt_bodyid[j] == body]
+            slides = {int(np.argmax(np.abs(model.jnt_axis[j]))): j for j in joints
+                      if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE
+                      and np.isclose(np.abs(model.jnt_axis[j]).max(), 1.0)}
+            balls = [j for j in joints if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_BALL]
+            if sorted(slides) == [0, 1, 2] and len(balls) == 1:
+                self.body = body
+                self._position = [int(model.jnt_qposadr[slides[k]]) for k in range(3)]
+                self._signs = [float(np.sign(model.jnt_axis[slides[k]][k])) for k in range(3)]
+                self._quat = int(model.jnt_qposadr[balls[0]])
+                self.dofs = ([int(model.jnt_dofadr[slides[k]]) for k in range(3)]
+                             + list(range(int(model.jnt_dofadr[balls[0]]),
+                                          int(model.jnt_dofadr[balls[0]]) + 3)))
+                self._offset = model.body_pos[body].copy()
+                return
+        raise ValueError(f'{source}: the robot\'s base must be free in the world: a free joint, '
+                         f'or three slide joints (x, y, z) and a ball joint on one body; found '
+                         f'{len(free)} free joints and no such body')
+
+    def set_pose(self, data: mujoco.MjData, position: Optional[Sequence[float]],
+                 quat_wxyz: Sequence[float]) -> None:
+        """Put the base's body at ``position`` [m] (None: leave it) with orientation
+        ``quat_wxyz``."""
+        data.qpos[self._quat:self._quat + 4] = quat_wxyz
+        if position is not None:
+            for k, adr in enumerate(self._position):
+                data.qpos[adr] = (position[k] - self._offset[k]) * getattr(self, '_signs', (1, 1, 1))[k]
+
+    def raise_by(self, data: mujoco.MjData, dz_m: float) -> None:
+        """Move the base up by ``dz_m`` [m]."""
+        data.qpos[self._position[2]] += dz_m * getattr(self, '_signs', (1, 1, 1))[2]
+
+
+def stand_on_ground(model: mujoco.MjModel, data: mujoco.MjData, base: FloatingBase,
                     feet: Iterable[int]) -> None:
-    """Set the base's height (``data.qpos[root_q + 2]``) so that the lowest point of the feet's
-    colliding geometries lies :data:`START_CLEARANCE_M` above the ground (z = 0)."""
+    """Move the base up or down so that the lowest point of the feet's colliding geometries lies
+    :data:`START_CLEARANCE_M` above the ground (z = 0)."""
     feet = set(feet)
-    data.qpos[root_q + 2] = 0.0
     mujoco.mj_kinematics(model, data)
     lowest = math.inf
     for g in range(model.ngeom):
@@ -144,7 +197,7 @@ def stand_on_ground(model: mujoco.MjModel, data: mujoco.MjData, root_q: int,
         lowest = min(lowest, _lowest_point(model, data, g))
     if not math.isfinite(lowest):
         raise ValueError('the feet have no colliding geometry')
-    data.qpos[root_q + 2] = START_CLEARANCE_M - lowest
+    base.raise_by(data, START_CLEARANCE_M - lowest)
 
 
 def _lowest_point(model: mujoco.MjModel, data: mujoco.MjData, geom: int) -> float:

@@ -36,8 +36,8 @@ import numpy as np  # noqa: E402
 from fall_predictor.monitor import rotations
 from fall_predictor.monitor.records import Measurement, PushSpec
 from fall_predictor.profiles import RobotProfile
-from fall_predictor.sim.mujoco_model import (fixed_frame_in_body, load_model, robot_geoms,
-                                             stand_on_ground)
+from fall_predictor.sim.mujoco_model import (FloatingBase, fixed_frame_in_body, load_model,
+                                             robot_geoms, stand_on_ground)
 from fall_predictor.sim.pushes import PushProtocol
 
 #: Contacts reported with less normal force than this carry no load [N].
@@ -63,13 +63,10 @@ class MujocoWorld:
             raise ValueError(f'{profile.source}: the MuJoCo model has no joint {missing}')
         self._qadr = np.array([m.jnt_qposadr[i] for i in ids])
         self._dadr = np.array([m.jnt_dofadr[i] for i in ids])
-        root = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE]
-        if len(root) != 1:
-            raise ValueError(f'{profile.source}: the MuJoCo model needs one free joint (the base), '
-                             f'has {len(root)}')
-        self._root_body = int(m.jnt_bodyid[root[0]])
-        self._root_q = int(m.jnt_qposadr[root[0]])
-        self._root_v = int(m.jnt_dofadr[root[0]])
+        self._base = FloatingBase(m, profile.source)
+        self._root_body = self._base.body
+        #: The base's six degrees of freedom (velocity indices).
+        self.base_dofs = self._base.dofs
         self.total_mass = float(m.body_subtreemass[self._root_body])
         # Motor actuators, one per joint: torques as ``ctrl`` (gear 1), as a deploy loop writes.
         by_joint = {int(m.actuator_trnid[a, 0]): a for a in range(m.nu)
@@ -128,11 +125,9 @@ class MujocoWorld:
         q = np.array([posture.joint_angles.get(n, 0.0) for n in self.joint_names])
         d.qpos[self._qadr] = q
         half = 0.5 * posture.base_yaw_rad
-        d.qpos[self._root_q + 3:self._root_q + 7] = (math.cos(half), 0.0, 0.0, math.sin(half))
-        if posture.base_position_m is not None:
-            d.qpos[self._root_q:self._root_q + 3] = posture.base_position_m
-        else:
-            stand_on_ground(m, d, self._root_q, self.feet.values())
+        self._base.set_pose(d, posture.base_position_m, (math.cos(half), 0.0, 0.0, math.sin(half)))
+        if posture.base_position_m is None:
+            stand_on_ground(m, d, self._base, self.feet.values())
         mujoco.mj_forward(m, d)
         self._targets = q.copy()
         self._tau = np.zeros(len(q))
