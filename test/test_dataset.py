@@ -166,3 +166,14 @@ def test_the_held_out_seed_still_simulates_the_documented_trajectories(tmp_path)
     ended = [(r.trajectory_id, r.fallen, r.t_fallen, r.t_reflex) for r in rows]
     assert ended == [('traj_00000', False, None, 2.424), ('traj_00001', True, 4.12, 2.991),
                      ('traj_00002', False, None, None), ('traj_00003', False, None, 2.396)]
+
+
+def test_feature_cache_is_rebuilt_when_the_code_that_derived_it_changes(small_dataset, tmp_path, monkeypatch):
+    from fall_predictor.data import cache
+    data = tmp_path / 'copy'
+    shutil.copytree(small_dataset, data)
+    load_features(data, progress=False)
+    assert load_features(data, progress=False).rebuilt == 0
+    # As if the feature extractor had been edited since the cache was filled.
+    monkeypatch.setattr(cache, 'code_fingerprint', lambda modules: 'edited')
+    assert load_features(data, progress=False).rebuilt == 8

@@ -30,6 +30,7 @@ stays usable.
 from __future__ import annotations
 
 import csv
+import functools
 import hashlib
 import json
 import os
@@ -40,7 +41,7 @@ from typing import Any, Iterable, Optional, Sequence
 import numpy as np
 
 from fall_predictor.data.bagio import BagError, read_trajectory
-from fall_predictor.data.cache import bag_fingerprint, cached_arrays
+from fall_predictor.data.cache import bag_fingerprint, cached_arrays, derivation_key, files_fingerprint
 from fall_predictor.data.outcomes import unsettled_at_horizon
 from fall_predictor.monitor.features import FeatureSettings
 from fall_predictor.monitor.fileio import atomic_output
@@ -331,13 +332,27 @@ def dataset_guard_com_height_m(data_dir: str | os.PathLike) -> float:
         raise DatasetError(f'{data_dir}: the robot profile {robot!r} of the dataset: {exc}') from exc
 
 
-def cached_bag_arrays(data_dir: Path, bag: str, name: str, kind: str, compute) -> dict[str, np.ndarray]:
-    """Arrays derived from one bag of a dataset, cached as ``DATA/cache/<name>.npz``
-    (:func:`~fall_predictor.data.cache.cached_arrays`); a bag that cannot be read is a
-    :class:`DatasetError` naming it."""
+@functools.lru_cache(maxsize=64)
+def _profile_fingerprint(data_dir: Path) -> str:
+    """Fingerprint of the files of the dataset's robot profile (its YAML and the files beside
+    it: the estimator reads the sole frames, bounds and URDF from them)."""
+    from fall_predictor.profiles import ProfileError, profile_path
+    try:
+        source = profile_path(dataset_robot(data_dir))
+    except (ProfileError, OSError):
+        return 'none'
+    return files_fingerprint(f for f in source.parent.iterdir() if f.is_file())
+
+
+def cached_bag_arrays(data_dir: Path, bag: str, name: str, kind: str, compute,
+                      derived_by: Sequence[str]) -> dict[str, np.ndarray]:
+    """Arrays of ``kind`` derived by the modules ``derived_by`` from one bag of a dataset,
+    cached as ``DATA/cache/<name>.npz`` (:func:`~fall_predictor.data.cache.cached_arrays`,
+    keyed to that code); a bag that cannot be read is a :class:`DatasetError` naming it."""
     bag_dir = Path(data_dir) / bag
     try:
-        arrays, _ = cached_arrays(Path(data_dir) / 'cache' / f'{name}.npz', bag_dir, kind, compute)
+        arrays, _ = cached_arrays(Path(data_dir) / 'cache' / f'{name}.npz', bag_dir,
+                                  derivation_key(kind, derived_by), compute)
     except OSError as error:
         raise DatasetError(f'{bag_dir}: {error}') from error
     except BagError as error:
@@ -381,8 +396,10 @@ def cached_feature_arrays(out: Path, row: IndexRow, settings: FeatureSettings = 
                 'foot_force_n': foot_force.reshape(len(ms), 2), 'cp_distance_m': cp,
                 **_refused_arrays(refused_estimates, refused_features)}
 
-    # Features computed with other settings are another kind of derived data.
-    kind = f'{CACHE_FORMAT}?{json.dumps(asdict(settings), sort_keys=True)}&state={state}'
+    # Features computed with other settings, other code or another robot profile are another
+    # kind of derived data.
+    kind = derivation_key(CACHE_FORMAT, (__name__,), f'settings={json.dumps(asdict(settings), sort_keys=True)}',
+                          f'state={state}', *([] if state == 'true' else [f'profile={_profile_fingerprint(out)}']))
     name = row.trajectory_id + ('' if state == 'true' else f'.{state}')
     return cached_arrays(out / 'cache' / f'{name}.npz', bag, kind, from_bag)
 

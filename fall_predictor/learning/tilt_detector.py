@@ -62,7 +62,8 @@ def _imu_entry(data_dir: Path, bag: str, trajectory_id: str) -> dict[str, np.nda
         t, quat, gyro = read_imu(data_dir / bag)
         return {'t': t, 'roll_pitch': fused_roll_pitch(quat), 'gyro': gyro}
 
-    return cached_bag_arrays(data_dir, bag, f'imu_{trajectory_id}', IMU_CACHE_FORMAT, from_bag)
+    return cached_bag_arrays(data_dir, bag, f'imu_{trajectory_id}', IMU_CACHE_FORMAT, from_bag,
+                             ('fall_predictor.data.sensorbag', 'fall_predictor.monitor.geometry'))
 
 
 def aligned_signals(imu: dict[str, np.ndarray], t: np.ndarray) -> np.ndarray:

@@ -86,7 +86,8 @@ def _com_entry(data_dir: Path, bag: str, trajectory_id: str) -> dict[str, np.nda
                 'com_xy': np.array([m.com[:2] for m in ms]).reshape(len(ms), 2),
                 'heading': np.array([m.heading for m in ms], dtype=float)}
 
-    return cached_bag_arrays(data_dir, bag, f'com_{trajectory_id}', COM_CACHE_FORMAT, from_bag)
+    return cached_bag_arrays(data_dir, bag, f'com_{trajectory_id}', COM_CACHE_FORMAT, from_bag,
+                             ('fall_predictor.data.bagio',))
 
 
 def actual_direction(com_xy: np.ndarray, heading: np.ndarray, t: np.ndarray, k: int,
