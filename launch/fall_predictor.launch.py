@@ -8,10 +8,13 @@ Usage (full ROS 2 install, package built with colcon)::
         bag_path:=/tmp/fall_bags model_path:=/path/to/model.json
     ros2 launch fall_predictor fall_predictor.launch.py sensors:=false  # exact state, no estimator
     ros2 launch fall_predictor fall_predictor.launch.py composed_robot:=true  # simulated_robot
+    ros2 launch fall_predictor fall_predictor.launch.py controller:=c_bal simulator:=mujoco
 
 Parameters come from ``config/fall_predictor.yaml`` (``params_file``); the launch arguments
-``real_time_factor``, ``model_path`` and ``bag_path`` are applied on top of it, so they win
-over the file's values. Each node is a console script of the package (setup.py);
+``real_time_factor``, ``model_path``, ``bag_path``, ``controller`` and ``simulator`` are applied
+on top of it, so they win over the file's values (``controller`` and ``simulator`` go to both the
+simulator and the controller node; '' = the robot profile's; a learned policy needs
+``sensors:=true``, the default). Each node is a console script of the package (setup.py);
 ``composed_robot:=true`` runs the simulator and the controller as ``simulated_robot`` (one
 process, the lock-step loop closed in process, about twice as fast). All topics are
 relative: ``namespace:=robot1`` runs the whole simulated system under ``/robot1``. For the
@@ -49,15 +52,25 @@ def generate_launch_description() -> LaunchDescription:
                                           'topics and state_estimator_node makes the measurement, '
                                           'as on a robot (the shipped model is trained on this '
                                           'estimated state); false: the exact simulated state'),
+        DeclareLaunchArgument('controller', default_value='',
+                              description="walking controller: 'c_bal' or a learned policy the "
+                                          "robot profile names; '' = the profile's default"),
+        DeclareLaunchArgument('simulator', default_value='',
+                              description="simulator: 'pybullet' or 'mujoco'; '' = the robot "
+                                          "profile's"),
         DeclareLaunchArgument('composed_robot', default_value='false',
                               description='true: simulator and controller nodes in one process '
                                           '(simulated_robot); false: one process each'),
     ]
     composed = LaunchConfiguration('composed_robot')
+    # Who walks the robot and where: the same for the simulator and the controller node.
+    walking = {'controller': ParameterValue(LaunchConfiguration('controller'), value_type=str),
+               'simulator': ParameterValue(LaunchConfiguration('simulator'), value_type=str)}
     simulator_overrides = {
         'real_time_factor': ParameterValue(LaunchConfiguration('real_time_factor'),
                                            value_type=float),
-        'publish_sensors': ParameterValue(LaunchConfiguration('sensors'), value_type=bool)}
+        'publish_sensors': ParameterValue(LaunchConfiguration('sensors'), value_type=bool),
+        **walking}
 
     def node(executable: str, overrides: dict | None = None, name: str | None = '', **kwargs
              ) -> Node:
@@ -73,7 +86,7 @@ def generate_launch_description() -> LaunchDescription:
         node('state_estimator_node', condition=IfCondition(LaunchConfiguration('sensors'))),
         # The simulated robot's own controller reads the simulator's exact state beside its sensors.
         node('controller_node', {'ground_truth': ParameterValue(LaunchConfiguration('sensors'),
-                                                                value_type=bool)},
+                                                                value_type=bool), **walking},
              condition=UnlessCondition(composed)),
         # Both read the model: the feature node for the feature settings it was trained with.
         node('feature_node', {'model_path': ParameterValue(

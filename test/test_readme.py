@@ -227,7 +227,7 @@ def test_method_lists_the_contact_modes_and_features_of_the_code():
 def test_method_states_the_numbers_the_code_uses():
     method = METHOD.read_text(encoding='utf-8')
     sections = re.findall(r'^## (\d+)\. ', method, flags=re.M)
-    assert sections == [str(i) for i in range(1, 13)]
+    assert sections == [str(i) for i in range(1, 14)]
     assert f'{GUARD_COM_HEIGHT_M:g} m' in method
     assert f'{FALLEN_COM_HEIGHT_M:g} m' in method
     assert f'{PUSH_DURATION_S:g} s' in method

@@ -181,3 +181,30 @@ def test_a_slab_ground_carries_a_standing_robot_as_the_plane_does():
         assert normal == pytest.approx(g1.total_mass_kg * GRAVITY, rel=0.02)
         com[ground] = m.com
     assert np.abs(com['slab'] - com['plane']).max() < 1e-3
+
+
+def test_a_policy_posture_stands_on_the_ground_and_relative_meshes_load_from_the_copy():
+    """A learned policy's posture gives no base position: PyBullet lowers the robot until its
+    lowest geometry touches the ground (as MuJoCo does); the 12-joint G1's URDF names its meshes
+    relative to its folder, and the rewritten copy PyBullet loads must still find them."""
+    from fall_predictor.profiles import load_profile
+    from fall_predictor.robot.control import make_controller
+    from fall_predictor.sim.urdf_loading import pybullet_urdf
+    profile = load_profile('g1_12dof')
+    copy = pybullet_urdf(profile.sim_urdf_path).read_text()
+    mesh_dir = profile.sim_urdf_path.resolve().parent / 'meshes'
+    assert f'filename="{mesh_dir}/' in copy and 'filename="meshes/' not in copy
+    controller = make_controller(profile, 'unitree_rl_gym')
+    sim = Simulator(SimulatorConfig(dt_s=controller.policy.config.physics_dt_s), profile)
+    try:
+        m = sim.start(controller.initial_posture())
+        gaps = [p[8] for p in pb.getClosestPoints(sim.robot, sim.plane, 1.0, physicsClientId=sim.client)]
+        assert min(gaps) == pytest.approx(0.001, abs=2e-4)
+        for _ in range(int(round(1.0 / sim.dt_s))):   # 1 s in its posture, the drives holding it
+            m = sim.step()
+        # It settles onto its feet: the weight is carried, the CoM neither sinks nor jumps.
+        assert m.left_contacts[:, 2].sum() + m.right_contacts[:, 2].sum() == pytest.approx(
+            sim.total_mass * GRAVITY, rel=0.1)
+        assert 0.6 < m.com[2] < 0.8
+    finally:
+        sim.close()

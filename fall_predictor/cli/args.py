@@ -157,11 +157,15 @@ def add_bringup_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--json', action='store_true', help='print one JSON line per push')
     parser.add_argument('--domain-id', type=domain_id, default=None,
                         help='ROS_DOMAIN_ID of the nodes (default: derived from the pid)')
-    parser.add_argument('--real-time-factor', type=nonnegative, default=0.0,
-                        help='simulated s per wall s; 0 = as fast as possible (default)')
+    parser.add_argument('--real-time-factor', type=nonnegative, default=None,
+                        help='simulated s per wall s; 0 = as fast as possible (default for '
+                             'C_bal); a learned policy runs at 1 by default (its simulator '
+                             'outpaces the monitor, which would skip samples)')
     add_robot_argument(parser)
+    add_controller_arguments(parser)
     parser.add_argument('--model', type=Path, default=None,
-                        help='model file (default: the shipped models/default_model.json)')
+                        help='model file (default: the shipped model of the robot under its '
+                             'controller, e.g. models/default_model.json)')
     parser.add_argument('--params-file', type=Path, default=None,
                         help='ROS params file (default: config/fall_predictor.yaml)')
     parser.add_argument('--record', type=Path, default=None, metavar='DIR',
@@ -171,11 +175,13 @@ def add_bringup_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--log-dir', type=Path, default=None,
                         help='node logs (default: a new temporary directory)')
     parser.add_argument('--no-fall-trigger', dest='fall_trigger', action='store_false',
-                        help='monitor only: C_bal stays in charge (record training data this way)')
+                        help='monitor only: the walking controller stays in charge (record training '
+                             'data this way)')
     parser.add_argument('--true-state', dest='sensors', action='store_false',
                         help='feed the monitor the simulator\'s exact state instead of the default: the '
                              'simulator publishes robot sensor topics and state_estimator_node makes the '
-                             'measurement (exact state then on /fall_predictor/ground_truth)')
+                             'measurement (exact state then on /fall_predictor/ground_truth); C_bal '
+                             'only (a learned policy walks on the sensor topics)')
     parser.add_argument('--sensor-timing', choices=('simulator', 'robot'), default='simulator',
                         help='how the simulated robot publishes its sensors: every stream at 1 kHz with '
                              'one stamp per step, or as a robot\'s drivers (joint states at 500 Hz split '

@@ -210,7 +210,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser('bringup', help='start the ROS 2 nodes and push the robot N times',
                        description='Start simulator, feature, predictor and controller nodes (and '
                                    'optionally the recorder) as separate processes with the shipped '
-                                   'config and model, push the robot N times and print one JSON '
-                                   'line per push.')
+                                   'config and model, push the robot N times (under a learned policy, '
+                                   'each push with the velocity command of its dataset trajectory) and '
+                                   'print one JSON line per push.')
     argtypes.add_bringup_arguments(p)
     p.set_defaults(func=cmd_bringup)

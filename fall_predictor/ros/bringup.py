@@ -11,12 +11,20 @@ waits until they are all up and connected, then for each push:
    (:func:`~fall_predictor.sim.pushes.trajectory_seed`), so push ``i`` equals the push of
    trajectory ``i`` of ``fall-predictor generate --fixed-gait --seed S`` (with gait variety, the
    default, a trajectory draws its gait first, and so another push); the onset (2.1 to 3.5 s
-   into the walk) is the request's stamp;
+   into the walk) is the request's stamp. Under a learned policy (``controller``, default the
+   robot profile's) push ``i`` and the velocity command it walks at are those of dataset
+   trajectory ``i`` (:func:`~fall_predictor.sim.policy_runs.commanded_pushes`, drawn as
+   ``generate`` draws them); the command is set on the controller node before the reset;
 3. follows ``/fall_predictor/measurement`` (fallen flag), ``/fall_predictor/state`` and
    ``/fall_predictor/controller_mode`` until the robot is fallen or ``horizon_s`` of
    simulation time after the push ended, then pauses the simulator (``~/pause``), so that a
    recorded run ends there;
-4. reports one JSON object (printed as one line when ``json_out`` is given).
+4. reports one JSON object (printed as one line when ``json_out`` is given), with the robot,
+   its controller, its simulator and the velocity command (null under C_bal).
+
+A learned policy walks on the robot's sensor topics, so it runs only with ``sensors`` (the
+monitor on the state estimator's measurement): with ``--true-state`` the bring-up refuses it in
+words rather than give the policy or the monitor another input than the robot's.
 
 After a predicted fall C_fall freezes the robot, which may then stay up: ``fell`` is false and
 ``t_fallen`` null, and ``outcome`` says ``predicted_no_fall``. Outcomes: ``fall_predicted``
@@ -56,11 +64,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Optional, TextIO
 
 from fall_predictor.contract.topics import PIPELINE_NODES, RECORDER_NODE
-from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
+from fall_predictor.profiles import DEFAULT_ROBOT, ProfileError, RobotProfile, load_profile
+from fall_predictor.profiles.profile import SIMULATORS
 from fall_predictor.ros.errors import BringupError
 from fall_predictor.ros.share import package_share_dir
 
 if TYPE_CHECKING:
+    from fall_predictor.profiles.profile import PolicyControllerProfile
     from fall_predictor.sim.pushes import PushDistribution
 
 #: Shutdown order: the source of all samples first, the recorder last.
@@ -220,11 +230,13 @@ UNPACED_PREDICTOR_PARAMS = {'max_sample_age_s': '0.0'}
 
 
 def node_overrides(real_time_factor: float, model_path: Optional[Path], fall_trigger: bool,
-                   sensors: bool, sensor_timing: str, robot: str, record_dir: Optional[Path]
+                   sensors: bool, sensor_timing: str, robot: str, record_dir: Optional[Path],
+                   controller: Optional[str] = None, simulator: Optional[str] = None
                    ) -> tuple[list[str], dict[str, dict[str, str]]]:
     """The nodes a bring-up starts, in order, and each one's parameter overrides (strings, as
     on the command line); the arguments are :func:`run_bringup`'s, ``model_path`` resolved."""
     profile = load_profile(robot)
+    policy = profile.controller_profile(controller)
     overrides: dict[str, dict[str, str]] = {
         'simulator_node': {'real_time_factor': repr(float(real_time_factor)),
                            'autostart': 'false', 'lockstep': 'true'},
@@ -236,10 +248,14 @@ def node_overrides(real_time_factor: float, model_path: Optional[Path], fall_tri
     if robot != DEFAULT_ROBOT:
         for name in ('simulator_node', 'predictor_node', 'controller_node'):
             overrides[name]['robot'] = robot
+    for name in ('simulator_node', 'controller_node'):
+        overrides[name].update({k: v for k, v in (('controller', controller),
+                                                  ('simulator', simulator)) if v})
     names = list(PIPELINE_NODES)
     if sensors:
         overrides['simulator_node']['publish_sensors'] = 'true'
-        overrides['controller_node']['ground_truth'] = 'true'     # the robot's own controller
+        if policy is None:      # C_bal, the robot's own controller, on the exact state
+            overrides['controller_node']['ground_truth'] = 'true'
         if sensor_timing == 'robot':            # sim/drivers.DriverTiming.robot(500 Hz, split)
             overrides['simulator_node'].update(
                 sensor_joint_rate_hz='500.0', sensor_imu_offset_s='0.0003',
@@ -259,28 +275,36 @@ def node_overrides(real_time_factor: float, model_path: Optional[Path], fall_tri
 
 
 def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
-                domain_id: Optional[int] = None, real_time_factor: float = 0.0,
+                domain_id: Optional[int] = None, real_time_factor: Optional[float] = None,
                 model_path: Optional[Path] = None, params_file: Optional[Path] = None,
                 record_dir: Optional[Path] = None, horizon_s: float = 3.0,
                 log_dir: Optional[Path] = None, startup_timeout_s: float = 60.0,
                 push_distribution: Optional[PushDistribution] = None,
-                fall_trigger: bool = True, sensors: bool = False,
-                sensor_timing: str = 'simulator', robot: str = DEFAULT_ROBOT) -> list[dict]:
+                fall_trigger: bool = True, sensors: Optional[bool] = None,
+                sensor_timing: str = 'simulator', robot: str = DEFAULT_ROBOT,
+                controller: Optional[str] = None, simulator: Optional[str] = None) -> list[dict]:
     """Start the nodes, push the robot ``pushes`` times, stop everything; see the module docs.
 
-    ``real_time_factor`` 0 runs as fast as the lock-stepped pipeline allows (the outcome does
-    not depend on it: the predictor's sample-age check is then off,
-    :data:`UNPACED_PREDICTOR_PARAMS`); ``record_dir`` also runs the recorder (one bag per push run);
+    ``real_time_factor`` 0 runs as fast as the lock-stepped simulator and controller go (the
+    predictor's sample-age check is then off, :data:`UNPACED_PREDICTOR_PARAMS`); the monitor is
+    not lock-stepped, so this is the default only where the simulator is the slower (C_bal in
+    PyBullet): a learned policy in MuJoCo outpaces it, and its runs default to 1 (real time, as
+    on the robot); ``record_dir`` also runs the recorder (one bag per push run);
     ``horizon_s`` is the simulation time [s] watched after a push ends if the robot does not
     fall; node logs go to ``log_dir`` (default: a new temporary directory);
-    ``push_distribution`` defaults to method §3's. With ``fall_trigger`` false the predictor
-    still runs and is reported, but C_bal stays in charge throughout (method §4: the recording
-    then carries valid hindsight labels for training). With ``sensors`` the simulator
-    publishes the robot's sensor topics and its exact state on ``/fall_predictor/ground_truth``,
-    and the state_estimator_node makes the measurement the other nodes read. ``robot`` (a robot
-    profile) is the simulated robot; another robot than the default runs with sensors, its push
-    range and its profile's shipped model. Raises :class:`BringupError` if a node fails to start
-    or dies, or the simulation gets stuck.
+    ``push_distribution`` defaults to method §3's (under a learned policy: its datasets' protocol,
+    whose ``sample(rng)`` gives the velocity command and the push). With ``fall_trigger`` false
+    the predictor still runs and is reported, but the walking controller stays in charge
+    throughout (method §4: the recording then carries valid hindsight labels for training). With
+    ``sensors`` the simulator publishes the robot's sensor topics and its exact state on
+    ``/fall_predictor/ground_truth``, and the state_estimator_node makes the measurement the
+    other nodes read (None: with sensors under a learned policy or on another robot than the
+    default, with the exact state for C_bal on the default robot; false under a learned policy is
+    refused). ``robot`` (a robot profile) is the simulated robot; another robot than the default
+    runs with sensors, its push range and its profile's shipped model for the controller.
+    ``controller`` and ``simulator`` default to the profile's. Raises :class:`BringupError` if
+    the controller cannot run so, the model is missing, a node fails to start or dies, or the
+    simulation gets stuck.
     """
     if pushes < 0:
         raise ValueError(f'pushes must be >= 0, got {pushes}')
@@ -290,14 +314,19 @@ def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
     from fall_predictor.sim.pushes import PushDistribution, robot_gait, trajectory_seed
 
     profile = load_profile(robot)
-    if robot != DEFAULT_ROBOT:
+    controller, simulator, policy = _controller_of(profile, controller, simulator, sensors)
+    if robot != DEFAULT_ROBOT or policy is not None:
         sensors = True                  # the monitor on the robot's own sensor topics
-        push_distribution = push_distribution or PushDistribution.for_robot(profile)
+        if policy is None:
+            push_distribution = push_distribution or PushDistribution.for_robot(profile)
         if model_path is None:
-            model_path = package_share_dir() / 'models' / profile.model
-            if not model_path.is_file():
-                raise BringupError(f'no shipped model for robot {profile.name!r} ({model_path}): '
-                                   'train one on its data (fall-predictor train) and pass --model')
+            model_path = _shipped_model(profile, controller)
+    sensors = bool(sensors)
+    if real_time_factor is None:
+        real_time_factor = 0.0 if policy is None else 1.0
+    if policy is not None and push_distribution is None:
+        from fall_predictor.sim.policy_runs import commanded_pushes
+        push_distribution = commanded_pushes(policy)
     push_distribution = push_distribution or PushDistribution()
     domain_id = default_domain_id() if domain_id is None else domain_id
     env = ros_environment(domain_id)
@@ -305,7 +334,7 @@ def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
     log_dir.mkdir(parents=True, exist_ok=True)
     params_file = Path(params_file) if params_file else default_params_file()
     names, overrides = node_overrides(real_time_factor, model_path, fall_trigger, sensors,
-                                      sensor_timing, robot, record_dir)
+                                      sensor_timing, robot, record_dir, controller, simulator)
 
     context = rclpy.Context()
     with _scoped_environment({'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'}):
@@ -330,9 +359,17 @@ def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
             raise BringupError(f'the nodes did not come up within {startup_timeout_s} s '
                                f'(logs in {log_dir})')
         for index in range(pushes):
-            push = push_distribution.sample(trajectory_seed(seed, index), robot_gait(robot))
-            result = observer.run_push(index, push, horizon_s, check_alive)
-            result.update(seed=seed, domain_id=domain_id)
+            command = None
+            if policy is None:
+                push = push_distribution.sample(trajectory_seed(seed, index), robot_gait(robot))
+            else:   # dataset trajectory i's command, set before the reset starts the run
+                command, push = push_distribution.sample(trajectory_seed(seed, index))
+                _command_controller(observer, command)
+            result = observer.run_push(index, push, horizon_s, check_alive,
+                                       profile.fallen_com_height_m)
+            result.update(seed=seed, domain_id=domain_id, robot=profile.name,
+                          controller=controller, simulator=simulator,
+                          command=None if command is None else [float(v) for v in command])
             results.append(result)
             if json_out is not None:
                 print(json.dumps(result, sort_keys=True), file=json_out, flush=True)
@@ -342,6 +379,53 @@ def run_bringup(pushes: int, seed: int, json_out: Optional[TextIO] = None,
         rclpy.try_shutdown(context=context)
         stop_nodes(nodes)
     return results
+
+
+def _controller_of(profile: RobotProfile, controller: Optional[str], simulator: Optional[str],
+                   sensors: Optional[bool]) -> tuple[str, str, Optional['PolicyControllerProfile']]:
+    """(controller, simulator, the learned policy's profile entry or None) of the bring-up's
+    options, the profile's where not given; BringupError in words for what cannot run."""
+    name = controller or profile.default_controller
+    try:
+        policy = profile.controller_profile(name)
+    except ProfileError as error:
+        raise BringupError(str(error)) from None
+    simulator = simulator or profile.simulator
+    if simulator not in SIMULATORS:
+        raise BringupError(f'simulator must be one of {", ".join(SIMULATORS)}, got {simulator!r}')
+    if policy is not None and sensors is False:
+        raise BringupError(f'controller {name!r} is a learned policy: it walks on the robot\'s '
+                           'sensor topics, and the monitor then reads the state estimated from '
+                           'them; --true-state (the monitor on the simulator\'s exact state) is '
+                           'for C_bal (--controller c_bal)')
+    return name, simulator, policy
+
+
+def _shipped_model(profile: RobotProfile, controller: str) -> Path:
+    """The package's model for ``profile``'s robot under ``controller`` (BringupError naming the
+    file when it is not there)."""
+    try:
+        name = profile.model_for(controller)
+    except ProfileError as error:
+        raise BringupError(f'{error}: train one on its data and pass --model FILE') from None
+    path = package_share_dir() / 'models' / name
+    if not path.is_file():
+        raise BringupError(f'no shipped model for robot {profile.name!r} under {controller!r}: '
+                           f'{path} does not exist; generate its data (fall-predictor generate '
+                           f'--robot {profile.name} --controller {controller}), train one '
+                           '(fall-predictor train) and pass --model FILE')
+    return path
+
+
+def _command_controller(observer, command) -> None:
+    """Set the controller node's velocity command (vx, vy, yaw rate) for the next run."""
+    names = ('command_vx_m_s', 'command_vy_m_s', 'command_yaw_rate_rad_s')
+    results = observer.set_parameters('controller_node', **{
+        name: float(value) for name, value in zip(names, command)})
+    refused = [r.reason for r in results if not r.successful]
+    if refused:
+        raise BringupError(f'controller_node refused the velocity command {list(command)}: '
+                           f'{"; ".join(refused)}')
 
 
 # --------------------------------------------------------------------------------------------
@@ -357,7 +441,8 @@ def cmd_bringup(args: argparse.Namespace) -> int:
                               record_dir=args.record, horizon_s=args.horizon,
                               log_dir=args.log_dir, fall_trigger=args.fall_trigger,
                               sensors=args.sensors, sensor_timing=args.sensor_timing,
-                              robot=args.robot)
+                              robot=args.robot, controller=args.controller,
+                              simulator=args.simulator)
     except BringupError as error:
         print(f'error: {error}', file=sys.stderr)
         return 1
@@ -365,8 +450,10 @@ def cmd_bringup(args: argparse.Namespace) -> int:
         for r in results:
             push = r['push']
             lead = '' if r['lead_time_s'] is None else f", lead {r['lead_time_s']:.3f} s"
+            walk = '' if r['command'] is None else ' walking at ({:.2f}, {:.2f}, {:.2f})'.format(
+                *r['command'])
             print(f"push {r['index']}: {push['force_n']:.0f} N at {push['angle_deg']:.0f} deg, "
-                  f"t = {push['t_push']:.3f} s -> {r['outcome']} (predicted "
-                  f"{r['t_predict']}, fallen {r['t_fallen']}{lead}), "
+                  f"t = {push['t_push']:.3f} s, {r['controller']} in {r['simulator']}{walk} -> "
+                  f"{r['outcome']} (predicted {r['t_predict']}, fallen {r['t_fallen']}{lead}), "
                   f"controller {r['controller_mode']}")
     return 0

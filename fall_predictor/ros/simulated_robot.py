@@ -9,7 +9,11 @@ topics are still published for the monitor, recorders and tools. The world steps
 times per executor wake-up; the fall trigger, push requests, timers and services are served in
 between, so the controller sees the trigger at most 5 ms of simulation time later than as a
 separate process. With ``publish_sensors`` the controller takes the simulator's exact state
-(``fall_predictor/ground_truth``) in process the same way, as C_bal does in data generation.
+(``fall_predictor/ground_truth``) in process the same way, as C_bal does in data generation. A
+learned policy (``controller``) reads the robot's sensor topics instead, over DDS within the
+process: the simulator publishes each sample's sensors before it awaits the answer, the policy
+answers that sample, and its command comes back in process; the run equals the offline loop's
+(``sim/trajectory.py``) with the same sensor noise.
 
     ros2 run fall_predictor simulated_robot --ros-args --params-file config/fall_predictor.yaml
 

@@ -1,8 +1,12 @@
-"""simulator_node: the simulated humanoid (PyBullet, 1 ms steps), lock-stepped with the controller.
+"""simulator_node: the simulated humanoid, lock-stepped with the controller.
 
-Publishes, all stamped with simulation time:
+The robot (``robot``, a profile) walked by its controller (``controller``: C_bal or a learned
+policy the profile names; '' = the profile's default) in its simulator (``simulator``: PyBullet or
+MuJoCo; '' = the profile's), at the physics step that controller needs (a learned policy's deploy
+step, else the engine's own: PyBullet 1 ms; :mod:`fall_predictor.ros.simulated_world`), from the
+controller's starting posture. Publishes, all stamped with simulation time:
 
-* ``/fall_predictor/measurement`` and ``/clock`` every physics step (1 kHz of simulation time);
+* ``/fall_predictor/measurement`` and ``/clock`` every physics step;
 * ``/joint_states`` at ``joint_state_rate_hz`` of simulation time;
 * ``/fall_predictor/push`` once per applied push (onset stamp, world force);
 * ``/diagnostics`` once per wall second.
@@ -18,34 +22,43 @@ into legs and upper body with ``sensor_split_joints``, :mod:`fall_predictor.sim.
 state_estimator_node's. Every stamp is simulation time, the time of ``/clock``: the other nodes
 run with ``use_sim_time``.
 
-Subscribes to ``/fall_predictor/joint_commands`` (the controller node's joint targets) and to
-``/fall_predictor/push_request`` (see :data:`~fall_predictor.ros.health.PUSH_REQUEST`).
+Subscribes to ``/fall_predictor/joint_commands`` (the controller node's joint targets, every
+joint of the robot in the profile's order) and to ``/fall_predictor/push_request`` (see
+:data:`~fall_predictor.ros.health.PUSH_REQUEST`). The robot's drives track the targets with a
+learned policy's PD gains (its deploy config's: they are the drives' configuration, not part of
+the command) or with the robot's own servos under C_bal.
+
+**A learned policy** walks on the robot's sensors, never on the simulator's state: it needs
+``publish_sensors`` (the node refuses to start without), with joint states and IMU readings at
+every physics step; each sample's sensor messages are published before its command is awaited.
 
 **Lock-step** (``lockstep``, default true): after publishing sample k the node waits for the
-joint command stamped with sample k's time, applies it and steps, so the robot obeys the
-controller exactly and a run is deterministic. If no matching command arrives within
-``command_timeout_s`` of wall time, it steps with the last command and counts a missed
-command (reported in ``/diagnostics``). Without lock-step, a wall-clock timer steps the world
-at ``real_time_factor`` with the latest command received. A run starts (sample t = 0 is
-published) only once the measurement has a subscriber and, in lock-step, the command topic a
-publisher; other late subscribers miss the first samples. For a complete record from t = 0,
-set ``autostart`` false and call ``~/reset`` once every node's ``/diagnostics`` reports empty
-``unmatched_inputs``, as the bring-up does.
+joint command stamped with sample k's time (the stamp of its joint states: a policy answers each
+joint state sample), applies it and steps, so the robot obeys the controller exactly and a run
+is deterministic. If no matching command arrives within ``command_timeout_s`` of wall time, it
+steps with the last command and counts a missed command (reported in ``/diagnostics``). Without
+lock-step, a wall-clock timer steps the world at ``real_time_factor`` with the latest command
+received. A run starts (sample t = 0 is published) only once the measurement (with sensors:
+``/joint_states``, and for a policy ``/imu/data`` too) has a subscriber and, in lock-step, the
+command topic a publisher; other late subscribers miss the first samples. For a complete record
+from t = 0, set ``autostart`` false and call ``~/reset`` once every node's ``/diagnostics``
+reports empty ``unmatched_inputs``, as the bring-up does.
 
 **Pacing**: ``real_time_factor`` 1.0 keeps simulation time from running ahead of wall time;
 0 steps as fast as the controller answers (lock-step only). A pipeline slower than real time
 simply runs slower (the achieved factor is in ``/diagnostics``).
 
 **Pushes** (method §3): a constant horizontal force for 0.1 s on the torso. A push request gives
-the onset (header stamp, simulation time; a past time means the next step), the force in the
+the onset (header stamp, simulation time, rounded to the physics step; a past time means the next
+step), the force in the
 robot's heading frame and its torque about the CoM, ``(0, 0, h) x F``, from which the
 application height ``h`` above the CoM is recovered. With ``random_push_period_s`` > 0 the node
 also pushes by itself every period of simulation time, drawing force, direction and height
 from :class:`~fall_predictor.sim.pushes.PushDistribution` seeded with ``random_push_seed``. A
 request while a push is still acting is rejected (logged and counted).
 
-**Fallen**: with ``stop_when_fallen`` the world stops stepping at the first fallen sample
-(method §4); otherwise it keeps going. ``~/reset`` (std_srvs/Trigger) starts a fresh world at
+**Fallen**: with ``stop_when_fallen`` the world stops stepping at the first fallen sample (CoM
+below the profile's ``fallen_com_height_m``, method §4); otherwise it keeps going. ``~/reset`` (std_srvs/Trigger) starts a fresh world at
 t = 0 (the other nodes notice time going backwards and reset themselves); ``~/pause``
 (std_srvs/SetBool) holds the world (true) or lets it go on (false).
 """
@@ -54,7 +67,6 @@ from __future__ import annotations
 import math
 import time
 from functools import partial
-from collections.abc import Mapping
 from dataclasses import replace
 from typing import Optional
 
@@ -66,25 +78,27 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool, Trigger
 
-from fall_predictor.profiles import DEFAULT_ROBOT, RobotProfile
+from fall_predictor.profiles import DEFAULT_ROBOT
 from fall_predictor.ros import conversions as ros_qos
+from fall_predictor.robot.control import Posture
 from fall_predictor.robot.controllers import BalanceController, controller_configs
-from fall_predictor.ros.robots import ROBOT_PARAM, profile_for
+from fall_predictor.ros.robots import profile_for
 from fall_predictor.ros.endpoints import create_publisher, create_subscription
 from fall_predictor.ros.health import Diagnostics, InputErrors, Report, steady_clock
-from fall_predictor.ros.parameters import (NodeStartupError, ParamSpec, ParamValue, declare_parameters)
+from fall_predictor.ros.parameters import NodeStartupError, declare_parameters
 from fall_predictor.ros.runner import run_node
 from fall_predictor.ros.in_process import Output, take_from
+from fall_predictor.ros.simulated_world import (CommandDrives, check_policy_timing,
+                                                controller_choice, make_node_world)
+from fall_predictor.ros.simulator_params import PARAMS, check_pacing, driver_timing
 from fall_predictor.sim.pushes import PushDistribution
 from fall_predictor.monitor.records import Measurement, PushSpec
-from fall_predictor.sim.simulator import DT_S, Simulator
 from fall_predictor.ros.simulated_sensors import SimulatedSensors
 from fall_predictor.contract import messages
 from fall_predictor.contract.topics import (CLOCK, GROUND_TRUTH, JOINT_COMMANDS, JOINT_STATES,
-                                            MEASUREMENT, ODOM_FRAME, PUSH, PUSH_REQUEST, SIM_RATE_HZ,
+                                            MEASUREMENT, ODOM_FRAME, PUSH, PUSH_REQUEST,
                                             WireFormatError)
 from fall_predictor.msg import Measurement as MeasurementMsg
-from fall_predictor.sim.drivers import DriverTiming
 from fall_predictor.contract.wire import LEVEL_OK, LEVEL_WARN
 
 NODE_NAME = 'simulator_node'
@@ -96,94 +110,58 @@ _PAUSED = 'paused (~/pause)'
 #: Lock-step with an in-process controller: steps per executor wake-up (see ``_advance``).
 _STEPS_PER_WAKEUP = 5
 
-PARAMS = (
-    ROBOT_PARAM,
-    ParamSpec('lockstep', True, 'wait for the controller command of each sample before '
-              'stepping (deterministic runs); false: step on a wall-clock timer', read_only=True),
-    ParamSpec('real_time_factor', 1.0, 'simulated seconds per wall second (upper bound); '
-              '0 = as fast as possible (lock-step only)', 0.0, 100.0),
-    ParamSpec('command_timeout_s', 0.5, 'lock-step: wall time [s] to wait for the command of a '
-              'sample before stepping with the last command (a missed command)', 0.001, 60.0),
-    ParamSpec('joint_state_rate_hz', 100.0, 'rate of /joint_states in simulation time [Hz], '
-              'rounded to a whole number of 1 ms steps', 1.0, SIM_RATE_HZ, read_only=True),
-    ParamSpec('stop_when_fallen', False, 'stop stepping at the first fallen sample (until '
-              '~/reset); false: keep simulating the fallen robot'),
-    ParamSpec('autostart', True, 'start a run at launch; false: wait for the first ~/reset',
-              read_only=True),
-    ParamSpec('random_push_period_s', 0.0, 'push the robot every this many simulated seconds '
-              'with a push drawn from the method §3 distribution; 0 = off', 0.0, 3600.0,
-              read_only=True),
-    ParamSpec('random_push_seed', 0, 'seed of the random pushes', 0, 2**31 - 1,
-              read_only=True),
-    ParamSpec('publish_sensors', False, 'publish the robot sensor topics and the exact state on '
-              '/fall_predictor/ground_truth (the measurement comes from state_estimator_node)',
-              read_only=True),
-    ParamSpec('sensor_noise_scale', 1.0, 'multiplier of every sensor noise and bias (0 = ideal)',
-              0.0, 100.0, read_only=True),
-    ParamSpec('sensor_seed', 0, 'seed of the sensor noise', 0, 2**31 - 1, read_only=True),
-    ParamSpec('sensor_joint_rate_hz', 1000.0, 'rate of the sensors\' /joint_states [Hz]', 1.0,
-              1000.0, read_only=True),
-    ParamSpec('sensor_imu_rate_hz', 1000.0, 'rate of /imu/data [Hz]', 1.0, 1000.0, read_only=True),
-    ParamSpec('sensor_wrench_rate_hz', 1000.0, 'rate of the foot wrenches [Hz]', 1.0, 1000.0,
-              read_only=True),
-    ParamSpec('sensor_imu_offset_s', 0.0, 'IMU stamps this much after the encoders\' [s]', 0.0,
-              0.00099, read_only=True),
-    ParamSpec('sensor_wrench_offset_s', 0.0, 'foot wrench stamps this much after the encoders\' '
-              '[s]', 0.0, 0.00099, read_only=True),
-    ParamSpec('sensor_split_joints', False, 'publish the joint states as two messages (legs, upper '
-              'body), as two controllers would', read_only=True),
-)
-
-
-def _driver_timing(p: Mapping[str, ParamValue], profile: RobotProfile) -> DriverTiming:
-    """How the simulated robot's drivers publish its sensors (the ``sensor_*`` parameters)."""
-    groups = profile.legs_and_upper_body() if p['sensor_split_joints'] else ()
-    return DriverTiming(joint_rate_hz=float(p['sensor_joint_rate_hz']),
-                        imu_rate_hz=float(p['sensor_imu_rate_hz']),
-                        wrench_rate_hz=float(p['sensor_wrench_rate_hz']),
-                        imu_offset_s=float(p['sensor_imu_offset_s']),
-                        wrench_offset_s=float(p['sensor_wrench_offset_s']), joint_groups=groups)
-
-
-def _check_pacing(values: Mapping[str, ParamValue]) -> Optional[str]:
-    if not values['lockstep'] and values['real_time_factor'] == 0.0:
-        return 'real_time_factor must be > 0 without lockstep (a timer steps the world)'
-    return None
-
-
 class SimulatorNode(Node):
-    """Owns one :class:`~fall_predictor.sim.simulator.Simulator`; see the module documentation."""
+    """Owns one world of :mod:`fall_predictor.sim.world`; see the module documentation."""
 
     def __init__(self, in_process_controller: bool = False, **kwargs: object) -> None:
         """``in_process_controller``: the joint commands come from a controller node of the same
         process (:meth:`connect_controller`, ``simulated_robot``), not from a subscription;
         ``kwargs`` go to ``Node``."""
         super().__init__(NODE_NAME, **kwargs)
-        p = declare_parameters(self, PARAMS, _check_pacing)
+        p = declare_parameters(self, PARAMS, check_pacing)
         self._lockstep = bool(p['lockstep'])
         self._real_time_factor = float(p['real_time_factor'])
         self._command_timeout_s = float(p['command_timeout_s'])
-        self._joint_state_every = max(1, round(SIM_RATE_HZ / float(p['joint_state_rate_hz'])))
         self._stop_when_fallen = bool(p['stop_when_fallen'])
         self._random_push_period_s = float(p['random_push_period_s'])
         self._push_rng = np.random.default_rng(int(p['random_push_seed']))
         self._profile = profile = profile_for(str(p['robot']))
         self._joint_names = profile.joint_names
-        self._push_distribution = PushDistribution.for_robot(profile) \
-            if profile.name != DEFAULT_ROBOT else PushDistribution()
         self.add_post_set_parameters_callback(self._apply_parameters)
 
-        gait, reflex, stabilizer = controller_configs(profile)
-        self._q0, self._torso0 = BalanceController(gait, reflex, stabilizer=stabilizer,
-                                                   profile=profile).initial_posture()
-        try:
-            self._sim = Simulator(profile=profile)
-        except RuntimeError as error:
-            raise NodeStartupError(str(error)) from error
+        self._choice = choice = controller_choice(profile, str(p['controller']), str(p['simulator']))
+        # Random pushes: the protocol's, with the force range of the controller's datasets.
+        forces = tuple(profile.push_force_range_n(choice.name))
+        self._push_distribution = PushDistribution(force_n=forces) \
+            if profile.name != DEFAULT_ROBOT or choice.is_policy else PushDistribution()
+        timing = driver_timing(p, profile)
+        self._drives = CommandDrives(profile, choice)
+        if choice.is_policy and not p['publish_sensors']:
+            raise NodeStartupError(f'controller {choice.name!r} is a learned policy: it walks on the '
+                                   'robot\'s sensor topics, which need publish_sensors true')
+        if choice.is_policy:
+            self._posture = self._drives.posture
+        else:
+            gait, reflex, stabilizer = controller_configs(profile)
+            q0, torso0 = BalanceController(gait, reflex, stabilizer=stabilizer,
+                                           profile=profile).initial_posture()
+            self._posture = Posture(dict(zip(self._joint_names, map(float, q0))), 0.0,
+                                    tuple(float(v) for v in torso0))
+        self._world = make_node_world(profile, choice)
+        #: The physics step [s]: every sample, pacing and push onset is on its grid.
+        self.dt_s = float(self._world.dt_s)
+        if choice.is_policy:
+            check_policy_timing(timing, self.dt_s, choice)
+        self._joint_state_every = max(1, round(1.0 / (self.dt_s * float(p['joint_state_rate_hz']))))
+        self._q0 = np.array([self._posture.joint_angles.get(n, 0.0) for n in self._joint_names])
 
         self._sensors = SimulatedSensors(self, float(p['sensor_noise_scale']), int(p['sensor_seed']),
-                                         _driver_timing(p, profile), profile) \
+                                         timing, profile, self.dt_s) \
             if p['publish_sensors'] else None
+        #: Period [s] of the measurement stream a run drives (the estimator's, driven by the
+        #: joint states, with sensors).
+        self.sample_period_s = self.dt_s if self._sensors is None else max(
+            self.dt_s, 1.0 / timing.joint_rate_hz)
         #: The measurement (the exact state on ground_truth with sensors), published and handed
         #: to in-process consumers (the controller in ``simulated_robot``).
         self.output = Output(create_publisher(self, MeasurementMsg,
@@ -207,7 +185,7 @@ class SimulatorNode(Node):
                        'pushes': 0, 'missed_commands': 0, 'late_commands': 0}
         self._bad_commands = InputErrors(self)
         self._bad_push_requests = InputErrors(self)
-        self._command = self._q0.copy()
+        self._command = self._drives(self._q0)
         self._m: Measurement            # the latest sample, set by _begin_run
         self._published = False             # current sample published?
         self._awaiting_ns: Optional[int] = None
@@ -225,13 +203,18 @@ class SimulatorNode(Node):
         self.create_timer(_WATCHDOG_PERIOD_S, self._on_watchdog, clock=steady_clock())
         self._step_timer = None
         if not self._lockstep:
-            self._step_timer = self.create_timer(DT_S / self._real_time_factor,
+            self._step_timer = self.create_timer(self.dt_s / self._real_time_factor,
                                                  self._on_step_timer, clock=steady_clock())
         self._diagnostics = Diagnostics(self, self._report, lambda: ros_qos.sim_ns(self._m.t),
                                         [s for s in (self._command_sub,) if s is not None])
-        self._begin_run(None if p['autostart'] else 'waiting for ~/reset')
+        try:
+            self._begin_run(None if p['autostart'] else 'waiting for ~/reset')
+        except ValueError as error:     # the engine cannot start the robot in that posture
+            raise NodeStartupError(f'{choice.simulator} cannot start {profile.name} under '
+                                   f'{choice.name}: {error}') from error
         self.get_logger().info(
-            f'simulator ready: lockstep={self._lockstep}, real_time_factor='
+            f'simulator ready: {profile.name} under {choice.name} in {choice.simulator} '
+            f'({self.dt_s * 1e3:g} ms steps), lockstep={self._lockstep}, real_time_factor='
             f'{self._real_time_factor}, random_push_period_s={self._random_push_period_s}')
 
     # -- parameters ------------------------------------------------------------------------
@@ -241,7 +224,7 @@ class SimulatorNode(Node):
                 self._real_time_factor = float(parameter.value)
                 self._pace_anchor = (time.monotonic(), self._m.t)
                 if self._step_timer is not None:
-                    self._step_timer.timer_period_ns = round(DT_S / self._real_time_factor * 1e9)
+                    self._step_timer.timer_period_ns = round(self.dt_s / self._real_time_factor * 1e9)
             elif parameter.name == 'command_timeout_s':
                 self._command_timeout_s = float(parameter.value)
             elif parameter.name == 'stop_when_fallen':
@@ -251,8 +234,8 @@ class SimulatorNode(Node):
     def _begin_run(self, hold: Optional[str] = None) -> None:
         """A fresh world at t = 0, published as soon as the consumers are there (unless
         held for ``hold``)."""
-        self._m = self._sim.reset(self._q0, self._torso0)
-        self._command = self._q0.copy()
+        self._m = self._world.start(self._posture)
+        self._command = self._drives(self._q0)
         self._published = False
         self._command_ready = False
         self._awaiting_ns = None
@@ -282,7 +265,8 @@ class SimulatorNode(Node):
         if self._sensors is None:
             listened = self.output.consumers or self.output.publisher.get_subscription_count()
         else:
-            listened = self._joint_state_pub.get_subscription_count()
+            listened = self._joint_state_pub.get_subscription_count() and (
+                not self._choice.is_policy or self._sensors.imu_subscribed)
         if not listened:
             return
         if self._lockstep and not (self._commands_connected or (
@@ -326,20 +310,20 @@ class SimulatorNode(Node):
             self._bad_commands.reject('joint command', error)
             return
         if not self._lockstep:
-            self._command = sample.position
+            self._command = self._drives(sample.position)
             return
         stamp_ns = messages.stamp_ns(msg)
         if stamp_ns != self._awaiting_ns or self._command_ready:
             self.counts['late_commands'] += 1
             return
-        self._command = sample.position
+        self._command = self._drives(sample.position)
         self._command_ready = True
         if not self._in_publish:            # in process, the loop in _advance() goes on
             self._advance()
 
     def _on_push_request(self, msg: WrenchStamped) -> None:
         try:
-            push = ros_qos.push_request_from_msg(msg, self._m.t, DT_S)
+            push = ros_qos.push_request_from_msg(msg, self._m.t, self.dt_s)
             if self._push_busy():
                 raise ValueError('another push is scheduled or still acting '
                                  f'(until {self._push_busy_until_s:.3f} s)')
@@ -353,7 +337,7 @@ class SimulatorNode(Node):
         return self._pending_push is not None or self._m.t < self._push_busy_until_s - 1e-9
 
     def _schedule_push(self, push: PushSpec) -> None:
-        self._sim.schedule_push(push)
+        self._world.schedule_push(push)
         self._pending_push = push
         self._push_busy_until_s = push.t_force_end
         self.get_logger().info(
@@ -403,12 +387,12 @@ class SimulatorNode(Node):
     def _step_and_publish(self) -> None:
         if self._lockstep:
             self._pace()
-        self._sim.set_joint_targets(self._command)
-        m = self._sim.step()
+        self._world.apply(self._command)
+        m = self._world.step()
         self._m = m
         self.counts['steps'] += 1
         pending = self._pending_push
-        if pending is not None and m.t > pending.t_push + DT_S / 2:
+        if pending is not None and m.t > pending.t_push + self.dt_s / 2:
             self._push_pub.publish(ros_qos.push_to_msg(pending.t_push, m.push_force))
             self.counts['pushes'] += 1
             self._pending_push = None
@@ -424,7 +408,7 @@ class SimulatorNode(Node):
         if self._real_time_factor <= 0.0:
             return
         wall0, sim0 = self._pace_anchor
-        due = wall0 + (self._m.t + DT_S - sim0) / self._real_time_factor
+        due = wall0 + (self._m.t + self.dt_s - sim0) / self._real_time_factor
         ahead = due - time.monotonic()
         if ahead > 0.0:
             time.sleep(ahead)
@@ -440,6 +424,15 @@ class SimulatorNode(Node):
         self._published_wall = time.monotonic()
         # /clock first: a node reading this sample's stamp against its ROS clock sees its time.
         self._clock_pub.publish(Clock(clock=ros_qos.stamp(stamp_ns)))
+        # The sample's sensors before its measurement is handed off: a controller of this process
+        # may answer (and the world step on) during the hand-off.
+        if self._sensors is not None:
+            self.counts['joint_states'] += self._sensors.publish(self._world, self._joint_state_pub)
+        elif self._world.tick % self._joint_state_every == 0:
+            q, dq, effort = self._world.joint_states()
+            self._joint_state_pub.publish(
+                ros_qos.joint_state_to_msg(stamp_ns, self._joint_names, q, dq, effort))
+            self.counts['joint_states'] += 1
         self._in_publish = True
         try:
             self.output.hand_off(messages.StampedMeasurement(stamp_ns, ODOM_FRAME, '', m),
@@ -448,14 +441,7 @@ class SimulatorNode(Node):
         finally:
             self._in_publish = False
         self.counts['measurements'] += 1
-        if self._sensors is not None:
-            self.counts['joint_states'] += self._sensors.publish(self._sim, self._joint_state_pub)
-        elif self._sim.tick % self._joint_state_every == 0:
-            q, dq, effort = self._sim.joint_states()
-            self._joint_state_pub.publish(
-                ros_qos.joint_state_to_msg(stamp_ns, self._joint_names, q, dq, effort))
-            self.counts['joint_states'] += 1
-        if self._t_fallen is None and m.fallen:
+        if self._t_fallen is None and m.com[2] < self._profile.fallen_com_height_m:
             self._t_fallen = m.t
             self.get_logger().info(f'robot fallen at t = {m.t:.3f} s')
             if self._stop_when_fallen:
@@ -465,13 +451,15 @@ class SimulatorNode(Node):
     def _report(self) -> Report:
         wall0, steps0 = self._report_anchor
         now = time.monotonic()
-        achieved = (self.counts['steps'] - steps0) * DT_S / (now - wall0)
+        achieved = (self.counts['steps'] - steps0) * self.dt_s / (now - wall0)
         self._report_anchor = (now, self.counts['steps'])
         missed = self.counts['missed_commands'] - self._missed_at_report
         self._missed_at_report = self.counts['missed_commands']
         rejected = (self._bad_commands.new_since_last_call()
                     + self._bad_push_requests.new_since_last_call())
         values = {'t_s': f'{self._m.t:.3f}', 'real_time_factor_achieved': f'{achieved:.3f}',
+                  'controller': self._choice.name, 'simulator': self._choice.simulator,
+                  'dt_s': self.dt_s, 'sample_period_s': self.sample_period_s,
                   'real_time_factor': self._real_time_factor, 'lockstep': self._lockstep,
                   't_fallen_s': self._t_fallen, 'invalid_commands': self._bad_commands.count,
                   'push_requests_rejected': self._bad_push_requests.count,
@@ -486,7 +474,7 @@ class SimulatorNode(Node):
         return LEVEL_OK, 'running', values
 
     def destroy_node(self) -> None:
-        self._sim.close()
+        self._world.close()
         super().destroy_node()
 
 

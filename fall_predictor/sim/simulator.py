@@ -29,6 +29,10 @@ MIN_CONTACT_FORCE_N = 1e-6
 #: How far [m] the robot is lifted before a snapshot is restored (:meth:`Simulator.restore`):
 #: far above any link's reach of the ground, so no contact survives.
 LIFT_BEFORE_RESTORE_M = 50.0
+#: A posture without a base position starts this high [m], then is lowered onto the ground.
+STAND_SEARCH_HEIGHT_M = 3.0
+#: How far above the ground its lowest geometry then starts [m] (it settles in a step).
+START_CLEARANCE_M = 0.001
 
 
 @dataclass(frozen=True)
@@ -305,12 +309,26 @@ class Simulator:
         return self.config.dt_s
 
     def start(self, posture) -> Measurement:
-        """A fresh world with the robot at rest in ``posture`` (robot/control.Posture; PyBullet
-        needs the base position: C_bal gives it)."""
-        if posture.base_position_m is None:
-            raise ValueError('PyBullet starts the robot at a given base position')
+        """A fresh world with the robot at rest in ``posture`` (robot/control.Posture): at its
+        base position (C_bal gives one), or with none (a learned policy's posture) standing with
+        its lowest geometry just above the ground, as in MuJoCo."""
         q0 = [posture.joint_angles.get(name, 0.0) for name in self.profile.joint_names]
-        return self.reset(q0, posture.base_position_m, posture.base_yaw_rad)
+        if posture.base_position_m is not None:
+            return self.reset(q0, posture.base_position_m, posture.base_yaw_rad)
+        self.reset(q0, (0.0, 0.0, STAND_SEARCH_HEIGHT_M), posture.base_yaw_rad)
+        c = self.client
+        gaps = [point[8] for point in pb.getClosestPoints(self.robot, self.plane, STAND_SEARCH_HEIGHT_M,
+                                                          physicsClientId=c)]
+        if not gaps:
+            raise ValueError(f'{self.profile.source}: no geometry of the robot within '
+                             f'{STAND_SEARCH_HEIGHT_M} m of the ground in its starting posture')
+        position, orientation = pb.getBasePositionAndOrientation(self.robot, physicsClientId=c)
+        lowered = (position[0], position[1], position[2] - min(gaps) + START_CLEARANCE_M)
+        pb.resetBasePositionAndOrientation(self.robot, lowered, orientation, physicsClientId=c)
+        self._measured = None
+        self._prev_measurement = None
+        self._read_joints()
+        return self.measure()
 
     def apply(self, command) -> None:
         """Hold ``command`` (robot/control.JointCommand): its targets, tracked by the robot's

@@ -70,6 +70,10 @@ def resolve_urdf_text(text: str) -> str:
     return text
 
 
+#: A ``filename`` attribute naming a file relative to the URDF's folder (no scheme, not absolute).
+_RELATIVE_FILENAME = re.compile(r'filename="(?![a-z]+://)(?!/)([^"]+)"')
+
+
 def _cache_dir() -> Path:
     base = os.environ.get('XDG_CACHE_HOME') or os.path.join(os.path.expanduser('~'), '.cache')
     return Path(base) / 'fall_predictor' / 'urdf'
@@ -82,6 +86,9 @@ def pybullet_urdf(path: Path) -> Path:
     resolved = resolve_urdf_text(text)
     if resolved == text:
         return Path(path)
+    # The copy lives elsewhere: mesh files named relative to the URDF's folder are named whole.
+    folder = Path(path).resolve().parent
+    resolved = _RELATIVE_FILENAME.sub(lambda m: f'filename="{folder / m.group(1)}"', resolved)
     digest = hashlib.sha256(resolved.encode()).hexdigest()[:16]
     out = _cache_dir() / f'{Path(path).stem}-{digest}.urdf'
     if not out.exists():
