@@ -93,7 +93,7 @@ def test_a_run_report_keeps_why_its_states_were_unusable() -> None:
     by kind of reason (the same fault with other measured values is one kind), the first few
     kinds by name with an example each, the rest together."""
     from fall_predictor.monitor.fall_monitor import STATUS_OK, STATUS_STALE, MonitorState
-    from fall_predictor.ros.observer import MAX_REASONS, OTHER_REASONS, ObservedState, RunObservation
+    from fall_predictor.ros.run_observation import MAX_REASONS, OTHER_REASONS, ObservedState, RunObservation
     run = RunObservation(PushSpec(100.0, 0.0, 0.1, 2.5))
     run.add_state(ObservedState(0.0, MonitorState(STATUS_STALE, 'no input yet')))   # not started
     run.add_measurement(run_trajectory(None, 0.001).measurements[0])
@@ -121,7 +121,7 @@ def test_a_new_run_begins_where_its_stream_goes_back_in_time_even_without_its_fi
     writer, in order) begins the new run at its first message stamped before the latest one
     received, or before NEW_RUN_T_S: an observer that lost the new run's first half second
     (its queue overflowed) or a monitor that did (best-effort inputs) still follows the run."""
-    from fall_predictor.ros.observer import NEW_RUN_T_S, RunBoundary
+    from fall_predictor.ros.run_observation import NEW_RUN_T_S, RunBoundary
     boundary = RunBoundary()
     assert boundary.take_sample(3.2) and boundary.take_state(3.2)   # a first run: all taken
     boundary.reset()
@@ -144,7 +144,7 @@ def test_a_new_run_begins_where_its_stream_goes_back_in_time_even_without_its_fi
 def test_a_run_report_counts_the_samples_its_observer_missed() -> None:
     """Gaps in the 1 kHz stamps the observer received are its own losses; its ``t_fallen`` is
     the first fallen sample it received (late by at most what it lost)."""
-    from fall_predictor.ros.observer import RunObservation
+    from fall_predictor.ros.run_observation import RunObservation
     run = RunObservation(PushSpec(100.0, 0.0, 0.1, 2.5))
     first = run_trajectory(None, 0.001).measurements[0]
     received = [1, 2, 3, 7, 8, 108, 109]               # ms: 3 lost, then 99 (the fall at 0.010)

@@ -39,10 +39,9 @@ from fall_predictor.contract.topics import (CONTROLLER_MODE, DIAGNOSTICS, MEASUR
 from fall_predictor.monitor.records import PushSpec
 from fall_predictor.msg import FallState
 from fall_predictor.msg import Measurement as MeasurementMsg
-# What a run is made of (ROS-free), also importable from here as the tests and tools do.
-from fall_predictor.ros.run_observation import (DEFAULT_SAMPLE_PERIOD_S, MAX_REASONS,  # noqa: F401
-                                                NEW_RUN_T_S, OTHER_REASONS, ObservedState,
-                                                RunBoundary, RunObservation, reason_kind)
+# What a run is made of (ROS-free); ObservedState is also importable from here, with Observer.
+from fall_predictor.ros.run_observation import (DEFAULT_SAMPLE_PERIOD_S, ObservedState,
+                                                RunBoundary, RunObservation)
 
 #: Node name of the observer unless its user names it.
 DEFAULT_NODE_NAME = 'fall_predictor_observer'
