@@ -9,10 +9,13 @@ Usage (full ROS 2 install, package built with colcon)::
     ros2 launch fall_predictor fall_predictor.launch.py sensors:=false  # exact state, no estimator
     ros2 launch fall_predictor fall_predictor.launch.py composed_robot:=true  # simulated_robot
     ros2 launch fall_predictor fall_predictor.launch.py controller:=c_bal simulator:=mujoco
+    ros2 launch fall_predictor fall_predictor.launch.py robot:=g1_12dof  # Unitree's policy, MuJoCo
 
 Parameters come from ``config/fall_predictor.yaml`` (``params_file``); the launch arguments
-``real_time_factor``, ``model_path``, ``bag_path``, ``controller`` and ``simulator`` are applied
-on top of it, so they win over the file's values (``controller`` and ``simulator`` go to both the
+``robot``, ``real_time_factor``, ``model_path``, ``bag_path``, ``controller`` and ``simulator``
+are applied on top of it, so they win over the file's values (``robot`` goes to every node that
+reads it, ``model_path`` '' is the model the robot profile names; ``controller`` and
+``simulator`` go to both the
 simulator and the controller node; '' = the robot profile's; a learned policy needs
 ``sensors:=true``, the default). Each node is a console script of the package (setup.py);
 ``composed_robot:=true`` runs the simulator and the controller as ``simulated_robot`` (one
@@ -37,8 +40,11 @@ def generate_launch_description() -> LaunchDescription:
             default_value=PathJoinSubstitution(
                 [FindPackageShare('fall_predictor'), 'config', 'fall_predictor.yaml']),
             description='parameters of all nodes (ROS 2 params file)'),
+        DeclareLaunchArgument('robot', default_value='asimo_like',
+                              description='robot profile of every node (a shipped name: '
+                                          'asimo_like, g1, g1_12dof; or a profile file)'),
         DeclareLaunchArgument('model_path', default_value='',
-                              description='model file; empty = the shipped default model'),
+                              description="model file; '' = the model the robot profile names"),
         DeclareLaunchArgument('real_time_factor', default_value='1.0',
                               description='simulated seconds per wall second; 0.0 = fast'),
         DeclareLaunchArgument('record', default_value='false',
@@ -64,8 +70,10 @@ def generate_launch_description() -> LaunchDescription:
     ]
     composed = LaunchConfiguration('composed_robot')
     # Who walks the robot and where: the same for the simulator and the controller node.
+    robot = {'robot': ParameterValue(LaunchConfiguration('robot'), value_type=str)}
     walking = {'controller': ParameterValue(LaunchConfiguration('controller'), value_type=str),
-               'simulator': ParameterValue(LaunchConfiguration('simulator'), value_type=str)}
+               'simulator': ParameterValue(LaunchConfiguration('simulator'), value_type=str),
+               **robot}
     simulator_overrides = {
         'real_time_factor': ParameterValue(LaunchConfiguration('real_time_factor'),
                                            value_type=float),
@@ -83,16 +91,16 @@ def generate_launch_description() -> LaunchDescription:
     return LaunchDescription(arguments + [
         node('simulated_robot', simulator_overrides, None, condition=IfCondition(composed)),
         node('simulator_node', simulator_overrides, condition=UnlessCondition(composed)),
-        node('state_estimator_node', condition=IfCondition(LaunchConfiguration('sensors'))),
+        node('state_estimator_node', robot, condition=IfCondition(LaunchConfiguration('sensors'))),
         # The simulated robot's own controller reads the simulator's exact state beside its sensors.
         node('controller_node', {'ground_truth': ParameterValue(LaunchConfiguration('sensors'),
                                                                 value_type=bool), **walking},
              condition=UnlessCondition(composed)),
         # Both read the model: the feature node for the feature settings it was trained with.
         node('feature_node', {'model_path': ParameterValue(
-            LaunchConfiguration('model_path'), value_type=str)}),
+            LaunchConfiguration('model_path'), value_type=str), **robot}),
         node('predictor_node', {'model_path': ParameterValue(
-            LaunchConfiguration('model_path'), value_type=str)}),
+            LaunchConfiguration('model_path'), value_type=str), **robot}),
         node('recorder_node', {'bag_path': ParameterValue(
             LaunchConfiguration('bag_path'), value_type=str)},
             condition=IfCondition(LaunchConfiguration('record'))),

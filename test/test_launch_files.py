@@ -89,7 +89,9 @@ class LaunchFile:
                 for c in self.calls_to('DeclareLaunchArgument')}
 
     def configurations(self) -> set[str]:
-        return {c.args[0].value for c in self.calls_to('LaunchConfiguration')}
+        # LaunchConfiguration(argument) over SCOPED_PARAMETERS' keys: those, checked as such.
+        return {c.args[0].value for c in self.calls_to('LaunchConfiguration')
+                if isinstance(c.args[0], ast.Constant)}
 
     def _parameter_names(self, node: ast.AST) -> set[str]:
         """Keys of the parameter dicts under ``node`` (dict literals, or names bound to one)."""
@@ -114,6 +116,14 @@ class LaunchFile:
                 assert isinstance(call.args[0], ast.Constant), ast.unparse(call)
                 started.append((call.args[0].value, inner | self._parameter_names(call)))
         return started
+
+    def scoped_parameters(self) -> dict[str, tuple[str, ...]]:
+        """The module's ``SCOPED_PARAMETERS``: parameter -> the only nodes it is given to."""
+        for node in self.tree.body:
+            if isinstance(node, ast.Assign) and any(isinstance(t, ast.Name) and t.id == 'SCOPED_PARAMETERS'
+                                                    for t in node.targets):
+                return ast.literal_eval(node.value)
+        return {}
 
     def python_expressions(self) -> list[list]:
         """Each PythonExpression's parts: strings, and the names of the LaunchConfigurations."""
@@ -167,8 +177,9 @@ def test_the_monitor_launch_file_expressions_are_python_for_every_switch_value()
 
 @pytest.mark.parametrize('file_name', LAUNCH_FILES)
 def test_parameters_set_by_a_launch_file_are_declared_by_a_node_they_reach(file_name, declared):
-    receivers: dict[str, set[str]] = {}
-    for executable, parameters in LaunchFile(file_name).nodes():
+    launch = LaunchFile(file_name)
+    receivers: dict[str, set[str]] = {p: set(nodes) for p, nodes in launch.scoped_parameters().items()}
+    for executable, parameters in launch.nodes():
         for parameter in parameters:
             receivers.setdefault(parameter, set()).update(PROCESS_NODES.get(executable, (executable,)))
     assert receivers
@@ -183,6 +194,21 @@ def test_a_launch_file_sets_no_node_a_parameter_it_does_not_declare(file_name, d
         nodes = PROCESS_NODES.get(executable, (executable,))
         ignored = {p for p in parameters if not any(p in declared[n] for n in nodes)}
         assert not ignored, f'{file_name}: {executable} ignores {sorted(ignored)}'
+
+
+def test_the_monitor_launch_gives_robot_and_model_only_to_the_nodes_that_declare_them(declared):
+    """The estimator shares the fall_monitor process with the feature and predictor nodes; a
+    model_path given to the whole process would reach it and be ignored: each launch argument
+    goes, by node-scoped params-file sections, to exactly the nodes that declare it."""
+    launch = LaunchFile('monitor.launch.py')
+    scoped = launch.scoped_parameters()
+    assert set(scoped) == {'robot', 'model_path'} <= set(launch.launch_arguments())
+    monitor_nodes = PROCESS_NODES['fall_monitor']
+    for parameter, nodes in scoped.items():
+        assert set(nodes) == {n for n in monitor_nodes if parameter in declared[n]}, parameter
+    assert 'model_path' not in declared['state_estimator_node']
+    # Nothing is given to the whole process.
+    assert all(not parameters for _, parameters in launch.nodes())
 
 
 @pytest.mark.parametrize('file_name', ('fall_predictor.yaml', 'monitor.yaml'))

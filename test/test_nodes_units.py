@@ -301,8 +301,34 @@ def test_nodes_refuse_feature_settings_that_differ_from_the_models(tmp_path, nod
         node.destroy_node()
 
 
-def test_default_model_is_looked_up_in_the_package_models_directory() -> None:
+def test_default_model_is_the_one_the_robot_profile_names_in_the_package_models_directory() -> None:
     assert default_model_path().parts[-2:] == ('models', 'default_model.json')
+    assert default_model_path('g1').parts[-2:] == ('models', 'g1_attitude_model.json')
+    assert default_model_path('g1').is_file()
+
+
+def test_both_model_readers_find_the_robots_model_without_a_path_or_say_why(monkeypatch, tmp_path) -> None:
+    """robot:=g1 and no model_path: the G1's model, not the default robot's; where that model is
+    not installed: a start-up error naming it and what to do."""
+    from fall_predictor.ros import share
+    from fall_predictor.ros.feature_node import FeatureNode
+    from fall_predictor.ros.predictor_node import THRESHOLD_FROM_MODEL, PredictorNode
+    with ros_context(DOMAIN) as context:
+        for node_class in (FeatureNode, PredictorNode):
+            node = node_class(context=context, parameter_overrides=[Parameter('robot', value='g1')])
+            node.destroy_node()
+        # The G1's model is a boosted-trees model reading the base's attitude; the default
+        # robot's is decision lists: the predictor took the G1's.
+        for robot, boosted in (('g1', True), ('asimo_like', False)):
+            node = PredictorNode(context=context, parameter_overrides=[Parameter('robot', value=robot)])
+            threshold = node.get_parameter('decision_threshold').value
+            assert (threshold != THRESHOLD_FROM_MODEL) == boosted, (robot, threshold)
+            node.destroy_node()
+        monkeypatch.setattr(share, 'package_share_dir', lambda: tmp_path)     # nothing installed
+        for node_class in (FeatureNode, PredictorNode):
+            with pytest.raises(NodeStartupError, match=r"robot 'g1' names the model "
+                                                       r"g1_attitude_model.json, which is not shipped"):
+                node_class(context=context, parameter_overrides=[Parameter('robot', value='g1')])
 
 
 def test_predictor_process_refuses_to_start_with_a_clear_error(tmp_path: Path) -> None:

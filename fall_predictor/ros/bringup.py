@@ -246,7 +246,7 @@ def node_overrides(real_time_factor: float, model_path: Optional[Path], fall_tri
         'controller_node': {} if fall_trigger else {'fall_trigger_enabled': 'false'},
     }
     if robot != DEFAULT_ROBOT:
-        for name in ('simulator_node', 'predictor_node', 'controller_node'):
+        for name in ('simulator_node', 'feature_node', 'predictor_node', 'controller_node'):
             overrides[name]['robot'] = robot
     for name in ('simulator_node', 'controller_node'):
         overrides[name].update({k: v for k, v in (('controller', controller),

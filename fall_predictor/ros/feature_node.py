@@ -52,13 +52,14 @@ from fall_predictor.ros.parameters import (MAX_MODEL_BYTES, MODEL_PATH, ParamSpe
                                            declare_parameters, feature_setting_params,
                                            load_model_for)
 from fall_predictor.ros.runner import run_node
+from fall_predictor.ros.robots import ROBOT_PARAM
 
 NODE_NAME = 'feature_node'
 
 #: Feature settings this node uses, checked against the model's.
 SETTINGS = ('rate_window_s', 'edge_tolerance_m', 'sample_period_s')
 PARAMS = (
-    AUTOSTART, MODEL_PATH, MAX_MODEL_BYTES,
+    AUTOSTART, ROBOT_PARAM, MODEL_PATH, MAX_MODEL_BYTES,
     *feature_setting_params(SETTINGS),
     ParamSpec('stale_timeout_s', 0.5, 'wall time [s] without a measurement after which '
               '/diagnostics reports STALE', 0.01, 60.0),
@@ -101,8 +102,8 @@ class FeatureNode(MonitorLifecycleNode):
 
     def _configure(self) -> None:
         p = self._params
-        _, _, self._settings = load_model_for(self, str(p['model_path']),
-                                              {k: p[k] for k in SETTINGS}, int(p['max_model_bytes']))
+        _, _, self._settings = load_model_for(self, str(p['model_path']), {k: p[k] for k in SETTINGS},
+                                              int(p['max_model_bytes']), str(p['robot']))
         # Always with the base's attitude: the message carries it for a model that reads it (§8c).
         self._extractor = self._settings.extractor(attitude=True)
         self._timeline.reset()

@@ -19,6 +19,7 @@ from fall_predictor.monitor.decision_list import PerModeDecisionLists
 from fall_predictor.monitor.features import FeatureSettings, FeatureSettingsMismatch
 from fall_predictor.monitor.model_file import (DEFAULT_MAX_MODEL_BYTES, ModelFileError,
                                               ModelMetadata, load_model)
+from fall_predictor.profiles import DEFAULT_ROBOT, ProfileError
 from fall_predictor.ros.share import default_model_path
 
 ParamValue = Union[bool, int, float, str]
@@ -82,8 +83,8 @@ class ParamSpec:
 
 
 MODEL_PATH = ParamSpec(
-    'model_path', '', 'model file (JSON decision lists); empty = models/default_model.json of '
-    'the installed package, else of the source tree', read_only=True)
+    'model_path', '', 'model file (JSON); empty = the shipped model the robot profile names '
+    '(models/ of the installed package, else of the source tree)', read_only=True)
 
 MAX_MODEL_BYTES = ParamSpec(
     'max_model_bytes', DEFAULT_MAX_MODEL_BYTES, 'largest model file read [bytes]; only regular '
@@ -115,15 +116,25 @@ def feature_setting_params(names: Sequence[str]) -> tuple[ParamSpec, ...]:
 
 
 def load_model_for(node: Node, model_path: str, requested: Mapping[str, ParamValue],
-                   max_bytes: int = DEFAULT_MAX_MODEL_BYTES
+                   max_bytes: int = DEFAULT_MAX_MODEL_BYTES, robot: str = DEFAULT_ROBOT
                    ) -> tuple[PerModeDecisionLists, ModelMetadata, FeatureSettings]:
-    """Load the model named by ``model_path`` ('' = the shipped default) and resolve the
-    node's feature-setting parameters against it: ``(lists, metadata, settings)``.
+    """Load the model named by ``model_path`` ('' = the shipped model ``robot``'s profile names)
+    and resolve the node's feature-setting parameters against it: ``(lists, metadata, settings)``.
 
     Raises :class:`NodeStartupError` with one clear reason if the model cannot be used or a
     set parameter differs from the model's setting.
     """
-    path = Path(model_path).expanduser() if model_path else default_model_path()
+    if model_path:
+        path = Path(model_path).expanduser()
+    else:
+        try:
+            path = default_model_path(robot)
+        except ProfileError as error:
+            raise NodeStartupError(f'robot profile: {error}') from error
+        if not path.is_file():
+            raise NodeStartupError(f'robot {robot!r} names the model {path.name}, which is not '
+                                   f'shipped ({path} does not exist): train one for this robot '
+                                   'and its controller and give it as model_path')
     try:
         lists, metadata = load_model(path, max_bytes)
     except ModelFileError as error:

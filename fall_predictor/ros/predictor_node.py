@@ -150,7 +150,7 @@ class PredictorNode(MonitorLifecycleNode):
         p = self._params
         lists, metadata, settings = load_model_for(self, str(p['model_path']),
                                                    {k: p[k] for k in SETTINGS},
-                                                   int(p['max_model_bytes']))
+                                                   int(p['max_model_bytes']), str(p['robot']))
         robot = str(p['robot'])
         tau_his_s = self.get_parameter('tau_his_s').value
         if tau_his_s == FROM_MODEL:         # the model's recommended window, shown as the value

@@ -5,16 +5,16 @@ from pathlib import Path
 
 from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
 
+from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
+
 PACKAGE = 'fall_predictor'
 
 
-DEFAULT_MODEL_NAME = 'default_model.json'
-
-
-def default_model_path() -> Path:
-    """``models/default_model.json`` of the package share directory (installed package) or of
-    the source tree: the shipped model."""
-    return package_share_dir() / 'models' / DEFAULT_MODEL_NAME
+def default_model_path(robot: str = DEFAULT_ROBOT) -> Path:
+    """The shipped model of ``robot`` (a profile name or file) under its default controller, as
+    its profile names it, in ``models/`` of the package share directory (installed package) or
+    of the source tree. Raises ProfileError if the profile cannot be loaded."""
+    return package_share_dir() / 'models' / load_profile(robot).model_for()
 
 
 def package_share_dir() -> Path:
