@@ -36,7 +36,9 @@ evidence accumulated since it last was none (Page's CUSUM, :func:`cusum_evidence
 the history window; its setting (tau_plus, drift, level) chosen by the same nested CV.
 
     .venv/bin/python benchmarks/bench_boosted_trees.py --data data/g1_dev1000 \\
-        --test data/g1_test400 --folds 5 --out docs/boosted_trees/g1.json
+        --test data/g1_test1000_5050 --folds 5 --mirror --attitude --tau-plus=-1.0 \\
+        --tau-plus=-0.75 --tau-plus=-0.5 --tau-plus=-0.25 --tau-plus=0 \\
+        --out docs/prediction/g1_c_bal/nested_tau_plus_grid.json
 """
 from __future__ import annotations
 
@@ -64,7 +66,7 @@ from bench_temporal_window import LAGS_S as WINDOW_LAGS_S, windowed  # noqa: E40
 
 TAU_HIS_S = (0.0, 0.016, 0.03, 0.044, 0.06, 0.08, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4)
 # Up to 6: at the FPR-0 budget the G1's and the ASIMO-like robot's boosted trees chose 4.0 once the
-# grid went past 3.0, its old edge (eighteenth part of docs/results.md).
+# grid went past 3.0, its old edge (docs/prediction/g1_c_bal/nested_attitude.json).
 THRESHOLDS = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 5.0, 6.0)
 BUDGETS = (0.0, 0.01, 0.06)
 # Widened twice: a first grid (levels up to 0.32, drifts -1 to 3) chose its highest level at the

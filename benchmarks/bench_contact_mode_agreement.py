@@ -20,7 +20,7 @@ rest goes, over the first ``--trajectories`` bags of a dataset made with ``gener
 ``contact_force_n=20``), to see what a setting does to the agreement.
 
     .venv/bin/python benchmarks/bench_contact_mode_agreement.py --data data/g1_test400 \\
-        --trajectories 40 --out docs/g1_gait/contact_mode_agreement.json
+        --trajectories 40 --out docs/estimation/contact_mode_agreement_g1.json
 """
 from __future__ import annotations
 

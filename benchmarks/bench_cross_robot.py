@@ -14,7 +14,7 @@ operating point (tau_plus, tau_his) and evaluated on the test dataset, with
     .venv/bin/python benchmarks/bench_cross_robot.py \\
         --dataset asimo=data/asimo_test100 --dataset g1=data/g1_dev1000 --dataset g1_test=data/g1_test400 \\
         --pair asimo:g1_test --pair g1:asimo --pair g1:g1_test --pair asimo+g1:g1_test \\
-        --out docs/cross_robot.json
+        --out docs/prediction/g1_c_bal/cross_robot.json
 """
 from __future__ import annotations
 

@@ -14,7 +14,7 @@ process (one rclpy context each):
 Per run: messages received, timer ticks (of 100 per second), process CPU seconds. Prints and
 writes JSON (``--out``).
 
-    python benchmarks/bench_executors.py --seconds 5 --out docs/executors.json
+    python benchmarks/bench_executors.py --seconds 5 --out docs/monitor/executors.json
 """
 from __future__ import annotations
 

@@ -21,7 +21,7 @@ tau_his, estimated state):
 Writes JSON (``--out``).
 
     python benchmarks/bench_fall_direction.py --dev data/d1000s --test data/t1000s_2026 \\
-        --model models/default_model.json --out docs/fall_direction/asimo_like.json
+        --model models/default_model.json --out docs/time_and_direction/fall_direction_cv_asimo_like.json
 """
 from __future__ import annotations
 

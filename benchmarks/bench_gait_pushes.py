@@ -10,7 +10,7 @@ falls without any push is reported as such (its push results would be those of a
 stopped walking). Writes JSON (``--out``).
 
     python benchmarks/bench_gait_pushes.py --robot g1 --setting profile \\
-        --setting single_support_s=0.5 --out docs/g1_gait/gait_pushes.json
+        --setting single_support_s=0.5 --out docs/robots/g1_c_bal/gait_pushes.json
 """
 from __future__ import annotations
 

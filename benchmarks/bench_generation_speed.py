@@ -17,7 +17,7 @@ The ratio ``generation / bare_physics`` is the aim (<= 1.3). With ``--profile`` 
 writes the top of a cProfile of the generation pass (``--profile-out``).
 
     .venv/bin/python benchmarks/bench_generation_speed.py --trajectories 10 \
-        --out benchmarks/results/generation_speed.json
+        --sensor-noise 1 --out docs/scale_out/generation_speed.json
 """
 from __future__ import annotations
 

@@ -7,7 +7,8 @@ tau_his, ``--model FILE@TAU_HIS`` at another). The baselines run with the CoM gu
 dataset's robot, a model with the guard it records (as ``fall-predictor evaluate``).
 
     .venv/bin/python benchmarks/bench_heldout_baselines.py --dev data/g1_dev1000 \\
-        --test data/g1_test400 --model models/g1_model.json --out docs/g1_heldout.json
+        --test data/g1_test1000_5050 --model models/g1_attitude_model.json \\
+        --out docs/prediction/g1_c_bal/heldout/baselines.json
 """
 from __future__ import annotations
 

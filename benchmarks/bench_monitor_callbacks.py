@@ -20,7 +20,7 @@ walk, so the heap it scans is the monitor's, as in its own process.
 ``cumulative``).
 
     .venv/bin/python benchmarks/bench_monitor_callbacks.py --seconds 12 --repeats 3 \\
-        --out docs/monitor_floor/callbacks.json
+        --out docs/monitor/rclpy_floor/callbacks.json
 """
 from __future__ import annotations
 

@@ -31,7 +31,7 @@ to the others, as a robot pins its real-time processes: whether moving between c
 monitor anything.
 
     .venv/bin/python benchmarks/bench_monitor_latency.py --seconds 10 --deployment all \\
-        --out docs/bench_monitor_latency.json
+        --out docs/monitor/latency.json
 """
 from __future__ import annotations
 

@@ -11,7 +11,7 @@ Usage::
 
     python benchmarks/bench_noise_sweep.py --model models/default_model.json \
         --trajectories 100 --seed 1 --work /tmp/noise --jobs 2 \
-        --out docs/noise_sweep.json --plot docs/noise_sweep.png
+        --out docs/estimation/noise_sweep.json --plot docs/estimation/noise_sweep.png
 
 Generation resumes: rerunning with the same --work reuses finished trajectories.
 """
@@ -74,8 +74,8 @@ def main() -> None:
     parser.add_argument('--seed', type=int, default=1)
     parser.add_argument('--work', type=Path, required=True, help='where the datasets are generated')
     parser.add_argument('--jobs', type=int, default=2)
-    parser.add_argument('--out', type=Path, default=Path('docs/noise_sweep.json'))
-    parser.add_argument('--plot', type=Path, default=Path('docs/noise_sweep.png'))
+    parser.add_argument('--out', type=Path, default=Path('docs/estimation/noise_sweep.json'))
+    parser.add_argument('--plot', type=Path, default=Path('docs/estimation/noise_sweep.png'))
     args = parser.parse_args()
     lists, metadata = load_model(args.model)
     tau_his = metadata.recommended_tau_his_s

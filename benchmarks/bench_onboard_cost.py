@@ -23,7 +23,7 @@ least of ``--repeats`` passes; median, p90, p99: per-call wall time (``time.perf
 cheap to read), all passes. The aims: estimator <= 50 us, features + predictor <= 20 us per
 sample (``cpu_mean``). Prints one JSON object; ``--out`` writes it.
 
-    python benchmarks/bench_onboard_cost.py --out docs/onboard_cost.json
+    python benchmarks/bench_onboard_cost.py --out docs/monitor/onboard_cost.json
 """
 from __future__ import annotations
 

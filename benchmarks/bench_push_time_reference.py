@@ -23,7 +23,7 @@ learner, more data or other inputs could do better), and it has no cost constrai
 reference beside the shipped models' held-out figures. Writes JSON (``--out``).
 
     .venv/bin/python benchmarks/bench_push_time_reference.py --data data/d1000s \\
-        --test data/t1000s_2026 --out docs/push_time_reference/asimo_like.json
+        --test data/t1000s_2026 --out docs/prediction/asimo_like/levers/push_time_reference.json
 """
 from __future__ import annotations
 

@@ -8,7 +8,7 @@ the push (p50/p95/p99), the fraction of samples airborne while upright, the touc
 peaks of the unpushed walk, the fall fraction and the CPU time.
 
     .venv/bin/python benchmarks/bench_robot_credibility.py --trajectories 60 \
-        --out benchmarks/results/robot_credibility.json
+        --out docs/robots/asimo_like/robot_credibility.json
 """
 from __future__ import annotations
 
@@ -58,7 +58,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--trajectories', type=int, default=60)
     parser.add_argument('--horizon', type=float, default=2.5, help='s simulated after the push ends')
-    parser.add_argument('--out', type=Path, default=Path('benchmarks/results/robot_credibility.json'))
+    parser.add_argument('--out', type=Path, default=Path('docs/robots/asimo_like/robot_credibility.json'))
     args = parser.parse_args()
     results = [measure(robot, args.trajectories, args.horizon) for robot in ROBOTS]
     args.out.parent.mkdir(parents=True, exist_ok=True)

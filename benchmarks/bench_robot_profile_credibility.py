@@ -7,7 +7,7 @@ contact lands a foot in one impulse) and averaged over 10 ms (as a rubber sole s
 0.589 m, the threshold `fall-predictor stats` uses for it).
 
     .venv/bin/python benchmarks/bench_robot_profile_credibility.py --data data/g1_dev1000 \\
-        --out docs/g1_credibility.json
+        --out docs/robots/g1_c_bal/credibility.json
 """
 from __future__ import annotations
 

@@ -18,7 +18,7 @@ difference to the same recording through the onboard chain offline with the simu
 (:class:`~fall_predictor.monitor.chain.OnboardChain`), and states per estimate (driving joint
 message). Writes JSON (``--out``).
 
-    python benchmarks/bench_robot_streams.py --trajectories 8 --seed 11 --out docs/robot_streams.json
+    python benchmarks/bench_robot_streams.py --trajectories 8 --seed 11 --out docs/monitor/robot_streams_asimo_like.json
     python benchmarks/bench_robot_streams.py --robot g1 --data data/g1_test400 --trajectories 6
 """
 from __future__ import annotations

@@ -4,8 +4,8 @@ single-threaded workers (a ``dask scheduler`` and two ``dask worker`` processes 
 one after the other. Writes wall and CPU seconds, the overhead ratio, each dataset's
 ``generation`` cost record, and whether the two datasets' index rows are identical.
 
-    .venv/bin/python benchmarks/bench_scale_out.py --trajectories 30 --work-dir /tmp/scale \
-        --out benchmarks/results/scale_out.json
+    .venv/bin/python benchmarks/bench_scale_out.py --trajectories 200 --work-dir data/scale \
+        --out docs/scale_out/scale_out_200.json
 """
 from __future__ import annotations
 

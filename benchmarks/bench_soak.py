@@ -17,7 +17,7 @@ written / rejected counts and the valid sample times found in its bag; the RSS o
 every 10 s (first, last, max, and the slope of a line fitted to the samples after the first
 minute, or the first 10 s of a run shorter than 3 minutes).
 
-    .venv/bin/python benchmarks/bench_soak.py --minutes 10 --out docs/bench_soak.json
+    .venv/bin/python benchmarks/bench_soak.py --minutes 10 --out docs/monitor/soak.json
 """
 from __future__ import annotations
 
@@ -185,7 +185,7 @@ def soak(minutes: float, seed: int, domain_id: int, work: Path) -> dict[str, obj
     rng = np.random.default_rng(seed)
     n_valid = int(round(minutes * 60_000))
     # Malformed samples from the second second on: an out-of-order stamp 0.5 s old then
-    # still lies inside the recording (see docs/results.md for what an older one does).
+    # still lies inside the recording (an older one would start a new run: method §12).
     bad_after = np.sort(rng.choice(np.arange(1000, n_valid), size=n_valid // 100, replace=False))
     bad_kinds = [KINDS[i % len(KINDS)] for i in range(len(bad_after))]
     try:

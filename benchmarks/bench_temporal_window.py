@@ -17,7 +17,7 @@ lead at test FPR <= 0.01 and <= 0.06 over tau_his: a comparison of the learners 
 curves, chosen in hindsight on the test set, so **not** a held-out figure of any one of them.
 Writes JSON (``--out``).
 
-    python benchmarks/bench_temporal_window.py --test data/t1000s_2026 --out docs/temporal_window.json
+    python benchmarks/bench_temporal_window.py --test data/t1000s_2026 --out data/temporal_window.json
 
 (without ``--train``, one dataset split by trajectory: the even ones train, the odd ones test).
 """

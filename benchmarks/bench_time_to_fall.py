@@ -29,7 +29,8 @@ The references (naive constants, trees, boosting) are fitted on the development 
 (each fold predicted by what the others taught). Each: median and p90 with 95 % bootstrap
 intervals over trajectories. Writes JSON (``--out``).
 
-    python benchmarks/bench_time_to_fall.py --test data/t1000s_2026 --out docs/time_to_fall_t1000.json
+    python benchmarks/bench_time_to_fall.py --dev data/d1000s --test data/t1000s_2026 \\
+        --model models/default_model.json --out docs/time_and_direction/time_to_fall_default_model.json
 """
 from __future__ import annotations
 

@@ -31,7 +31,7 @@ Errors at the test folds' triggers (median and p90 of the absolute error, pooled
 repeats) and over every 10th sample from each test trigger until fallen. Writes JSON (``--out``).
 
     python benchmarks/bench_time_to_fall_cv.py --dev data/g1_dev1000 \\
-        --model models/g1_attitude_model.json --out docs/time_to_fall_cv/g1.json
+        --model models/g1_attitude_model.json --out docs/time_and_direction/time_to_fall_cv_g1.json
 """
 from __future__ import annotations
 

@@ -16,7 +16,7 @@ and the differences estimated - true against the aim (|d tau_lead| <= 0.05 s, |d
 Usage::
 
     python benchmarks/bench_true_vs_estimated.py --data data/d1000s --test data/t204s \
-        --jobs 2 --out docs/true_vs_estimated.json
+        --jobs 2 --out docs/estimation/true_vs_estimated.json
 """
 from __future__ import annotations
 
@@ -70,7 +70,7 @@ def main() -> None:
     parser.add_argument('--folds', type=int, default=10)
     parser.add_argument('--seed', type=int, default=0)
     parser.add_argument('--jobs', type=int, default=1)
-    parser.add_argument('--out', type=Path, default=Path('docs/true_vs_estimated.json'))
+    parser.add_argument('--out', type=Path, default=Path('docs/estimation/true_vs_estimated.json'))
     args = parser.parse_args()
     states = {state: _figures(state, args) for state in ('true', 'estimated')}
     document = {
