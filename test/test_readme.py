@@ -160,7 +160,7 @@ def test_the_link_checker_catches_bad_links(tmp_path):
 
 @pytest.mark.parametrize('first_cell, evaluation_file', [
     ('default model (CV)', 'default_model.evaluation.json'),   # the shipped model's
-    ('', 'plain_model.evaluation.json'),                        # the earlier default's
+    ('plain lists (CV)', 'plain_model.evaluation.json'),       # the earlier default's
 ])
 def test_results_table_2_analogue_matches_the_evaluation_and_the_papers_anchors(
         first_cell: str, evaluation_file: str) -> None:
@@ -189,27 +189,113 @@ def test_results_table_2_analogue_matches_the_evaluation_and_the_papers_anchors(
 
 def test_results_dataset_and_speed_figures_match_the_committed_json():
     results = RESULTS.read_text(encoding='utf-8')
-    stats = json.loads((DOCS / 'dataset_stats.json').read_text())
+    stats = json.loads((DOCS / 'robots' / 'asimo_like' / 'dataset_stats.json').read_text())
     assert f"**{stats['fall_fraction']:.3f}** over {stats['trajectories']} trajectories" in results
     lead = stats['oracle_lead_s']
     assert (f"median {lead['median']:.2f} s, mean {lead['mean']:.2f} s, max {lead['max']:.2f} s"
             in results)
     assert f"on {round(100 * stats['reflex_fired_fraction'])} % of trajectories" in results
-    speed = json.loads((DOCS / 'bench_sim_speed.json').read_text())
+    speed = json.loads((DOCS / 'scale_out' / 'sim_speed' / 'asimo_like_run1.json').read_text())
     full = speed['full_loop']
     assert (f"**{full['steps_per_s_wall']:.0f} steps/s = {full['real_time_factor_wall']:.2f}× "
             'real time**' in results)
-    fig2 = json.loads((DOCS / 'fig2.json').read_text())
+    fig2 = json.loads((DOCS / 'robots' / 'asimo_like' / 'fig2.json').read_text())
     assert f"no fall below {fig2['smallest_force_that_fells_n']:.0f} N" in results
 
 
-def test_results_keeps_every_section_of_the_old_readme():
-    anchors = heading_anchors(RESULTS)
-    for section in ('simulator-and-calibration-issue-simulated-humanoid',
-                    'datasets-issue-push-trajectory-datasets',
-                    'learning-and-evaluation-issue-decision-list-predictors', 'speed',
-                    'known-limitations'):
-        assert section in anchors, section
+#: The page's sections, in order: each answers one question (no history, no issue numbers).
+QUESTION_SECTIONS = ('the-robots-and-their-controllers', 'prediction-quality',
+                     'time-to-fall-and-fall-direction', 'state-estimation-and-the-sensors',
+                     'the-monitor-on-a-robot', 'scale-out-and-generation-speed', 'known-limitations',
+                     'how-the-figures-are-rebuilt')
+#: Robots and controllers: each has a subsection under the robots and under prediction quality.
+ROBOTS_AND_CONTROLLERS = ('the-asimo-like-robot-under-c_bal', 'the-unitree-g1-under-c_bal',
+                          'the-unitree-g1-under-unitrees-learned-walking-policy')
+
+
+def _slug(title: str) -> str:
+    title = re.sub(r'!?\[([^\]]*)\]\([^)]*\)', r'\1', title)
+    return re.sub(r'[^\w\- ]', '', title.strip().lower()).replace(' ', '-')
+
+
+def _sections(text: str) -> list[tuple[str, list[str]]]:
+    """The page's ``##`` sections in order, each with the slugs of its ``###`` subsections."""
+    text = re.sub(r'^```.*?^```', '', text, flags=re.S | re.M)
+    sections: list[tuple[str, list[str]]] = []
+    for level, title in re.findall(r'^(##|###)\s+(.*?)\s*$', text, flags=re.M):
+        if level == '##':
+            sections.append((_slug(title), []))
+        else:
+            sections[-1][1].append(_slug(title))
+    return sections
+
+
+def test_results_is_organised_by_question():
+    text = RESULTS.read_text(encoding='utf-8')
+    sections = _sections(text)
+    assert [slug for slug, _ in sections] == list(QUESTION_SECTIONS)
+    subsections = dict(sections)
+    for robot in ROBOTS_AND_CONTROLLERS:
+        assert robot in subsections['prediction-quality'], robot
+        assert any(s.startswith(robot) for s in subsections['the-robots-and-their-controllers']), robot
+    for topic in ('topics-and-streams', 'faults', 'speed-latency-and-cpu', 'the-executor'):
+        assert topic in subsections['the-monitor-on-a-robot'], topic
+    assert not re.search(r'\bissues?\s+\d', text, flags=re.I), 'an issue number on the page'
+    assert not re.search(r'(?<![\w/.])#\d+\b', text), 'an issue number (#N) on the page'
+
+
+#: The held-out tables of the shipped models: first header cell -> the folder of their
+#: ``fall-predictor evaluate --json`` files (one per model, named after it) and baselines.json.
+HELDOUT = {'ASIMO-like': DOCS / 'prediction' / 'asimo_like' / 'heldout',
+           'G1': DOCS / 'prediction' / 'g1_c_bal' / 'heldout'}
+BASELINES = {'momentum': 'momentum', 'IMU tilt': 'imu_tilt', 'capture point': 'capture_point',
+             'CoM height': 'com_height'}
+#: ``N/M at LEAD`` or ``N/M = FPR [LO, HI] at LEAD``, optionally ``, MISSED``.
+_ALARMS_AT = re.compile(r'^(\d+)/(\d+)(?: = ([\d.]+) \[([\d.]+), ([\d.]+)\])? at ([\d.]+)(?:, (\d+))?$')
+
+
+def _fpr(e: dict) -> str:
+    low, high = e['fpr_ci95']
+    return f"{e['n_false_positives']}/{e['n_balanced']} = {e['fpr']:.3f} [{low:.3f}, {high:.3f}]"
+
+
+@pytest.mark.parametrize('robot', sorted(HELDOUT))
+def test_results_held_out_models_match_their_evaluations(robot: str) -> None:
+    rows = table_rows(RESULTS.read_text(encoding='utf-8'), f'model ({robot}, held out)')
+    files = sorted(HELDOUT[robot].glob('*_model.json'))
+    assert {f'`{f.name}`' for f in files} == set(rows)
+    for file in files:
+        evaluation = json.loads(file.read_text())
+        assert evaluation['model'] == f'models/{file.name}' and (ROOT / evaluation['model']).is_file()
+        _settings, fpr, lead, missed, fraction = rows[f'`{file.name}`']
+        assert fpr == _fpr(evaluation), file.name
+        low, high = evaluation['tau_lead_ci95']
+        assert lead == f"{evaluation['tau_lead_s']:.2f} [{low:.2f}, {high:.2f}]", file.name
+        assert missed == f"{evaluation['n_missed']} / {evaluation['n_fallen']}", file.name
+        assert number(fraction) == round(evaluation['tau_lead_s'] / evaluation['oracle_lead_s'], 2)
+
+
+@pytest.mark.parametrize('robot', sorted(HELDOUT))
+def test_results_held_out_baselines_match_their_json(robot: str) -> None:
+    rows = table_rows(RESULTS.read_text(encoding='utf-8'), f'baseline ({robot}), budget')
+    found = json.loads((HELDOUT[robot] / 'baselines.json').read_text())['baselines']
+    by_budget = {(b['baseline'], b['fpr_budget']): b['test'] for b in found}
+    checked = 0
+    for name, key in BASELINES.items():
+        for cell, budget in zip(rows[name], (0.06, 0.01, 0.0)):
+            match = _ALARMS_AT.match(cell)
+            if not match:                        # words: "same", no threshold within the budget
+                continue
+            test = by_budget[key, budget]
+            n_fp, n_balanced, fpr, low, high, lead, missed = match.groups()
+            assert (int(n_fp), int(n_balanced)) == (test['n_false_positives'], test['n_balanced'])
+            if fpr is not None:
+                assert f'{n_fp}/{n_balanced} = {fpr} [{low}, {high}]' == _fpr(test), (name, budget)
+            assert number(lead) == round(test['tau_lead_s'], 2), (name, budget)
+            if missed is not None:
+                assert int(missed) == test['n_missed'], (name, budget)
+            checked += 1
+    assert checked >= 8
 
 
 # -- docs/method.md: the method with the numbers the code uses -------------------------------
