@@ -8,7 +8,8 @@ predictor (with ``--tau-his``) first says falling on each trajectory, like the p
 on the state it sees on a robot (``--state estimated``, the default: simulated sensors, the
 drivers' messages, the state estimator) or on the simulator's true state (``--state true``).
 
-    .venv/bin/python scripts/fig2_force_sweep.py --out docs/fig2.json --png docs/figures/fig2_force_sweep.png
+    .venv/bin/python scripts/fig2_force_sweep.py --model models/default_model.json --tau-his 0.06 \
+        --out docs/robots/asimo_like/fig2.json --png docs/robots/asimo_like/fig2_force_sweep.png
 """
 from __future__ import annotations
 
@@ -100,8 +101,8 @@ def main() -> None:
                         help="the model's input: the state estimated from simulated sensors (what "
                              'the shipped model sees on a robot; default) or the true state')
     parser.add_argument('--jobs', type=int, default=2)
-    parser.add_argument('--out', default='docs/fig2.json')
-    parser.add_argument('--png', default='docs/figures/fig2_force_sweep.png')
+    parser.add_argument('--out', default='docs/robots/asimo_like/fig2.json')
+    parser.add_argument('--png', default='docs/robots/asimo_like/fig2_force_sweep.png')
     args = parser.parse_args()
 
     forces = np.arange(0.0, args.max_force + 1e-9, args.step)

@@ -2,7 +2,8 @@
 the sweep's point at the model's own (tau_plus, recommended tau_his), with the commands that made
 the dataset, the sweep and the model.
 
-    .venv/bin/python scripts/model_evaluation.py --sweep docs/sweep_wide_mirror/sweep.json \
+    .venv/bin/python scripts/model_evaluation.py \
+        --sweep docs/prediction/asimo_like/sweep_default_model/sweep.json \
         --model models/default_model.json --out models/default_model.evaluation.json
 """
 from __future__ import annotations

@@ -7,7 +7,7 @@ publish them through the onboard chain (the shipped model), and draws the monito
 capture point, predicted fall direction, status) from above: before the push, at the trigger, and
 0.2 s after it.
 
-    python scripts/render_monitor_view.py --out docs/figures/monitor_view_fall.png
+    python scripts/render_monitor_view.py --out docs/monitor/monitor_view_fall.png
 """
 from __future__ import annotations
 
@@ -38,7 +38,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--force', type=float, default=420.0, help='push force [N] (0.1 s)')
     parser.add_argument('--angle', type=float, default=0.0, help='push direction [deg]')
-    parser.add_argument('--out', type=Path, default=Path('docs/figures/monitor_view_fall.png'))
+    parser.add_argument('--out', type=Path, default=Path('docs/monitor/monitor_view_fall.png'))
     args = parser.parse_args()
     run = run_trajectory(PushSpec(args.force, args.angle, 0.1, 1.0), 3.0, record_sensors=True)
     samples = apply_sensors(run.sensor_truths, SensorParams(), seed=0)
