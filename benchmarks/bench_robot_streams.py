@@ -35,11 +35,8 @@ import numpy as np
 
 from fall_predictor.cli import main as cli_main
 from fall_predictor.data.dataset import read_index
+from fall_predictor.data.onboard_replay import first_alarm, onboard_chain
 from fall_predictor.data.sensorbag import read_robot_description, read_sensor_messages
-from fall_predictor.monitor.chain import OnboardChain
-from fall_predictor.monitor.fall_monitor import EVENT_FALLING, FallenConfig, FallMonitor
-from fall_predictor.monitor.model_file import load_model
-from fall_predictor.monitor.sensor_pipeline import PipelineConfig, SensorPipeline
 from fall_predictor.monitor.sensor_records import SensorSample
 from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
 from fall_predictor.sim.drivers import DriverTiming, driver_messages
@@ -83,22 +80,9 @@ def samples_of(bag: Path) -> list[SensorSample]:
 
 def offline_alarm_s(profile, model: Path, urdf: str, samples: list[SensorSample]) -> float | None:
     """The first alarm [s] of the onboard chain offline, simulator-timed (the reference)."""
-    lists, metadata = load_model(model)
-    settings = metadata.feature_settings
-    layout = profile.sensor_layout()
-    chain = OnboardChain(
-        SensorPipeline(layout.description(urdf), layout.imu_frame, layout.force_sensors,
-                       config=PipelineConfig(driving_joints=profile.legs_and_upper_body()[0])),
-        settings,
-        FallMonitor(lists, metadata.recommended_tau_his_s,
-                    FallenConfig(profile.fallen_com_height_m, profile.guard_com_height_m),
-                    settings.sample_period_s, settings.guard_com_height_m, profile.total_mass_kg,
-                    metadata.time_to_fall, fall_direction=metadata.fall_direction))
-    for stream, reading in driver_messages(samples):
-        for out in chain.add(stream, reading):
-            if out.event is not None and out.event.kind == EVENT_FALLING:
-                return out.stamp_ns / 1e9
-    return None
+    chain = onboard_chain(profile, model, urdf, driving_joints=profile.legs_and_upper_body()[0])
+    alarm = first_alarm(chain, driver_messages(samples))
+    return None if alarm is None else alarm.stamp_s
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -19,12 +19,9 @@ import matplotlib
 matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 
-from fall_predictor.monitor.chain import OnboardChain  # noqa: E402
-from fall_predictor.monitor.fall_monitor import EVENT_FALLING, FallenConfig, FallMonitor  # noqa: E402
-from fall_predictor.monitor.model_file import load_model  # noqa: E402
-from fall_predictor.monitor.records import (FALLEN_COM_HEIGHT_M, GUARD_COM_HEIGHT_M,  # noqa: E402
-                                            PushSpec)
-from fall_predictor.monitor.sensor_pipeline import SensorPipeline  # noqa: E402
+from fall_predictor.data.onboard_replay import onboard_chain  # noqa: E402
+from fall_predictor.monitor.fall_monitor import EVENT_FALLING  # noqa: E402
+from fall_predictor.monitor.records import PushSpec  # noqa: E402
 from fall_predictor.monitor.view import monitor_view  # noqa: E402
 from fall_predictor.profiles import asimo_like_urdf as rm  # noqa: E402
 from fall_predictor.sim.drivers import DriverTiming, driver_messages  # noqa: E402
@@ -42,14 +39,7 @@ def main() -> int:
     args = parser.parse_args()
     run = run_trajectory(PushSpec(args.force, args.angle, 0.1, 1.0), 3.0, record_sensors=True)
     samples = apply_sensors(run.sensor_truths, SensorParams(), seed=0)
-    lists, metadata = load_model(MODEL)
-    settings = metadata.feature_settings
-    layout = rm.PROFILE.sensor_layout()
-    chain = OnboardChain(SensorPipeline(layout.description(rm.URDF_PATH.read_text()), layout.imu_frame),
-                         settings, FallMonitor(lists, metadata.recommended_tau_his_s,
-                                               FallenConfig(FALLEN_COM_HEIGHT_M, GUARD_COM_HEIGHT_M),
-                                               settings.sample_period_s,
-                                               settings.guard_com_height_m, rm.TOTAL_MASS_KG))
+    chain = onboard_chain(rm.PROFILE, MODEL, rm.URDF_PATH.read_text())
     outputs = [o for stream, r in driver_messages(samples, DriverTiming.robot(500.0))
                for o in chain.add(stream, r) if o.measurement is not None]
     trigger = next(o for o in outputs if o.event is not None and o.event.kind == EVENT_FALLING)

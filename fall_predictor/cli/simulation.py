@@ -110,7 +110,7 @@ def cmd_render(args) -> int:
         world.draw_ground()
     push = PushSpec(args.force, args.angle, args.height, args.onset)
     times = list(np.linspace(args.onset - args.before, args.onset + args.after, args.frames))
-    images, labels, heading = [], [], []
+    images, labels, heading, frame_times = [], [], [], []
     height_m = 0.42 * profile.guard_com_height_m / 0.48     # the ASIMO-like robot's view, scaled
 
     def on_step(w, m) -> None:
@@ -120,6 +120,7 @@ def cmd_render(args) -> int:
             # The camera follows the CoM, at right angles to the push: its motion in the image plane.
             yaw = (heading[0] if heading else math.degrees(m.heading)) + args.angle
             images.append(w.render(320, 400, (m.com[0], m.com[1], height_m), yaw))
+            frame_times.append(m.t)
             contact = ('both feet' if len(m.left_contacts) and len(m.right_contacts) else
                        'left foot' if len(m.left_contacts) else
                        'right foot' if len(m.right_contacts) else 'no foot')
@@ -127,31 +128,60 @@ def cmd_render(args) -> int:
                           + (', fallen' if m.com[2] < profile.fallen_com_height_m else ''))
             times.pop(0)
     try:
+        # With a model, the robot's sensors are simulated (a policy's are anyway) for the monitor.
         result = run_trajectory(push, args.onset + args.after + 0.01, stop_when_fallen=False,
-                                simulator=world, controller=controller, on_step=on_step)
+                                simulator=world, controller=controller, on_step=on_step,
+                                record_sensors=args.model is not None and policy is None)
     finally:
         world.close()
-    fig, axes = plt.subplots(1, len(images), figsize=(2.0 * len(images), 3.0))
-    for ax, image, label in zip(np.atleast_1d(axes), images, labels):
+    alarm = _monitor_alarm(profile, args.model, result) if args.model is not None else None
+    fig, axes = plt.subplots(1, len(images), figsize=(2.0 * len(images), 3.3))
+    for ax, image, label, t in zip(np.atleast_1d(axes), images, labels, frame_times):
         ax.imshow(image)
-        ax.set_title(label, fontsize=7)
+        alarmed = alarm is not None and t >= alarm.stamp_s - 1e-9
+        ax.set_title(label + ('\nmonitor: FALLING' if alarmed else '\n'), fontsize=7,
+                     color='tab:red' if alarmed else 'black')
         ax.axis('off')
     who = controller.name
     if policy is not None:
         who += ' at (' + ', '.join(f'{c:g}' for c in controller.velocity_command) + ')'
     fig.suptitle(f'{profile.name}, {who}, {simulator}: {push.impulse_ns:.0f} N s push, '
                  f'{args.angle:.0f}° from the heading, {args.height:.2f} m above the CoM '
-                 '(t = 0: onset)', fontsize=9)
-    fig.tight_layout()
+                 '(t = 0: onset)' + ('' if args.model is None else
+                                     f'\nmonitor ({Path(args.model).name}): ' + (
+                                         'no alarm' if alarm is None else
+                                         f'FALLING at {alarm.stamp_s - args.onset:+.3f} s' + (
+                                             f', fallen at {result.t_fallen - args.onset:+.3f} s'
+                                             if result.fallen else ''))), fontsize=9)
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.86 if args.model is not None else 0.92))
     args.out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(args.out, dpi=110)
     plt.close(fig)
     payload = {'out': str(args.out), 'fallen': result.fallen, 't_fallen': result.t_fallen,
                'frames': len(images), 'robot': profile.name, 'controller': controller.name,
-               'simulator': simulator}
-    _emit(args, payload, [f'{args.out}: {len(images)} frames, ' + (
-        f'fallen at {result.t_fallen:.3f} s' if result.fallen else 'standing at the end')])
+               'simulator': simulator, 'model': None if args.model is None else str(args.model),
+               't_alarm': None if alarm is None else alarm.stamp_s,
+               'lead_s': (result.t_fallen - alarm.stamp_s) if alarm is not None and result.fallen
+               else None}
+    lines = [f'{args.out}: {len(images)} frames, ' + (
+        f'fallen at {result.t_fallen:.3f} s' if result.fallen else 'standing at the end')]
+    if args.model is not None:
+        lines.append(f'monitor ({args.model}): ' + ('no alarm' if alarm is None else
+                                                    f'FALLING at {alarm.stamp_s:.3f} s'))
+    _emit(args, payload, lines)
     return 0
+
+
+def _monitor_alarm(profile, model: Path, result):
+    """The first alarm of the onboard monitor (``model``) on a run's simulated sensor topics,
+    as the robot's drivers publish them (data/onboard_replay)."""
+    from fall_predictor.data.onboard_replay import first_alarm, onboard_chain
+    from fall_predictor.sim.drivers import driver_messages
+    from fall_predictor.sim.sensors import SensorParams, apply_sensors
+
+    samples = result.sensor_readings or apply_sensors(result.sensor_truths, SensorParams(), seed=0,
+                                                      profile=profile)
+    return first_alarm(onboard_chain(profile, model), driver_messages(samples))
 
 
 def cmd_bringup(args) -> int:
@@ -198,6 +228,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--after', type=argtypes.positive, default=1.6, help='seconds shown after the onset')
     p.add_argument('--before', type=argtypes.nonnegative, default=0.1,
                    help='seconds shown before the onset')
+    p.add_argument('--model', type=Path, default=None,
+                   help='also run the onboard monitor with this model on the run\'s simulated sensor '
+                        'topics and mark the frames from its first alarm (FALLING)')
     p.add_argument('--frames', type=argtypes.positive_int, default=8)
     argtypes.add_robot_argument(p)
     argtypes.add_controller_arguments(p)
