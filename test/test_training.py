@@ -210,3 +210,144 @@ def test_trajectories_not_settled_at_their_horizon_are_left_out_with_a_warning(f
     balanced = {t.trajectory_id for t in everything if not t.fallen}
     assert balanced and set(report.unsettled) == balanced
     assert [t.trajectory_id for t in report.trajectories] == [t.trajectory_id for t in everything if t.fallen]
+
+
+# -- several datasets, one model -------------------------------------------------------------
+def _with_manifest(data, **changes):
+    """``data``'s manifest with its ``robot`` entries (or top-level keys) changed."""
+    path = data / 'dataset.json'
+    manifest = json.loads(path.read_text())
+    for key, value in changes.items():
+        if key in manifest['robot']:
+            manifest['robot'][key] = value
+        else:
+            manifest[key] = value
+    path.write_text(json.dumps(manifest))
+    return data
+
+
+def test_two_copies_train_one_model_on_twice_the_trajectories(tmp_path):
+    """Two datasets are merged into one training set: every trajectory of each, its id prefixed
+    with its dataset's name (two ``traj_00000`` stay two runs), the fingerprint that of both in
+    order, the robot's mass and guard; the model is the one fitted on all of them."""
+    import shutil
+    from fall_predictor.data.dataset import robot_total_mass_kg
+    from fall_predictor.learning.training import combined_fingerprint, load_training_data, train_on_data
+    first = write_robot_dataset(tmp_path / 'session1', 'g1', n_fallen=2, n_balanced=2)
+    second = tmp_path / 'session2'
+    shutil.copytree(first, second)
+    alone = load_dataset(first)
+    data = load_training_data([first, second])
+    ids = [t.trajectory_id for t in alone.trajectories]
+    assert [t.trajectory_id for t in data.report.trajectories] == \
+        [f'session1/{i}' for i in ids] + [f'session2/{i}' for i in ids]
+    assert [(p.data_dir, p.n_trajectories, p.n_fallen) for p in data.parts] == [(first, 4, 2), (second, 4, 2)]
+    assert data.report.fingerprint == combined_fingerprint([alone.fingerprint, alone.fingerprint])
+    assert data.report.fingerprint != alone.fingerprint
+    assert combined_fingerprint(['a', 'b']) != combined_fingerprint(['b', 'a'])
+    learner = make_learner('boosting', {'max_iter': 5})
+    lists, metadata = train_on_data(data, 0.0, learner, recommended_tau_his_s=0.03)
+    assert lists == fit_strided(data.report.trajectories, 0.0, learner)
+    assert metadata.dataset_fingerprint == data.report.fingerprint
+    assert metadata.robot_mass_kg == robot_total_mass_kg(first)
+    assert metadata.feature_settings.guard_com_height_m == 0.55
+    # Directories of the same name: numbered by position.
+    third = tmp_path / 'other' / 'session1'
+    shutil.copytree(first, third)
+    assert {t.trajectory_id.split('/')[0] for t in load_training_data([first, third]).report.trajectories} \
+        == {'1-session1', '2-session1'}
+
+
+def test_merged_datasets_keep_each_ones_refused_samples_and_settings(tmp_path):
+    """The merged report counts every dataset's refused samples (keyed per dataset, not merged
+    by trajectory id) and refuses datasets whose features were computed otherwise."""
+    from fall_predictor.data.dataset import DatasetError, RefusedSamples
+    from fall_predictor.learning.training import DatasetPart, _merged_report
+    report = load_dataset(write_robot_dataset(tmp_path / 'g1', 'g1'))
+    holes = dataclasses.replace(report, refused={'traj_00000': RefusedSamples(3, 1)},
+                                errors={'traj_00009': 'truncated'})
+    parts = [DatasetPart(tmp_path / name, name, holes, 0.55, 33.0) for name in ('a', 'b')]
+    merged = _merged_report(parts)
+    assert merged.refused_total.total == 8
+    assert set(merged.refused) == {'a/traj_00000', 'b/traj_00000'}
+    assert set(merged.errors) == {'a/traj_00009', 'b/traj_00009'}
+    other = dataclasses.replace(report, settings=FeatureSettings(rate_window_s=0.02))
+    parts[1] = dataclasses.replace(parts[1], report=other)
+    with pytest.raises(DatasetError, match=r'different settings.*rate_window_s=0\.01.*rate_window_s=0\.02'):
+        _merged_report(parts)
+
+
+def test_datasets_that_cannot_share_a_model_are_refused_in_words(tmp_path, capsys):
+    """Another robot's guard, another robot's mass (more than 5 % apart), another state, the
+    same dataset twice: refused, naming the datasets and their values; masses within 5 %:
+    their mean in the model."""
+    import shutil
+    g1 = write_robot_dataset(tmp_path / 'g1', 'g1')
+    asimo = write_robot_dataset(tmp_path / 'asimo', 'asimo_like')
+    model = tmp_path / 'model.json'
+
+    def train(*data, state='estimated'):
+        argv = ['train', '--tau-plus', '0', '--tau-his', '0.03', '--out', str(model), '--json',
+                '--state', state]
+        for d in data:
+            argv += ['--data', str(d)]
+        return run_cli(capsys, *argv)
+
+    code, _, err = train(g1, asimo)
+    assert code == 2 and 'different CoM guards' in err and f'{g1}: 0.55 m' in err \
+        and f'{asimo}: 0.48 m' in err, err
+    heavier = _with_manifest(shutil.copytree(g1, tmp_path / 'heavier'), total_mass_kg=40.0)
+    code, _, err = train(g1, heavier)
+    mass = json.loads((g1 / 'dataset.json').read_text())['robot']['total_mass_kg']
+    assert code == 2 and f'{mass:g} kg ({g1})' in err and f'40 kg ({heavier})' in err \
+        and 'within 5 %' in err, err
+    near = _with_manifest(shutil.copytree(g1, tmp_path / 'near'), total_mass_kg=mass * 1.04)
+    code, out, err = train(g1, near)
+    assert code == 0, err
+    assert load_model(model)[1].robot_mass_kg == pytest.approx(mass * 1.02)
+    assert json.loads(out)['robot_mass_kg'] == pytest.approx(mass * 1.02)
+    # A dataset with sensor topics gives the estimated state, one without the true state.
+    sensed = _with_manifest(shutil.copytree(g1, tmp_path / 'sensed'), sensors={'noise_scale': 1.0})
+    code, _, err = train(g1, sensed)
+    assert code == 2 and 'different states' in err and f'{g1}: true' in err \
+        and f'{sensed}: estimated' in err, err
+    code, out, err = train(g1, sensed, state='true')
+    assert code == 0 and json.loads(out)['state'] == 'true', err
+    code, _, err = train(g1, g1)
+    assert code == 2 and 'the same dataset given twice' in err, err
+
+
+class _FrozenClock:
+    """``model_file``'s clock at a fixed time, so that two model files can be compared byte for byte."""
+
+    @staticmethod
+    def now(tz=None):
+        import datetime
+        return datetime.datetime(2024, 1, 2, 3, 4, 5, tzinfo=tz)
+
+
+def test_one_data_trains_the_single_dataset_paths_model(fixture_dataset, tmp_path, capsys, monkeypatch):
+    """``train --data A`` writes, byte for byte, the model of the single-dataset path
+    (``load_dataset`` + ``train_on_report``, the dataset's own guard and mass)."""
+    import fall_predictor.monitor.model_file as model_file
+    from fall_predictor.learning.training import train_on_report
+    monkeypatch.setattr(model_file, 'datetime', _FrozenClock)
+    model = tmp_path / 'model.json'
+    code, out, err = run_cli(capsys, 'train', '--data', str(fixture_dataset), '--tau-plus', '-0.25',
+                             '--tau-his', '0.06', '--out', str(model), '--json')
+    assert code == 0, err
+    report = load_dataset(fixture_dataset, state='estimated')
+    lists, metadata = train_on_report(report, fixture_dataset, -0.25, make_learner('tree'),
+                                      recommended_tau_his_s=0.06)
+    assert any(lists.depths)
+    expected = tmp_path / 'expected.json'
+    model_file.save_model(expected, lists, metadata)
+    assert model.read_bytes() == expected.read_bytes()
+    payload = json.loads(out)
+    assert payload['datasets'] == [{
+        'data': str(fixture_dataset), 'trajectory_id_prefix': None,
+        'n_trajectories': len(report.trajectories), 'n_fallen': sum(t.fallen for t in report.trajectories),
+        'unreadable': 0, 'unsettled': 0, 'dataset_fingerprint': report.fingerprint, 'state': report.state,
+        'guard_com_height_m': metadata.feature_settings.guard_com_height_m,
+        'robot_mass_kg': metadata.robot_mass_kg}]
+    assert payload['dataset_fingerprint'] == report.fingerprint

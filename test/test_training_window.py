@@ -142,3 +142,79 @@ def test_boosted_trees_choose_their_threshold_with_the_window(fixture_dataset):
     assert trained.metadata.recommended_tau_his_s == chosen.tau_his_s
     with pytest.raises(ValueError, match='boosted trees only'):
         train_choosing_window(fixture_dataset, -0.25, 'tree', search=search)
+
+
+# -- several datasets ------------------------------------------------------------------------
+def test_several_datasets_choose_the_window_over_all_their_runs(tmp_path):
+    """Two copies of the G1 dataset: 8 runs, not 4 (the copies' ``traj_00000`` are two runs):
+    one fold per trajectory, the pooled figures over 4 falls and 4 squats, the geometry's
+    window; the model says where its trajectories came from."""
+    import shutil
+    first = write_robot_dataset(tmp_path / 'policy', 'g1')
+    second = tmp_path / 'balance'
+    shutil.copytree(first, second)
+    trained = train_choosing_window([first, second], NO_FALLING_LABELS_TAU_PLUS_S)
+    ids = [t.trajectory_id for t in trained.report.trajectories]
+    assert len(ids) == len(set(ids)) == 8
+    window = trained.window
+    assert window.folds == 8
+    assert {(f.n_fallen, f.n_balanced) for f in window.per_window.values()} == {(4, 4)}
+    assert window.tau_his_s == 0.06 and trained.metadata.recommended_tau_his_s == 0.06
+    assert [(p.data_dir, p.prefix, p.n_trajectories) for p in trained.datasets] == \
+        [(first, 'policy', 4), (second, 'balance', 4)]
+
+
+def test_cli_train_names_every_dataset_and_its_trajectories(tmp_path, capsys):
+    first = write_robot_dataset(tmp_path / 'policy', 'g1')
+    second = write_robot_dataset(tmp_path / 'balance', 'g1', n_fallen=3, n_balanced=1)
+    model = tmp_path / 'model.json'
+    argv = ['train', '--data', str(first), '--data', str(second), '--tau-plus=10', '--out', str(model)]
+    code, out, err = run_cli(capsys, *argv, '--json')
+    assert code == 0, err
+    payload = json.loads(out)
+    assert [(d['data'], d['trajectory_id_prefix'], d['n_trajectories'], d['n_fallen'])
+            for d in payload['datasets']] == [(str(first), 'policy', 4, 2), (str(second), 'balance', 4, 3)]
+    assert payload['n_trajectories'] == 8 and payload['tau_his_chosen']['folds'] == 8
+    assert load_model(model)[1].dataset_fingerprint == payload['dataset_fingerprint']
+    code, out, err = run_cli(capsys, *argv)
+    assert code == 0, err
+    assert (f'trained on 8 trajectories: 4 (2 fallen) from {first} as policy/...; '
+            f'4 (3 fallen) from {second} as balance/...') in out
+
+
+class _FrozenClock:
+    """``model_file``'s clock at a fixed time, so that two model files can be compared byte for byte."""
+
+    @staticmethod
+    def now(tz=None):
+        import datetime
+        return datetime.datetime(2024, 1, 2, 3, 4, 5, tzinfo=tz)
+
+
+def test_one_data_writes_the_single_dataset_paths_model_with_its_window(tmp_path, capsys, monkeypatch):
+    """``train --data A`` choosing boosted trees' threshold and window writes, byte for byte,
+    the model of the single-dataset path: ``load_dataset``, ``choose_tau_his`` with the
+    dataset's guard, ``train_on_report``."""
+    import fall_predictor.monitor.model_file as model_file
+    from fall_predictor.learning.training import train_on_report
+    monkeypatch.setattr(model_file, 'datetime', _FrozenClock)
+    data = write_robot_dataset(tmp_path / 'g1', 'g1', n_fallen=3, n_balanced=2)
+    model = tmp_path / 'model.json'
+    code, out, err = run_cli(capsys, 'train', '--data', str(data), '--tau-plus=-0.1', '--learner',
+                             'boosting', '--param', 'max_iter=5', '--decision-thresholds', '0,2',
+                             '--folds', '2', '--out', str(model), '--json')
+    assert code == 0, err
+    report = load_dataset(data)
+    learner = make_learner('boosting', {'max_iter': 5})
+    search = WindowSearch(folds=2, decision_thresholds=(0, 2))
+    window = choose_tau_his(report.trajectories, learner, -0.1, search,
+                            guard_com_height_m=dataset_guard_com_height_m(data))
+    lists, metadata = train_on_report(report, data, -0.1, learner, recommended_tau_his_s=window.tau_his_s)
+    lists = lists.with_decision_threshold(window.decision_threshold)
+    assert any(lists.depths)
+    expected = tmp_path / 'expected.json'
+    model_file.save_model(expected, lists, metadata)
+    assert model.read_bytes() == expected.read_bytes()
+    assert [t.trajectory_id for t in report.trajectories] == \
+        [f'traj_{i:05d}' for i in range(5)]                # ids as recorded: no prefix alone
+    assert json.loads(out)['datasets'][0]['trajectory_id_prefix'] is None

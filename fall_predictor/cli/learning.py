@@ -26,12 +26,13 @@ def cmd_train(args) -> int:
         return _fail('train', error)
     start = time.perf_counter()
     try:
-        state = argtypes.resolved_state(args)
+        for data in args.data:                 # says so when a dataset has no sensor topics
+            argtypes.resolved_state(argparse.Namespace(data=data, state=args.state))
         trained = train_choosing_window(args.data, args.tau_plus, args.learner, dict(args.param),
                                         args.stride, jobs=args.jobs, tau_his_s=args.tau_his,
                                         search=search, skip_unreadable=args.skip_unreadable,
-                                        progress=not args.json, state=state, mirror=args.mirror,
-                                        attitude=args.attitude)
+                                        progress=not args.json, state=args.state,
+                                        mirror=args.mirror, attitude=args.attitude)
         lists, metadata, window = trained.lists, trained.metadata, trained.window
         save_model(args.out, lists, metadata)
     except (DatasetError, ModelFileError, ValueError) as error:
@@ -48,11 +49,18 @@ def cmd_train(args) -> int:
                'n_inputs': lists.n_inputs,
                'guard_com_height_m': metadata.feature_settings.guard_com_height_m,
                'dataset_fingerprint': metadata.dataset_fingerprint,
+               'datasets': [part.to_json() for part in trained.datasets],
+               'n_trajectories': len(trained.report.trajectories),
+               'robot_mass_kg': metadata.robot_mass_kg,
                'mean_rule_size': lists.mean_rule_size, 'rule_sizes': list(lists.rule_sizes),
                'depths': list(lists.depths), 'wall_s': wall}
     lines = [f'wrote {args.out}: {metadata.learner_name} on the {metadata.state} state, tau_plus '
              f'{metadata.tau_plus_s:+.3f} s, stride {args.stride}, mean rule size '
-             f'{lists.mean_rule_size:.1f}, depths {list(lists.depths)} ({wall:.1f} s)']
+             f'{lists.mean_rule_size:.1f}, depths {list(lists.depths)} ({wall:.1f} s)',
+             f'trained on {len(trained.report.trajectories)} trajectories: '
+             + '; '.join(f'{part.n_trajectories} ({part.n_fallen} fallen) from {part.data_dir}'
+                         + (f' as {part.prefix}/...' if part.prefix else '')
+                         for part in trained.datasets)]
     if trained.not_chosen is not None:
         lines.append(f'no tau_his stored: {trained.not_chosen}')
     elif window is None:
@@ -276,13 +284,19 @@ def cmd_fit_time_to_fall(args) -> int:
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser('train', help='learn per-mode decision lists and write a model file',
                        description='Train one decision list per foot contact mode (method §8) on every '
-                                   'trajectory of a dataset and write the JSON model file. Falling states '
+                                   'trajectory of one or more datasets (--data repeated: the same '
+                                   'robot\'s, e.g. under two walking controllers or from several '
+                                   'sessions) and write the JSON model file. Falling states '
                                    'before t_height_drop + tau_plus are withheld; balanced states weigh 4, '
                                    'falling states 1 (per 1 kHz sample). The history window tau_his the '
                                    'model runs with is chosen by cross-validation on the same data unless '
-                                   'given (--tau-his) and stored in the model. Exit code 2 if the dataset or '
-                                   'a setting cannot be used.')
-    p.add_argument('--data', type=Path, required=True, help='dataset directory')
+                                   'given (--tau-his) and stored in the model. Exit code 2 if a dataset or '
+                                   'a setting cannot be used, or the datasets disagree (state, CoM '
+                                   'guard, feature settings, robot mass).')
+    p.add_argument('--data', type=Path, action='append', required=True, metavar='DIR',
+                   help='dataset directory; repeat it to train one model on several datasets (each '
+                        'from its own feature cache; their state, CoM guard and feature settings '
+                        'must agree and their robot masses within 5 %%: the model stores the mean)')
     p.add_argument('--tau-plus', type=argtypes.finite(float), required=True,
                    help='tau_plus [s]: falling states are trained on from t_height_drop + tau_plus '
                         '(may be < 0; write --tau-plus=-0.25)')
@@ -298,8 +312,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--tau-his', '--tau-his-recommended', dest='tau_his', type=argtypes.nonnegative,
                    default=None, metavar='SECONDS',
                    help='history window [s] stored as the model\'s run-time default (default: chosen '
-                        'by cross-validation on --data, the longest lead at FPR <= --max-fpr, as the '
-                        'sweep chooses operating points)')
+                        'by cross-validation on the --data trajectories, the longest lead at FPR <= '
+                        '--max-fpr, as the sweep chooses operating points)')
     p.add_argument('--max-fpr', type=argtypes.finite(float), default=None, metavar='FPR',
                    help='FPR budget of the window\'s choice (default 0.06, FP-L2\'s)')
     p.add_argument('--folds', type=argtypes.at_least_two, default=None,
@@ -313,7 +327,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--jobs', type=argtypes.positive_int, default=1,
                    help='processes loading features and training the window\'s folds')
     p.add_argument('--skip-unreadable', action='store_true',
-                   help='leave out unreadable bags instead of failing')
+                   help='leave out unreadable bags (of every dataset) instead of failing')
     p.add_argument('--json', action='store_true', help='print one JSON object')
     p.set_defaults(func=cmd_train)
 

@@ -1,5 +1,6 @@
 """Training on a dataset (method §8): the learner registry, the sample stride, loading a dataset's
-features, training one decision list per contact mode, and a summary of the learned rules.
+features (or several datasets' for one model, :func:`load_training_data`), training one decision
+list per contact mode, and a summary of the learned rules.
 
 Everything here is core library (no ROS) and importable by tests and scripts; the CLI
 subcommands ``train`` and ``rules`` are thin wrappers.
@@ -17,9 +18,12 @@ runs at the full 1 kHz: the history window ``tau_his`` is a run-time parameter.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import math
 import os
 import warnings
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Mapping, Optional, Sequence
 
 import numpy as np
@@ -226,9 +230,12 @@ def check_training_settings(tau_plus_s: float, learner_name: str,
 def train_on_report(report: LoadReport, data_dir: PathLike, tau_plus_s: float,
                     learner: RuleListLearner, sample_stride: int = DEFAULT_SAMPLE_STRIDE,
                     recommended_tau_his_s: Optional[float] = None, mirror: bool = False,
-                    attitude: bool = False) -> tuple[PerModeDecisionLists, ModelMetadata]:
+                    attitude: bool = False, *, guard_com_height_m: Optional[float] = None,
+                    robot_mass_kg: Optional[float] = None
+                    ) -> tuple[PerModeDecisionLists, ModelMetadata]:
     """:func:`train_model` on a dataset already loaded (``report``, of ``data_dir``) with a
-    learner from :func:`check_training_settings`."""
+    learner from :func:`check_training_settings`. The model's CoM guard [m] and robot mass [kg]
+    are ``data_dir``'s unless given (several datasets merged: :func:`train_on_data`)."""
     sample_stride = check_sample_stride(sample_stride)
     require_outcomes(report.trajectories, data_dir, need_balanced=False)
     lists = fit_strided(model_inputs(report.trajectories, attitude), tau_plus_s, learner,
@@ -237,16 +244,188 @@ def train_on_report(report: LoadReport, data_dir: PathLike, tau_plus_s: float,
     from fall_predictor.data.dataset import dataset_guard_com_height_m, robot_total_mass_kg
     from fall_predictor.learning.time_to_fall_training import fit_time_to_fall
     time_to_fall = fit_time_to_fall(report.trajectories, sample_stride)
+    if guard_com_height_m is None:
+        guard_com_height_m = dataset_guard_com_height_m(data_dir)
+    if robot_mass_kg is None:
+        robot_mass_kg = robot_total_mass_kg(data_dir)
     metadata = ModelMetadata(
         tau_plus_s=float(tau_plus_s), balanced_weight=BALANCED_WEIGHT,
         falling_weight=FALLING_WEIGHT, learner_name=type(learner).__name__,
         learner_params=learner.get_params(), dataset_fingerprint=report.fingerprint,
         recommended_tau_his_s=recommended_tau_his_s, sample_stride=sample_stride,
-        feature_settings=dataclasses.replace(
-            report.settings, guard_com_height_m=dataset_guard_com_height_m(data_dir)),
-        robot_mass_kg=robot_total_mass_kg(data_dir),
+        feature_settings=dataclasses.replace(report.settings, guard_com_height_m=guard_com_height_m),
+        robot_mass_kg=robot_mass_kg,
         time_to_fall=time_to_fall, state=report.state, mirror=mirror)
     return lists, metadata
+
+
+def train_on_data(data: TrainingData, tau_plus_s: float, learner: RuleListLearner,
+                  sample_stride: int = DEFAULT_SAMPLE_STRIDE,
+                  recommended_tau_his_s: Optional[float] = None, mirror: bool = False,
+                  attitude: bool = False) -> tuple[PerModeDecisionLists, ModelMetadata]:
+    """:func:`train_on_report` on the datasets of ``data`` merged (:func:`load_training_data`),
+    with their common CoM guard and their mean robot mass; one dataset is trained on exactly
+    as :func:`train_on_report` trains it."""
+    return train_on_report(data.report, data.where, tau_plus_s, learner, sample_stride,
+                           recommended_tau_his_s, mirror, attitude,
+                           guard_com_height_m=data.guard_com_height_m,
+                           robot_mass_kg=data.robot_mass_kg)
+
+
+# -- several datasets, one model ------------------------------------------------------------------
+#: The robot masses of datasets trained into one model may differ by this fraction at most (the
+#: heaviest over the lightest): a model belongs to one robot.
+MASS_AGREEMENT = 0.05
+
+
+@dataclass(frozen=True)
+class DatasetPart:
+    """One dataset of a training set as loaded: its directory, the prefix of its trajectory ids
+    in the merged set (``''``: the only dataset, ids as recorded), its own report, its robot's
+    CoM guard [m] and mass [kg]."""
+
+    data_dir: Path
+    prefix: str
+    report: LoadReport
+    guard_com_height_m: float
+    robot_mass_kg: float
+
+    @property
+    def n_trajectories(self) -> int:
+        return len(self.report.trajectories)
+
+    @property
+    def n_fallen(self) -> int:
+        return sum(bool(t.fallen) for t in self.report.trajectories)
+
+    def to_json(self) -> dict[str, Any]:
+        return {'data': str(self.data_dir), 'trajectory_id_prefix': self.prefix or None,
+                'n_trajectories': self.n_trajectories, 'n_fallen': self.n_fallen,
+                'unreadable': len(self.report.errors), 'unsettled': len(self.report.unsettled),
+                'dataset_fingerprint': self.report.fingerprint, 'state': self.report.state,
+                'guard_com_height_m': self.guard_com_height_m, 'robot_mass_kg': self.robot_mass_kg}
+
+
+@dataclass(frozen=True)
+class TrainingData:
+    """The datasets one model is trained on (:func:`load_training_data`): each one's part, and
+    their trajectories merged into one report (a single dataset's own report), the CoM guard
+    [m] they share and their mean robot mass [kg]."""
+
+    parts: tuple[DatasetPart, ...]
+    report: LoadReport
+    guard_com_height_m: float
+    robot_mass_kg: float
+
+    @property
+    def where(self) -> str:
+        """The datasets' directories, as messages name them."""
+        return ', '.join(str(part.data_dir) for part in self.parts)
+
+
+def combined_fingerprint(fingerprints: Sequence[str]) -> str:
+    """The fingerprint of several datasets' fingerprints, in their order."""
+    h = hashlib.sha256()
+    for fingerprint in fingerprints:
+        h.update(f'{fingerprint};'.encode())
+    return h.hexdigest()[:16]
+
+
+def _id_prefixes(data_dirs: Sequence[Path]) -> list[str]:
+    """The trajectory-id prefix of each dataset: its directory's name, numbered by position
+    (``2-name``) when two datasets' directories share a name."""
+    names = [d.resolve().name or str(d) for d in data_dirs]
+    if len(set(names)) == len(names):
+        return names
+    return [f'{k}-{name}' for k, name in enumerate(names, start=1)]
+
+
+def _named_values(data_dirs: Sequence[Path], values: Sequence[Any], fmt=str) -> str:
+    return ', '.join(f'{d}: {fmt(v)}' for d, v in zip(data_dirs, values))
+
+
+def _check_agreement(data_dirs: Sequence[Path], states: Sequence[str], notes: Sequence[Optional[str]],
+                     guards: Sequence[float], masses: Sequence[float]) -> None:
+    """DatasetError, naming the datasets and their values, unless one model can be trained on
+    them all: the same state, the same CoM guard, masses within :data:`MASS_AGREEMENT`."""
+    if len(set(states)) > 1:
+        why = ''.join(f'; {note}' for note in notes if note)
+        raise DatasetError(f'the datasets give features from different states ('
+                           f'{_named_values(data_dirs, states)}){why}: one model is trained on one '
+                           'state (--state true, or datasets recorded alike)')
+    if len(set(guards)) > 1:
+        raise DatasetError(f'the datasets\' robots have different CoM guards ('
+                           f'{_named_values(data_dirs, guards, lambda g: f"{g:g} m")}): a model runs '
+                           'with one guard; train a model per robot')
+    light, heavy = int(np.argmin(masses)), int(np.argmax(masses))
+    if masses[heavy] > masses[light] * (1.0 + MASS_AGREEMENT):
+        raise DatasetError(f'the datasets\' robots weigh {masses[light]:g} kg ({data_dirs[light]}) and '
+                           f'{masses[heavy]:g} kg ({data_dirs[heavy]}), '
+                           f'{100.0 * (masses[heavy] / masses[light] - 1.0):.0f} % apart: a model '
+                           f'belongs to one robot (masses within {100.0 * MASS_AGREEMENT:g} %)')
+
+
+def _merged_report(parts: Sequence[DatasetPart]) -> LoadReport:
+    """The parts' reports as one: trajectory ids (and the keys of errors, unsettled and refused
+    samples) prefixed with their dataset's prefix, so that two datasets' ``traj_00000`` stay two
+    runs. DatasetError unless their features were computed with the same settings."""
+    first = parts[0].report.settings
+    if any(part.report.settings != first for part in parts):
+        raise DatasetError('the datasets\' features were computed with different settings ('
+                           + _named_values([p.data_dir for p in parts],
+                                           [p.report.settings for p in parts]) + ')')
+
+    def keyed(part: DatasetPart, by_id: dict[str, Any]) -> dict[str, Any]:
+        return {f'{part.prefix}/{tid}': value for tid, value in by_id.items()}
+
+    notes = [part.report.note for part in parts if part.report.note]
+    return LoadReport(
+        [dataclasses.replace(t, trajectory_id=f'{part.prefix}/{t.trajectory_id}')
+         for part in parts for t in part.report.trajectories],
+        {k: v for part in parts for k, v in keyed(part, part.report.errors).items()},
+        sum(part.report.rebuilt for part in parts),
+        combined_fingerprint([part.report.fingerprint for part in parts]), first,
+        parts[0].report.state, '; '.join(notes) if notes else None,
+        {k: v for part in parts for k, v in keyed(part, part.report.unsettled).items()},
+        {k: v for part in parts for k, v in keyed(part, part.report.refused).items()})
+
+
+def load_training_data(data_dirs: PathLike | Sequence[PathLike], jobs: int = 1,
+                       skip_unreadable: bool = False, progress: bool = False,
+                       state: str = 'true') -> TrainingData:
+    """One or more datasets loaded for one model (:func:`load_dataset` each: its own feature
+    cache, its own robot profile for estimation, ``skip_unreadable`` for each), their
+    trajectories merged in the order given.
+
+    What a model holds once must agree, checked before any features are computed: the
+    ``state`` each dataset gives features from (:func:`~fall_predictor.data.dataset.resolve_state`),
+    its robot's CoM guard, its robot's mass (within :data:`MASS_AGREEMENT`; the model stores
+    their mean), and, once loaded, the feature settings; else DatasetError naming the
+    datasets and their values. The same directory twice is refused too. With several
+    datasets, trajectory ids are prefixed with their dataset's directory name
+    (``name/traj_00042``, :func:`_merged_report`) and the fingerprint is that of theirs in
+    order (:func:`combined_fingerprint`); one dataset is its report as loaded.
+    """
+    from fall_predictor.data.dataset import (dataset_guard_com_height_m, resolve_state,
+                                             robot_total_mass_kg)
+
+    dirs = [Path(data_dirs)] if isinstance(data_dirs, (str, os.PathLike)) else [Path(d) for d in data_dirs]
+    if not dirs:
+        raise ValueError('no dataset to train on')
+    resolved = [d.resolve() for d in dirs]
+    for k, d in enumerate(resolved):
+        if d in resolved[:k]:
+            raise DatasetError(f'{dirs[k]}: the same dataset given twice')
+    states, notes = zip(*(resolve_state(d, state) for d in dirs))
+    guards = [dataset_guard_com_height_m(d) for d in dirs]
+    masses = [robot_total_mass_kg(d) for d in dirs]
+    _check_agreement(dirs, states, notes, guards, masses)
+    prefixes = _id_prefixes(dirs) if len(dirs) > 1 else ['']
+    parts = tuple(DatasetPart(d, prefix, load_dataset(d, jobs, skip_unreadable, progress, s), guard, mass)
+                  for d, prefix, s, guard, mass in zip(dirs, prefixes, states, guards, masses))
+    if len(parts) == 1:
+        return TrainingData(parts, parts[0].report, guards[0], masses[0])
+    return TrainingData(parts, _merged_report(parts), guards[0], float(np.mean(masses)))
 
 
 def rules_summary(lists: PerModeDecisionLists) -> dict[str, Any]:

@@ -38,9 +38,9 @@ from fall_predictor.learning.learners import RuleListLearner
 from fall_predictor.learning.nested import PooledFigures, choose_setting, pool_results, pooled_json
 from fall_predictor.learning.selection import PAPER_PREDICTORS
 from fall_predictor.learning.sweep_results import DEFAULT_TAU_HIS_VALUES_S
-from fall_predictor.learning.training import (DEFAULT_SAMPLE_STRIDE, PathLike, check_training_settings,
-                                              load_dataset, model_inputs, require_outcomes,
-                                              train_on_report)
+from fall_predictor.learning.training import (DEFAULT_SAMPLE_STRIDE, DatasetPart, PathLike,
+                                              check_training_settings, load_training_data,
+                                              model_inputs, require_outcomes, train_on_data)
 from fall_predictor.monitor.decision_list import PerModeDecisionLists
 from fall_predictor.monitor.model_file import ModelMetadata
 from fall_predictor.monitor.records import GUARD_COM_HEIGHT_M, TrajectoryFeatures
@@ -154,16 +154,19 @@ choose_operating_point = choose_tau_his
 @dataclass(frozen=True)
 class TrainedModel:
     """What ``train`` made: the model, its metadata, how its window was chosen (None: given, or
-    not chosen: ``not_chosen`` says why), and the dataset as loaded."""
+    not chosen: ``not_chosen`` says why), the datasets as loaded and merged (``report``), and
+    each dataset's part of them (``datasets``, in the order given)."""
 
     lists: PerModeDecisionLists
     metadata: ModelMetadata
     window: Optional[WindowChoice]
     report: LoadReport
     not_chosen: Optional[str] = None
+    datasets: tuple[DatasetPart, ...] = ()
 
 
-def train_choosing_window(data_dir: PathLike, tau_plus_s: float, learner_name: str = 'tree',
+def train_choosing_window(data_dir: PathLike | Sequence[PathLike], tau_plus_s: float,
+                          learner_name: str = 'tree',
                           learner_params: Optional[Mapping[str, Any]] = None,
                           sample_stride: int = DEFAULT_SAMPLE_STRIDE, jobs: int = 1,
                           tau_his_s: Optional[float] = None, search: WindowSearch = WindowSearch(),
@@ -172,25 +175,29 @@ def train_choosing_window(data_dir: PathLike, tau_plus_s: float, learner_name: s
                           attitude: bool = False) -> TrainedModel:
     """:func:`~fall_predictor.learning.training.train_model` with the model's window stored:
     ``tau_his_s`` [s] when given, else the one :func:`choose_tau_his` chooses on the same data
-    (the dataset is loaded once); none when it cannot choose (:attr:`TrainedModel.not_chosen`)."""
-    from fall_predictor.data.dataset import dataset_guard_com_height_m
+    (the dataset is loaded once); none when it cannot choose (:attr:`TrainedModel.not_chosen`).
 
+    ``data_dir`` may be several datasets: one model is trained on all their trajectories
+    (:func:`~fall_predictor.learning.training.load_training_data`: what must agree between
+    them, trajectory ids kept apart), and the window is chosen by cross-validation over all of
+    them, every trajectory a run of its own."""
     learner = check_training_settings(tau_plus_s, learner_name, learner_params, tau_his_s, attitude)
     if search.decision_thresholds and learner_name != 'boosting':
         raise ValueError('decision thresholds are chosen for boosted trees only (--learner boosting)')
-    report = load_dataset(data_dir, jobs, skip_unreadable, progress, state)
-    require_outcomes(report.trajectories, data_dir, need_balanced=False)
+    data = load_training_data(data_dir, jobs, skip_unreadable, progress, state)
+    report = data.report
+    require_outcomes(report.trajectories, data.where, need_balanced=False)
     window, not_chosen = None, None
     if tau_his_s is None:
         try:
             window = choose_tau_his(model_inputs(report.trajectories, attitude), learner, tau_plus_s,
-                                    search, sample_stride, dataset_guard_com_height_m(data_dir),
+                                    search, sample_stride, data.guard_com_height_m,
                                     mirror, jobs, progress)
             tau_his_s = window.tau_his_s
         except WindowNotChosen as why:
             not_chosen = str(why)
-    lists, metadata = train_on_report(report, data_dir, tau_plus_s, learner, sample_stride,
-                                      tau_his_s, mirror, attitude)
+    lists, metadata = train_on_data(data, tau_plus_s, learner, sample_stride, tau_his_s, mirror,
+                                    attitude)
     if window is not None and window.decision_threshold is not None:
         lists = lists.with_decision_threshold(window.decision_threshold)
-    return TrainedModel(lists, metadata, window, report, not_chosen)
+    return TrainedModel(lists, metadata, window, report, not_chosen, data.parts)
