@@ -36,7 +36,7 @@ def test_moderate_push_fires_the_reflex_widens_the_stance_and_lowers_the_com():
     last = result.measurements[-1]
     assert abs(last.left_foot[1] - last.right_foot[1]) >= 0.25     # wider than 0.18 walking
     assert last.com[2] < result.measurements[0].com[2] - 0.03
-    # Settled: the recovery steps take a few seconds (issue "A credible robot" tightens this);
+    # Settled: the recovery steps take a few seconds (the credibility aims of docs/results.md);
     # over the last 0.5 s the horizontal momentum stays below 1 kg m/s.
     final = [m for m in result.measurements if m.t >= 7.5]
     assert max(np.abs(m.lin_mom[:2]).max() for m in final) < 1.0

@@ -1,4 +1,4 @@
-"""Dataset generation, index, feature cache and bad bags (issue: push-trajectory datasets)."""
+"""Dataset generation, index, feature cache and bad bags."""
 import json
 import os
 import shutil

@@ -16,7 +16,7 @@ def test_wilson_known_values():
     assert wilson_interval(50, 50)[1] == 1.0 and wilson_interval(50, 50)[0] < 1.0
 
 
-def test_wilson_issue_example_and_errors():
+def test_wilson_interval_of_fp_l2s_false_alarms_and_errors():
     # FP-L2's 28 false alarms of 529 -> about [0.037, 0.075]
     low, high = wilson_interval(28, 529)
     assert low == pytest.approx(0.037, abs=1e-3) and high == pytest.approx(0.075, abs=1e-3)

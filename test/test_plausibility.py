@@ -1,6 +1,6 @@
 """Tests of the plausibility bounds and the continuity check (monitor/plausibility.py).
 
-The cases are the ones found by the adversarial tests of the issue: finite values that killed
+The cases are the ones adversarial tests found: finite values that killed
 the nodes with OverflowError, a single glitch sample that fired the CoM guard, and a huge
 momentum that poisoned the rate window.
 """

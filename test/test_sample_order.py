@@ -34,7 +34,7 @@ def test_a_single_old_stamp_never_starts_a_new_run():
     intake = SampleIntake(0.001, restart_samples=5)
     for k in range(2819):
         intake.classify(k * 0.001)
-    # The case: one sample stamped 0.5 s earlier, and one stamped at t = 0.
+    # The case that was found: one sample stamped 0.5 s earlier, and one stamped at t = 0.
     assert intake.classify(2.318) is O
     assert intake.classify(0.0) is P
     assert intake.classify(2.819) is N            # the run goes on; the pending restart is void

@@ -1,4 +1,4 @@
-"""Measurements checked against physics (issue: simulation and measurements)."""
+"""Measurements checked against physics."""
 import numpy as np
 import pybullet as pb
 import pytest

@@ -7,7 +7,7 @@ from pathlib import Path
 from fall_predictor.cli import args as argtypes
 from fall_predictor.cli.args import emit, fail
 
-#: The issue-10 aims, for the human-readable verdicts.
+#: The state estimator's aims (method §10), for the human-readable verdicts.
 AIMS = {'com_p99_m': 0.010, 'lin_mom_median': 0.3, 'lin_mom_p99': 1.5, 'contact_mode_agreement': 0.97}
 
 

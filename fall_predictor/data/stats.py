@@ -1,4 +1,4 @@
-"""Dataset statistics and the paper's Fig. 6-style plots (issue: datasets, §3)."""
+"""Dataset statistics and the paper's Fig. 6-style plots (method §3)."""
 from __future__ import annotations
 
 from pathlib import Path

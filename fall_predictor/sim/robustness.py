@@ -70,7 +70,7 @@ def survival_table(grid: RobustnessGrid, survived: np.ndarray) -> dict:
 
     Returns per direction the largest impulse survived at every phase (with every smaller
     impulse of the grid also survived at that phase), the survival fraction per impulse, and
-    whether the issue's aims hold (15 N s everywhere; 30 N s forward and backward at every
+    whether the robot's aims hold (15 N s everywhere; 30 N s forward and backward at every
     phase), None where the grid lacks that impulse.
     """
     impulses = np.array(grid.impulses_ns)
