@@ -8,7 +8,7 @@ trained on the same dataset: the point is the difference between the two rules, 
 absolute figures, which docs/results.md reports cross-validated).
 
     .venv/bin/python scripts/guard_window_cost.py --data data/d1000 \
-        --model models/plain_model.json --out docs/monitor/guard_window_cost.json
+        --model docs/prediction/asimo_like/plain_lists/plain_model.json --out docs/monitor/guard_window_cost.json
 """
 from __future__ import annotations
 

@@ -137,10 +137,12 @@ def _comparisons(classifier) -> list[tuple[int, float]]:
     return [(c.feature, c.threshold) for rule in classifier.rules for c in rule.conditions]
 
 
-@pytest.mark.parametrize('name', ['default_model.json', 'plain_model.json', 'g1_model.json',
-                                  'g1_boosted_model.json', 'boosted_model.json',
-                                  'g1_attitude_model.json', 'conservative_model.json',
-                                  'g1_conservative_model.json'])
+REPO = Path(__file__).resolve().parents[1]
+
+
+@pytest.mark.parametrize('name', sorted(
+    [p.name for p in (REPO / 'models').glob('*.json') if not p.name.endswith('.evaluation.json')]
+    + ['../docs/prediction/asimo_like/plain_lists/plain_model.json']))
 def test_shipped_lists_compiled_predict_one_equals_predict_at_and_around_every_threshold(name):
     """``predict_one`` runs the rules (or trees) as generated Python code: it must compare exactly as the
     vectorised path, at each threshold itself (a threshold written back wrongly by one ulp flips

@@ -145,9 +145,9 @@ def cmd_render(args) -> int:
     who = controller.name
     if policy is not None:
         who += ' at (' + ', '.join(f'{c:g}' for c in controller.velocity_command) + ')'
-    fig.suptitle(f'{profile.name}, {who}, {simulator}: {push.impulse_ns:.0f} N s push, '
-                 f'{args.angle:.0f}° from the heading, {args.height:.2f} m above the CoM '
-                 '(t = 0: onset)' + ('' if args.model is None else
+    what = (f'{push.impulse_ns:.0f} N s push, {args.angle:.0f}° from the heading, {args.height:.2f} m '
+            'above the CoM (t = 0: onset)') if args.force else 'no push (t = 0: the given onset)'
+    fig.suptitle(f'{profile.name}, {who}, {simulator}: {what}' + ('' if args.model is None else
                                      f'\nmonitor ({Path(args.model).name}): ' + (
                                          'no alarm' if alarm is None else
                                          f'FALLING at {alarm.stamp_s - args.onset:+.3f} s' + (

@@ -1,0 +1,69 @@
+"""The model cards (models/README.md): one per shipped model, its figures those of the JSON the
+results page shows, the profiles' default models among them."""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import yaml
+
+from fall_predictor.profiles import ProfileError, available_profiles, load_profile
+
+ROOT = Path(__file__).resolve().parents[1]
+MODELS = ROOT / 'models'
+sys.path.insert(0, str(ROOT / 'scripts'))
+import model_cards  # noqa: E402
+
+
+def cards() -> dict:
+    return yaml.safe_load((MODELS / 'cards.yaml').read_text())
+
+
+def shipped() -> set[str]:
+    return {p.name for p in MODELS.glob('*.json') if not p.name.endswith('.evaluation.json')}
+
+
+def test_models_readme_is_what_the_cards_script_writes():
+    assert (MODELS / 'README.md').read_text() == model_cards.render(), \
+        'models/README.md is stale: run python scripts/model_cards.py'
+
+
+def test_every_shipped_model_has_a_card_and_every_card_a_model():
+    assert set(cards()) == shipped()
+
+
+def test_each_profile_names_a_shipped_model_its_card_calls_the_default():
+    entries = cards()
+    for name in available_profiles():
+        profile = load_profile(name)
+        for controller in profile.controller_names:
+            try:
+                model = profile.model_for(controller)
+            except ProfileError:            # C_bal on a robot whose profile ships no model for it
+                continue
+            assert model in entries, (name, controller, model)
+            assert entries[model]['robot'] == name, (name, model)
+        assert entries[profile.model_for()].get('default'), (name, profile.model_for())
+
+
+def test_each_card_reports_the_evaluation_of_its_own_model_held_out():
+    for name, entry in cards().items():
+        evaluation = json.loads((ROOT / entry['heldout']).read_text())
+        assert Path(evaluation['model']).name == name, (name, evaluation['model'])
+        assert evaluation['trained_on_this_dataset'] is False, name
+        fingerprint = json.loads((MODELS / name).read_text())['dataset_fingerprint']
+        assert evaluation['dataset_fingerprint'] != fingerprint, name
+
+
+def test_a_changed_figure_makes_the_cards_stale(tmp_path, monkeypatch):
+    """The check can fail: an evaluation with one more false alarm changes the page."""
+    entry = next(iter(cards().values()))
+    evaluation = json.loads((ROOT / entry['heldout']).read_text())
+    evaluation['n_false_positives'] += 1
+    changed = tmp_path / 'evaluation.json'
+    changed.write_text(json.dumps(evaluation))
+    original = model_cards._load
+    monkeypatch.setattr(model_cards, '_load', lambda path: (json.loads(changed.read_text())
+                                                            if path == entry['heldout'] else original(path)))
+    assert model_cards.render() != (MODELS / 'README.md').read_text()
