@@ -63,6 +63,10 @@ def cmd_simulate(args) -> int:
                                             'height_m': push.height_m, 'impulse_ns': push.impulse_ns},
         'simulated_s': simulated,
         'min_com_height_m': float(result.com[:, 2].min()),
+        # How far the CoM went over the ground, and its heading change: a walk's speed and turn.
+        'com_travel_m': float(np.linalg.norm(result.com[-1, :2] - result.com[0, :2])),
+        'heading_change_deg': float(np.degrees(np.unwrap([m.heading for m in result.measurements])[-1]
+                                               - result.measurements[0].heading)),
         'wall_s': wall,
         'real_time_factor': simulated / wall if wall > 0 else None,
         'seed': args.seed,
