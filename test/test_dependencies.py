@@ -21,12 +21,13 @@ ROSDEP_KEYS = {
     # rosdep/python.yaml
     'python3-numpy', 'python3-yaml', 'python3-scipy', 'python3-sklearn', 'python3-joblib',
     'python3-matplotlib', 'python3-tqdm', 'python3-pybullet-pip', 'python3-rosbags-pip',
-    'python3-pytest',
+    'python3-mujoco-pip', 'python3-onnxruntime-pip', 'python3-pytest',
 }
 #: Imported only by the offline tools: a robot skips them.
-OFFLINE = ('pybullet', 'sklearn', 'scipy', 'matplotlib', 'distributed', 'dask', 'joblib', 'tqdm')
+OFFLINE = ('pybullet', 'sklearn', 'scipy', 'matplotlib', 'distributed', 'dask', 'joblib', 'tqdm',
+           'mujoco', 'onnxruntime')
 OFFLINE_KEYS = {'python3-pybullet-pip', 'python3-scipy', 'python3-sklearn', 'python3-joblib',
-                'python3-matplotlib', 'python3-tqdm'}
+                'python3-matplotlib', 'python3-tqdm', 'python3-mujoco-pip', 'python3-onnxruntime-pip'}
 
 
 def _dependencies() -> list[ET.Element]:
