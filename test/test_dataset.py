@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from fall_predictor.data.bagio import read_trajectory
-from fall_predictor.data.dataset import (FORMAT, DatasetError, dataset_guard_com_height_m,
+from fall_predictor.data.dataset import (FORMAT, DatasetError, dataset_guard_com_height_m, dataset_robot,
                                          load_features, read_index)
-from fall_predictor.data.generation import GenerationConfig, generate_dataset
+from fall_predictor.data.generation import GenerationConfig, generate_dataset, simulated_robot
 from fall_predictor.monitor.records import FALLEN_COM_HEIGHT_M
 from fall_predictor.data.stats import dataset_stats, plot_fig6
 from fall_predictor.profiles import load_profile
@@ -153,6 +153,27 @@ def test_a_dataset_whose_profile_cannot_be_loaded_is_named(tmp_path):
         {'format': FORMAT, 'robot': {'profile': str(tmp_path / 'gone' / 'profile.yaml')}}))
     with pytest.raises(DatasetError, match=str(tmp_path)):
         dataset_guard_com_height_m(tmp_path)
+
+
+def test_a_robot_neither_shipped_nor_given_by_file_is_refused_not_estimated_as_another(tmp_path):
+    """A team's robot named in the manifest without its profile file: every offline tool would
+    otherwise estimate its state with the default robot's profile (its soles, its IMU)."""
+    (tmp_path / 'dataset.json').write_text(json.dumps({'format': FORMAT, 'robot': {'name': 'xbot_l'}}))
+    with pytest.raises(DatasetError, match=r"'xbot_l' is not a shipped profile.*\"profile\""):
+        dataset_robot(tmp_path)
+
+
+def test_a_simulated_robot_given_by_its_profile_file_records_the_file(tmp_path):
+    """generate --robot PATH: the manifest names the file, so that training and evaluation
+    estimate the robot with it; a shipped robot is recorded by name (the dataset moves)."""
+    copy = tmp_path / 'mine'
+    shutil.copytree(load_profile('g1').source.parent, copy)
+    recorded = simulated_robot(str(copy / 'profile.yaml'), c_bal=False)
+    assert recorded['profile'] == str((copy / 'profile.yaml').resolve())
+    (tmp_path / 'dataset.json').write_text(json.dumps({'format': FORMAT, 'robot': recorded}))
+    assert dataset_robot(tmp_path) == recorded['profile']
+    assert dataset_guard_com_height_m(tmp_path) == load_profile('g1').guard_com_height_m
+    assert 'profile' not in simulated_robot('g1', c_bal=False)
 
 
 @pytest.mark.slow

@@ -308,7 +308,10 @@ def _measurements(bag: Path, state: str) -> tuple[list[Measurement], list[tuple[
 
 def dataset_robot(data_dir: Path) -> str:
     """The robot profile (name or path) of a dataset's robot: its manifest's ``robot.profile``, else
-    its ``robot.name`` when a shipped profile has that name, else the default robot."""
+    its ``robot.name`` when a shipped profile has that name; the default robot for a dataset whose
+    manifest names no robot (made before robots had names). A robot named but neither shipped nor
+    given by a profile file is a :class:`DatasetError`: estimating it with another robot's
+    profile would be silently wrong."""
     from fall_predictor.profiles import DEFAULT_ROBOT, available_profiles
     try:
         robot = json.loads((data_dir / 'dataset.json').read_text()).get('robot') or {}
@@ -316,7 +319,16 @@ def dataset_robot(data_dir: Path) -> str:
         return DEFAULT_ROBOT
     if robot.get('profile'):
         return str(robot['profile'])
-    return robot['name'] if robot.get('name') in available_profiles() else DEFAULT_ROBOT
+    name = robot.get('name')
+    if name is None:
+        return DEFAULT_ROBOT
+    if name not in available_profiles():
+        raise DatasetError(
+            f'{data_dir}: the dataset\'s robot {name!r} is not a shipped profile '
+            f'({", ".join(available_profiles())}) and its manifest names no profile file: add '
+            f'"profile": "/path/to/profile.yaml" to "robot" in {data_dir / "dataset.json"} '
+            '(generate records it when --robot is a path)')
+    return name
 
 
 def dataset_guard_com_height_m(data_dir: str | os.PathLike) -> float:

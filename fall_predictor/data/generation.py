@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Optional
 
 import numpy as np
 
-from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
+from fall_predictor.profiles import DEFAULT_ROBOT, available_profiles, load_profile, profile_path
 from fall_predictor.profiles.profile import C_BAL
 from fall_predictor.data.bag_writer import BagWriter
 from fall_predictor.data.bagio import BagError, read_trajectory
@@ -48,10 +48,14 @@ def _default_push_distribution() -> PushDistribution:
 
 def simulated_robot(robot: str = DEFAULT_ROBOT, c_bal: bool = True) -> dict[str, Any]:
     """What a dataset records about the simulated robot (the capture-point baseline needs its
-    mass; its name is its profile's), with C_bal's drive settings when C_bal walks it."""
+    mass; its name is its profile's), with C_bal's drive settings when C_bal walks it. A robot
+    given by its profile file, not a shipped profile's name, also records that file's absolute
+    path: the offline tools estimate its state with that profile (:func:`dataset_robot`)."""
     from fall_predictor.sim.trajectory import ROBOT_CONTROL
     profile = load_profile(robot)
+    given_by_path = str(robot) not in available_profiles()
     return {'name': profile.name, 'total_mass_kg': profile.total_mass_kg,
+            **({'profile': str(profile_path(robot))} if given_by_path else {}),
             **(ROBOT_CONTROL if c_bal else {})}
 
 
