@@ -198,3 +198,27 @@ def test_feature_cache_is_rebuilt_when_the_code_that_derived_it_changes(small_da
     # As if the feature extractor had been edited since the cache was filled.
     monkeypatch.setattr(cache, 'code_fingerprint', lambda modules: 'edited')
     assert load_features(data, progress=False).rebuilt == 8
+
+
+def test_a_dataset_split_in_two_reads_as_two_datasets_reusing_the_cache(small_dataset, tmp_path):
+    """scripts/rebuild/split_dataset.py: the first N runs and the rest, each a dataset with the
+    source's rows and features (its cache entries linked: nothing derived again)."""
+    import importlib.util
+    from pathlib import Path
+    data = tmp_path / 'copy'
+    shutil.copytree(small_dataset, data)
+    whole = load_features(data, progress=False)
+    path = Path(__file__).resolve().parents[1] / 'scripts' / 'rebuild' / 'split_dataset.py'
+    spec = importlib.util.spec_from_file_location('split_dataset', path)
+    split = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(split)
+    assert split.main([str(data), '--first', '3', str(tmp_path / 'a'), str(tmp_path / 'b')]) == 0
+    parts = [load_features(tmp_path / name, progress=False) for name in ('a', 'b')]
+    assert [p.rebuilt for p in parts] == [0, 0]
+    ids = [[t.trajectory_id for t in p.trajectories] for p in parts]
+    assert ids == [[t.trajectory_id for t in whole.trajectories][:3],
+                   [t.trajectory_id for t in whole.trajectories][3:]]
+    by_id = {t.trajectory_id: t for t in whole.trajectories}
+    assert all(np.array_equal(t.com_height, by_id[t.trajectory_id].com_height)
+               for p in parts for t in p.trajectories)
+    assert json.loads((tmp_path / 'b' / 'dataset.json').read_text())['split_of']['first_index'] == 3
