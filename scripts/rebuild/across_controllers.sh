@@ -26,6 +26,9 @@ for m in g1_attitude_model g1_model g1_conservative_model; do
 done
 across g1_unitree_rl_model models/g1_unitree_rl_model.json "$C_BAL_TEST" g1_c_bal
 across g1_unitree_rl_model models/g1_unitree_rl_model.json "$OUT/g1_5050_b500" g1_c_bal_b500
+for m in g1_attitude_model g1_conservative_model; do   # C_bal's own, on the half the model on both is tested on
+  across "$m" "models/$m.json" "$OUT/g1_5050_b500" g1_c_bal_b500
+done
 
 # One model on both controllers' runs, at the policy model's operating point (the label window,
 # threshold and history window its nested choice gave).
@@ -34,4 +37,9 @@ $FP train --data "$OUT/g1pol_dev_a500" --data "$OUT/g1_5050_a500" --tau-plus=-0.
   --out "$OUT/g1_both_controllers_model.json" --json > "$OUT/train_g1_both_controllers_model.json"
 across g1_both_controllers_model "$OUT/g1_both_controllers_model.json" "$POLICY_TEST" g1_unitree_rl
 across g1_both_controllers_model "$OUT/g1_both_controllers_model.json" "$OUT/g1_5050_b500" g1_c_bal_b500
+# The control: the same recipe on the policy's 500 runs alone (what mixing in C_bal's runs costs).
+$FP train --data "$OUT/g1pol_dev_a500" --tau-plus=-0.5 --learner boosting --param decision_threshold=0.5 \
+  --attitude --mirror --tau-his 0.044 --jobs "$JOBS" --out "$OUT/g1_policy_half_model.json" --json \
+  > "$OUT/train_g1_policy_half_model.json"
+across g1_policy_half_model "$OUT/g1_policy_half_model.json" "$POLICY_TEST" g1_unitree_rl
 $PY scripts/rebuild/heldout_table.py "$OUT/heldout" --compare docs/prediction/across_controllers | tee "$OUT/table.md"

@@ -37,7 +37,8 @@ def lead_cell(e: dict) -> str:
 
 
 def model_rows(directory: Path) -> dict[str, dict]:
-    return {p.stem: _load(p) for p in sorted(directory.glob('*.json')) if p.name != 'baselines.json'}
+    return {p.stem: _load(p) for p in sorted(directory.glob('*.json'))
+            if p.name != 'baselines.json' and not p.name.startswith('train_')}
 
 
 def baseline_rows(directory: Path) -> dict[tuple[str, float], dict]:
