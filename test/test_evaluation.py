@@ -110,6 +110,26 @@ def test_cli_evaluate(fixture_dataset, tmp_path, capsys):
     assert lead_low <= evaluation['tau_lead_s'] <= lead_high
 
 
+
+def test_cli_evaluate_refuses_an_estimated_state_model_on_a_dataset_without_sensors(
+        fixture_dataset, tmp_path, capsys):
+    """The dataset has no sensor topics, so its features would silently come from the true state:
+    not what a model trained on the estimated state sees onboard. Refused, saying what to do;
+    --state true evaluates it so on purpose."""
+    model = tmp_path / 'estimated.json'
+    save_model(model, always_falling(), ModelMetadata(
+        tau_plus_s=0.0, balanced_weight=4.0, falling_weight=1.0, learner_name='hand-built',
+        learner_params={}, dataset_fingerprint='x', recommended_tau_his_s=0.06, state='estimated'))
+    code = cli.main(['evaluate', '--data', str(fixture_dataset), '--model', str(model), '--json'])
+    assert code == 2
+    assert 'recorded without sensor topics' in capsys.readouterr().err
+    code = cli.main(['evaluate', '--data', str(fixture_dataset), '--model', str(model), '--state',
+                     'true', '--json'])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert json.loads(captured.out)['model_state'] == 'estimated'
+
+
 # -- the CoM guard: the model's, else the dataset's robot's --------------------------------------
 def test_evaluate_model_without_a_model_guard_uses_the_dataset_robots_guard(tmp_path):
     """Empty decision lists on the tiny G1 dataset (CoM between 0.48 and 0.55 m): the guard

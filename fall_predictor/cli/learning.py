@@ -124,6 +124,13 @@ def cmd_evaluate(args) -> int:
             except ValueError as error:
                 return _fail('evaluate', f'--decision-threshold: {args.model}: {error}')
         state = argtypes.resolved_state(args)
+        if metadata.state is not None and state != metadata.state and state != args.state:
+            # A dataset without sensor topics fell back to the true state: the figures would be
+            # those of another input than the model runs on onboard, silently.
+            return _fail('evaluate', f'{args.model} was trained on the {metadata.state} state, but '
+                         f'{args.data} was recorded without sensor topics, so its features would come '
+                         f'from the {state} state and the figures would not be the model\'s: record '
+                         'them (`generate --sensor-noise 1`), or give --state true to evaluate so')
         evaluation = evaluate_model(args.data, lists, tau_his, baselines=args.baselines,
                                     jobs=args.jobs, skip_unreadable=args.skip_unreadable,
                                     progress=not args.json, time_to_fall=metadata.time_to_fall,
