@@ -50,7 +50,12 @@ def test_a_simulator_reset_under_sim_time_starts_a_new_timeline_keeping_the_latc
         nodes = [make() for make in in_process_chain(
             (StateEstimatorNode, *MONITOR_NODES), context=context,
             parameter_overrides=[Parameter('model_path', value=str(model)),
-                                 Parameter('use_sim_time', value=True)])]
+                                 Parameter('use_sim_time', value=True),
+                                 # The watchdogs run on wall time, and this test feeds the samples
+                                 # at its own pace (a tick waits until /clock has arrived): on a
+                                 # busy machine 0.5 s passed between two of them and a STALE state
+                                 # came in the middle of the walk. Staleness is tested elsewhere.
+                                 Parameter('stale_timeout_s', value=30.0)])]
         estimator, feature, predictor = nodes
         probe = rclpy.node.Node('clock_step_probe', context=context)
         clock = probe.create_publisher(Clock, '/clock', 10)

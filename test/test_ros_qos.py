@@ -72,7 +72,7 @@ def test_a_measurement_with_a_fault_carries_only_the_fault():
     msg = messages.measurement_msg(ros_qos.TYPES, EPOCH_NS, 'odom', None,
                                    'no /imu/data within 5 ms of /joint_states')
     back = messages.measurement_from_msg(through_the_wire(msg, Measurement))
-    assert back == (EPOCH_NS, 'odom', 'no /imu/data within 5 ms of /joint_states', None)
+    assert back == (EPOCH_NS, 'odom', 'no /imu/data within 5 ms of /joint_states', None, False)
     with pytest.raises(WireFormatError, match='needs a fault'):
         messages.measurement_msg(ros_qos.TYPES, EPOCH_NS, 'odom', None)
 
