@@ -19,6 +19,8 @@ from pathlib import Path
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / 'scripts' / 'rebuild'))
+from heldout_table import fpr_cell  # noqa: E402  (the rebuild tables' cell, one format)
 MODELS = ROOT / 'models'
 CARDS = MODELS / 'cards.yaml'
 OUT = MODELS / 'README.md'
@@ -63,10 +65,9 @@ def _setting(model: dict) -> str:
 
 
 def _heldout_row(e: dict) -> str:
-    fpr = f'{e["n_false_positives"]}/{e["n_balanced"]} = {e["fpr"]:.3f} {_interval(e["fpr_ci95"], 3)}'
     lead = f'{e["tau_lead_s"]:.2f} s {_interval(e["tau_lead_ci95"], 2)}'
-    return (f'{fpr} | {lead} | {e["n_missed"]} / {e["n_fallen"]} | '
-            f'{e["tau_lead_s"] / e["oracle_lead_s"]:.2f} | {e.get("n_pre_push_alarms", 0)}')
+    return (f'{fpr_cell(e)} | {lead} | {e["n_missed"]} / {e["n_fallen"]} | '
+            f'{e["lead_fraction"]:.2f} | {e.get("n_pre_push_alarms", 0)}')
 
 
 def _median(summary) -> str:

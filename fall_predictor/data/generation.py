@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Optional
 
 import numpy as np
 
-from fall_predictor.profiles import DEFAULT_ROBOT, available_profiles, load_profile, profile_path
+from fall_predictor.profiles import DEFAULT_ROBOT, load_profile, profile_reference
 from fall_predictor.profiles.profile import C_BAL
 from fall_predictor.data.bag_writer import BagWriter
 from fall_predictor.data.bagio import BagError, read_trajectory
@@ -53,9 +53,9 @@ def simulated_robot(robot: str = DEFAULT_ROBOT, c_bal: bool = True) -> dict[str,
     path: the offline tools estimate its state with that profile (:func:`dataset_robot`)."""
     from fall_predictor.sim.trajectory import ROBOT_CONTROL
     profile = load_profile(robot)
-    given_by_path = str(robot) not in available_profiles()
+    reference = profile_reference(robot)
     return {'name': profile.name, 'total_mass_kg': profile.total_mass_kg,
-            **({'profile': str(profile_path(robot))} if given_by_path else {}),
+            **({'profile': reference} if Path(reference).is_absolute() else {}),
             **(ROBOT_CONTROL if c_bal else {})}
 
 

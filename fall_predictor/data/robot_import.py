@@ -40,7 +40,7 @@ from typing import Iterable, Mapping, Optional, Sequence
 
 import numpy as np
 
-from fall_predictor.profiles import DEFAULT_ROBOT, available_profiles, profile_path
+from fall_predictor.profiles import DEFAULT_ROBOT, profile_reference
 from fall_predictor.data.bagio import BagError
 from fall_predictor.data.dataset import (FORMAT, PUSH_FROM_FILE, PUSH_FROM_TOPIC, PUSH_UNKNOWN,
                                          ROBOT_URDF_FILE, DatasetError, IndexRow, trajectory_id,
@@ -168,12 +168,6 @@ def push_of_recording(bag: Path, t_push_file_s: Optional[float] = None) -> Optio
     return None
 
 
-def _profile_reference(robot: str) -> str:
-    """How a manifest names a robot's profile: a shipped profile by its name, any other by its
-    file's absolute path (the dataset is read from other working directories)."""
-    return str(robot) if str(robot) in available_profiles() else str(profile_path(robot))
-
-
 def robot_from_urdf(urdf: str) -> dict:
     """Name and total mass [kg] of the robot of a URDF (what a dataset records about it)."""
     import pinocchio
@@ -273,7 +267,7 @@ def import_robot_recordings(bags: Iterable[str | os.PathLike], out: str | os.Pat
         atomic_write_text(out / 'index' / f'{tid}.json', json.dumps(asdict(row), sort_keys=True))
         rows.append(row)
     manifest = {'format': FORMAT, 'source': 'robot_recordings', 'bags': [str(s) for s in sources],
-                'robot': None if described is None else {**described, 'profile': _profile_reference(robot)},
+                'robot': None if described is None else {**described, 'profile': profile_reference(robot)},
                 'ground_truth': False, 'sensors': {'recorded_on': 'robot'},
                 'fall_rule': {'height_fraction': FALLEN_HEIGHT_FRACTION, 'tilt_deg': FALLEN_TILT_DEG,
                               'standing_window_s': STANDING_WINDOW_S},

@@ -12,8 +12,9 @@ interval on the FPR and a bootstrap interval over trajectories on the lead.
 trees' (tau_plus, decision threshold, tau_his) (method §8a).
 
 Caveat, stated in the docs: the inner folds' results come from models whose training data
-included fold k (one training per fold: "re-select on 9 folds, report the 10th", method §11); only the choice of setting is nested, not the training. The settings chosen per outer
-fold are returned, so their stability can be reported.
+included fold k (one training per fold: "re-select on 9 folds, report the 10th", method §11);
+only the choice of setting is nested, not the training. The settings chosen per outer fold are
+returned, so their stability can be reported.
 """
 from __future__ import annotations
 

@@ -6,7 +6,7 @@ nodes too: nothing here imports the simulator or ROS.
 """
 from fall_predictor.profiles.profile import (DEFAULT_ROBOT, FootProfile, ProfileError, RobotProfile,
                                              ServoGains, available_profiles, load_profile,
-                                             profile_path)
+                                             profile_path, profile_reference)
 
 __all__ = ['DEFAULT_ROBOT', 'FootProfile', 'ProfileError', 'RobotProfile', 'ServoGains',
-           'available_profiles', 'load_profile', 'profile_path']
+           'available_profiles', 'load_profile', 'profile_path', 'profile_reference']

@@ -331,6 +331,13 @@ def profile_path(robot: Union[str, Path]) -> Path:
     return path
 
 
+def profile_reference(robot: Union[str, Path]) -> str:
+    """How a dataset's manifest names ``robot``'s profile: a shipped profile by its name (the
+    dataset moves between machines), any other by its file's absolute path (the dataset is read
+    from other working directories)."""
+    return str(robot) if str(robot) in available_profiles() else str(profile_path(robot))
+
+
 _CACHE: dict[Path, RobotProfile] = {}
 
 

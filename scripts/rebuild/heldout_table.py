@@ -53,7 +53,7 @@ def table(directory: Path) -> str:
              '|---|---|---|---|---|---|']
     for name, e in model_rows(directory).items():
         lines.append(f'| `{name}.json` | {fpr_cell(e)} | {lead_cell(e)} | {e["n_missed"]} / {e["n_fallen"]} '
-                     f'| {e["tau_lead_s"] / e["oracle_lead_s"]:.2f} | {e.get("n_pre_push_alarms", 0)} |')
+                     f'| {e["lead_fraction"]:.2f} | {e.get("n_pre_push_alarms", 0)} |')
     baselines = baseline_rows(directory)
     if baselines:
         budgets = sorted({budget for _, budget in baselines}, reverse=True)
@@ -78,7 +78,8 @@ def agree(a: dict, b: dict) -> bool:
 def compare(rebuilt: Path, committed: Path) -> bool:
     """Print each figure beside the committed one; whether all agree."""
     ok = True
-    pairs = [(f'`{n}.json`', e, model_rows(committed).get(n)) for n, e in model_rows(rebuilt).items()]
+    old_models = model_rows(committed)
+    pairs = [(f'`{n}.json`', e, old_models.get(n)) for n, e in model_rows(rebuilt).items()]
     old_baselines = baseline_rows(committed)
     pairs += [(f'{n} ≤ {b:g}', e, old_baselines.get((n, b))) for (n, b), e in baseline_rows(rebuilt).items()]
     print('\n| figure | committed | rebuilt | agree |\n|---|---|---|---|')
