@@ -9,8 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fall_predictor.robot import networks
-from fall_predictor.robot.networks import MLP, OnnxNetwork, RecurrentPolicy, load_network
+from fall_predictor.robot import numpy_networks as networks
+from fall_predictor.robot.networks import load_network
+from fall_predictor.robot.numpy_networks import MLP, RecurrentPolicy
+from fall_predictor.robot.onnx_network import OnnxNetwork
 from fall_predictor.robot.torchscript import TorchScriptError
 
 FIXTURES = Path(__file__).resolve().parent / 'fixtures' / 'policies'
