@@ -17,8 +17,8 @@ from typing import Any
 import numpy as np
 import pybullet
 
-from fall_predictor.sim import simulator as simulator_module
-from fall_predictor.sim.simulator import Simulator
+from fall_predictor.sim import pybullet_world as simulator_module
+from fall_predictor.sim.pybullet_world import PybulletWorld
 
 #: The calls that drive the physics (everything else only reads it).
 RECORDED = ('setJointMotorControlArray', 'applyExternalForce', 'stepSimulation')
@@ -49,12 +49,12 @@ class RecordingPyBullet:
         return record
 
 
-def base_pose(sim: Simulator) -> np.ndarray:
+def base_pose(sim: PybulletWorld) -> np.ndarray:
     """The base's position and quaternion, as one 7-vector."""
     return np.concatenate(pybullet.getBasePositionAndOrientation(sim.robot, physicsClientId=sim.client))
 
 
-def record_calls(run: Callable[[], Simulator]) -> tuple[list[tuple[str, tuple, dict]], np.ndarray]:
+def record_calls(run: Callable[[], PybulletWorld]) -> tuple[list[tuple[str, tuple, dict]], np.ndarray]:
     """The physics-driving calls ``run`` makes through the simulator module (from its last
     reset on), and the base pose of the simulator it returns at the end."""
     proxy = RecordingPyBullet()
@@ -66,7 +66,7 @@ def record_calls(run: Callable[[], Simulator]) -> tuple[list[tuple[str, tuple, d
     return proxy.calls, base_pose(sim)
 
 
-def replay(sim: Simulator, joint_positions, torso_position,
+def replay(sim: PybulletWorld, joint_positions, torso_position,
            calls: list[tuple[str, tuple, dict]]) -> tuple[float, int, np.ndarray]:
     """Bare physics: ``sim`` reset to the recorded run's first posture, then ``calls`` only.
     Returns the CPU seconds of the replay loop, its physics steps, and the final base pose."""

@@ -38,7 +38,7 @@ def parse_setting(text: str) -> dict[str, float]:
 def controller(robot: str, overrides: dict[str, float]):
     """The profile's gait, reflex and stabilizer settings with ``overrides`` applied."""
     from fall_predictor.profiles import load_profile
-    from fall_predictor.robot.controllers import controller_configs
+    from fall_predictor.robot.balance_controller import controller_configs
     profile = load_profile(robot)
     parts = list(controller_configs(profile))
     unknown = set(overrides)
@@ -55,11 +55,11 @@ def run(job: tuple) -> dict:
     """One run: ``(robot, setting, impulse [N s], direction [deg], onset [s])``; impulse 0 is
     the unpushed walk."""
     from fall_predictor.monitor.records import PushSpec
-    from fall_predictor.robot.controllers import BalanceController
-    from fall_predictor.sim.simulator import Simulator
+    from fall_predictor.robot.balance_controller import BalanceController
+    from fall_predictor.sim.pybullet_world import PybulletWorld
     robot, setting, impulse, direction, onset = job
     profile, (gait, reflex, stabilizer) = controller(robot, parse_setting(setting))
-    with Simulator(profile=profile) as sim:
+    with PybulletWorld(profile=profile) as sim:
         balance = BalanceController(gait, reflex, stabilizer=stabilizer, profile=profile)
         q0, torso = balance.initial_posture()
         m = sim.reset(q0, torso)

@@ -39,9 +39,9 @@ import pybullet
 from bare_physics import MAX_POSE_ERROR_M, record_calls, replay
 from fall_predictor.data import generation
 from fall_predictor.data.generation import GenerationConfig, generate_one
-from fall_predictor.robot.controllers import BalanceController, ReflexConfig
+from fall_predictor.robot.balance_controller import BalanceController, ReflexConfig
 from fall_predictor.sim.pushes import trajectory_seed
-from fall_predictor.sim.trajectory import run_trajectory
+from fall_predictor.sim.trajectory import gait_run, run_trajectory
 
 def _trajectory(config: GenerationConfig, index: int):
     gait, push = config.push_distribution.sample_with_gait(trajectory_seed(config.seed, index))
@@ -54,7 +54,7 @@ def _record(config: GenerationConfig, index: int):
 
     def run():
         sim = generation._worker_simulator()
-        run_trajectory(push, duration, gait=gait, simulator=sim)
+        run_trajectory(push, duration, **gait_run(sim, gait, duration))
         return sim
     return record_calls(run)
 
@@ -104,7 +104,7 @@ def main() -> None:
         cpu0 = time.process_time()
         for i in indices:
             gait, push, duration = _trajectory(config, i)
-            run_trajectory(push, duration, gait=gait, simulator=generation._worker_simulator(),
+            run_trajectory(push, duration, **gait_run(generation._worker_simulator(), gait, duration),
                            record_sensors=args.sensor_noise is not None)
         simulation_cpu = time.process_time() - cpu0
 

@@ -46,6 +46,7 @@ from fall_predictor.profiles import load_profile
 from fall_predictor.sim.drivers import driver_messages
 from fall_predictor.sim.sensors import SensorParams, apply_sensors
 from fall_predictor.sim.trajectory import run_trajectory
+from fall_predictor.sim.world import make_world
 
 MODELS = Path(__file__).resolve().parents[1] / 'models'
 AIMS_US = {'estimator_us': 50.0, 'features_plus_predictor_us': 20.0}
@@ -57,7 +58,7 @@ def summary(us: np.ndarray) -> dict[str, float]:
 
 
 def messages_of(profile, duration_s: float, push: PushSpec, seed: int) -> list:
-    run = run_trajectory(push, duration_s, record_sensors=True, profile=profile)
+    run = run_trajectory(push, duration_s, record_sensors=True, world=make_world(profile))
     samples = apply_sensors(run.sensor_truths, SensorParams(), seed=seed, profile=profile)
     return list(driver_messages(samples))
 

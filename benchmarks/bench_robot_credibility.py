@@ -22,9 +22,11 @@ import numpy as np
 from fall_predictor.data.stats import robot_credibility
 from fall_predictor.monitor.records import N_FEATURES, TrajectoryFeatures
 from fall_predictor.sim.pushes import PushDistribution, trajectory_seed
-from fall_predictor.sim.simulator import Simulator, SimulatorConfig
+from fall_predictor.sim.pybullet_world import PybulletWorld, PybulletConfig
 from fall_predictor.robot.stabilizer import StabilizerConfig
 from fall_predictor.sim.trajectory import ROBOT_TOTAL_MASS_KG, WalkPrefix, run_trajectory
+from fall_predictor.profiles.profile import C_BAL
+from fall_predictor.robot.control import make_controller
 
 ROBOTS = {'previous': ('position', StabilizerConfig().open_loop()), 'current': ('pd_torque', StabilizerConfig())}
 
@@ -32,14 +34,15 @@ ROBOTS = {'previous': ('position', StabilizerConfig().open_loop()), 'current': (
 def measure(robot: str, n: int, horizon_s: float) -> dict:
     actuation, stabilizer = ROBOTS[robot]
     dist = PushDistribution()
-    sim = Simulator(SimulatorConfig(actuation=actuation))
+    sim = PybulletWorld(config=PybulletConfig(actuation=actuation))
     prefix = WalkPrefix(sim, until_s=dist.settle_s + dist.walk_cycle_s() + 0.01, walk_duration_s=60.0,
-                        stabilizer=stabilizer)
+                        controller=make_controller(sim.profile, C_BAL, walk_duration_s=60.0,
+                                                   stabilizer=stabilizer))
     trajectories, fallen = [], 0
     start = time.process_time()
     for i in range(n):
         push = dist.sample(trajectory_seed(0, i))
-        result = run_trajectory(push, push.t_force_end + horizon_s, prefix=prefix, stabilizer=stabilizer)
+        result = run_trajectory(push, push.t_force_end + horizon_s, prefix=prefix)
         ms = result.measurements[int(round((push.t_push - 1.0) / sim.config.dt_s)):]
         X = np.zeros((len(ms), N_FEATURES))
         X[:, 2] = [m.com[2] for m in ms]

@@ -24,9 +24,9 @@ import pybullet as pb
 
 from bare_physics import MAX_POSE_ERROR_M, record_calls, replay
 from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
-from fall_predictor.robot.control import ControllerSwitch
-from fall_predictor.robot.controllers import BalanceController, controller_configs
-from fall_predictor.sim.simulator import Simulator, SimulatorConfig
+from fall_predictor.robot.control import BalanceControl, ControllerSwitch
+from fall_predictor.robot.balance_controller import BalanceController, controller_configs
+from fall_predictor.sim.pybullet_world import PybulletWorld, PybulletConfig
 
 
 def _rates(steps: int, wall: float, cpu: float) -> dict:
@@ -37,20 +37,20 @@ def _rates(steps: int, wall: float, cpu: float) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--seconds', type=float, default=10.0, help='simulated seconds per measurement')
-    parser.add_argument('--solver-iterations', type=int, default=SimulatorConfig().solver_iterations)
+    parser.add_argument('--solver-iterations', type=int, default=PybulletConfig().solver_iterations)
     parser.add_argument('--robot', default=DEFAULT_ROBOT, help='robot profile (name or path)')
     parser.add_argument('--out', help='write the JSON here too')
     args = parser.parse_args()
     steps = int(args.seconds * 1000)
-    config = SimulatorConfig(solver_iterations=args.solver_iterations)
+    config = PybulletConfig(solver_iterations=args.solver_iterations)
     profile = load_profile(args.robot)
-    sim = Simulator(config, profile)
+    sim = PybulletWorld(profile, config=config)
     gait, reflex, stabilizer = controller_configs(profile)
 
-    def walk() -> Simulator:
+    def walk() -> PybulletWorld:
         """The full loop from the first posture, every step; the simulator it ran."""
-        switch = ControllerSwitch(BalanceController(gait, reflex, walk_duration_s=args.seconds + 5,
-                                                    stabilizer=stabilizer, profile=profile))
+        switch = ControllerSwitch(BalanceControl(BalanceController(
+            gait, reflex, walk_duration_s=args.seconds + 5, stabilizer=stabilizer, profile=profile)))
         m = sim.reset(*switch.balance.initial_posture())
         for _ in range(steps):
             sim.set_joint_targets(switch.update(m))

@@ -28,12 +28,12 @@ _PREFIX = {}
 
 
 def _prefix(t_push: float, horizon_s: float, record_sensors: bool = False):
-    from fall_predictor.sim.simulator import Simulator
+    from fall_predictor.sim.pybullet_world import PybulletWorld
     from fall_predictor.sim.trajectory import WalkPrefix
 
     key = (t_push, horizon_s, record_sensors)
     if key not in _PREFIX:
-        _PREFIX[key] = WalkPrefix(Simulator(), until_s=t_push, walk_duration_s=t_push + horizon_s + 5.0,
+        _PREFIX[key] = WalkPrefix(PybulletWorld(), until_s=t_push, walk_duration_s=t_push + horizon_s + 5.0,
                                   snapshot_every_s=t_push, record_sensors=record_sensors)
     return _PREFIX[key]
 

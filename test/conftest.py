@@ -28,7 +28,7 @@ def pytest_collection_modifyitems(config, items):
         if Path(str(item.fspath)).stem in SLOW_MODULES:
             item.add_marker(pytest.mark.slow)
 
-from fall_predictor.sim.simulator import Simulator
+from fall_predictor.sim.pybullet_world import PybulletWorld
 
 #: A small dataset generated once per test session with the real generator (seed chosen so
 #: that it holds both outcomes). Horizon shortened to keep the suite fast.
@@ -39,7 +39,7 @@ SMALL_DATASET_HORIZON_S = 2.5
 
 @pytest.fixture
 def sim():
-    simulator = Simulator()
+    simulator = PybulletWorld()
     yield simulator
     simulator.close()
 

@@ -8,8 +8,8 @@ import pytest
 
 from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.robot.actuation import SERVO_GAINS, joint_group, servo_arrays, servo_torques
-from fall_predictor.robot.controllers import BalanceController
-from fall_predictor.sim.simulator import Simulator, SimulatorConfig
+from fall_predictor.robot.balance_controller import BalanceController
+from fall_predictor.sim.pybullet_world import PybulletWorld, PybulletConfig
 
 KNEE = rm.JOINT_NAMES.index('l_knee_pitch')
 ELBOW = rm.JOINT_NAMES.index('l_elbow_pitch')
@@ -54,7 +54,7 @@ def test_pd_law_and_torque_speed_envelope_by_hand():
 def standing():
     balance = BalanceController()
     q0, torso = balance.initial_posture()
-    sim = Simulator(SimulatorConfig(actuation='pd_torque'))
+    sim = PybulletWorld(config=PybulletConfig(actuation='pd_torque'))
     first = sim.reset(q0, torso)
     yield sim, q0, first
     sim.close()
@@ -63,7 +63,7 @@ def standing():
 def test_simulated_drives_carry_the_rotor_armature(standing):
     sim, _, _ = standing
     servo = servo_arrays()
-    urdf_free = Simulator()           # a world with the URDF's own inertias, to compare with
+    urdf_free = PybulletWorld()           # a world with the URDF's own inertias, to compare with
     try:
         robot = pb.loadURDF(str(rm.SIM_URDF_PATH), flags=pb.URDF_USE_INERTIA_FROM_FILE,
                             physicsClientId=urdf_free.client)
@@ -115,7 +115,7 @@ def test_a_large_step_command_is_limited_to_the_rated_speed(standing):
 
 def test_the_walk_holds_on_the_compliant_servos():
     from fall_predictor.sim.trajectory import run_trajectory
-    result = run_trajectory(None, 8.0, sim_config=SimulatorConfig(actuation='pd_torque'))
+    result = run_trajectory(None, 8.0, world=PybulletWorld(actuation='pd_torque'))
     assert not result.fallen and result.t_reflex is None
     com = result.com
     assert com[-1, 0] > 0.5                                  # it walks forward ...

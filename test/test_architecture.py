@@ -206,12 +206,12 @@ def test_the_checker_sees_cycles_through_function_and_type_checking_imports(tmp_
 def test_the_checker_sees_a_forbidden_import(tmp_path):
     """The checks above can fail: a monitor module importing the simulator is caught and named."""
     bad = tmp_path / 'bad.py'
-    bad.write_text('import numpy\n\ndef f():\n    from fall_predictor.sim.simulator import Simulator\n')
+    bad.write_text('import numpy\n\ndef f():\n    from fall_predictor.sim.pybullet_world import PybulletWorld\n')
     found = imports(bad)
-    assert ('fall_predictor.sim.simulator', True) in found
+    assert ('fall_predictor.sim.pybullet_world', True) in found
     assert ('numpy', False) in found
     assert layout_violations('fall_predictor.monitor.bad', {'fall_predictor.monitor.bad': found}) == [
-        'fall_predictor.monitor.bad imports fall_predictor.sim.simulator '
+        'fall_predictor.monitor.bad imports fall_predictor.sim.pybullet_world '
         '(inside a function or TYPE_CHECKING)']
 
 

@@ -123,7 +123,8 @@ def test_a_fall_after_a_step_back_is_caught_as_without_it(robot: str, push: tupl
     from fall_predictor.sim.trajectory import run_trajectory
 
     profile = load_profile(robot)
-    result = run_trajectory(PushSpec(*push), 3.4, record_sensors=True, profile=profile)
+    from fall_predictor.sim.world import make_world
+    result = run_trajectory(PushSpec(*push), 3.4, record_sensors=True, world=make_world(profile))
     assert result.fallen
     timing = DriverTiming.robot(1000.0)
     recording = list(driver_messages(apply_sensors(result.sensor_truths, SensorParams(), seed=0,

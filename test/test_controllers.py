@@ -4,10 +4,10 @@ import pytest
 
 from fall_predictor.monitor.records import PushSpec
 from fall_predictor.profiles import load_profile
-from fall_predictor.robot.control import ControllerSwitch
-from fall_predictor.robot.controllers import BalanceController, GaitConfig, controller_configs
+from fall_predictor.robot.control import BalanceControl, ControllerSwitch
+from fall_predictor.robot.balance_controller import BalanceController, GaitConfig, controller_configs
 from fall_predictor.robot.gait import GRAVITY
-from fall_predictor.sim.simulator import Simulator
+from fall_predictor.sim.pybullet_world import PybulletWorld
 from fall_predictor.sim.trajectory import run_trajectory
 
 
@@ -57,7 +57,7 @@ def test_switch_to_fall_control_is_one_way_and_freezes_the_target():
     # Drive a switch and a free-running C_bal with the same walking measurements: after the
     # trigger the switch must hold the last C_bal target while C_bal itself moves on.
     walk = run_trajectory(None, 1.2).measurements
-    switch = ControllerSwitch(BalanceController(GaitConfig()))
+    switch = ControllerSwitch(BalanceControl(BalanceController(GaitConfig())))
     reference = BalanceController(GaitConfig())
     n_before = 600
     for m in walk[:n_before]:
@@ -79,11 +79,11 @@ def test_a_fall_triggered_before_any_update_holds_the_robots_own_starting_target
     """C_fall holds C_bal's target; triggered before C_bal's first update (a predictor that says
     falling on the first sample) it holds the target C_bal starts from, one value per joint of
     that robot (it held 26 zeros, the ASIMO-like robot's count, whatever the robot)."""
-    from fall_predictor.robot.controllers import controller_configs
+    from fall_predictor.robot.balance_controller import controller_configs
     profile = load_profile(robot)
     gait, reflex, stabilizer = controller_configs(profile)
     balance = BalanceController(gait, reflex, stabilizer=stabilizer, profile=profile)
-    switch = ControllerSwitch(balance)
+    switch = ControllerSwitch(BalanceControl(balance))
     posture, _ = balance.initial_posture()            # what a run starts the robot in
     assert switch.trigger_fall(0.0) is True
     held = switch.update(None)
@@ -126,7 +126,7 @@ def test_the_reflex_step_waits_until_its_foot_is_unloaded_however_long_that_take
     (``max_lift_delay_s`` bounds only re-holding a swing already under way, not this wait)."""
     profile = load_profile('asimo_like')
     gait, reflex, stabilizer = controller_configs(profile)
-    with Simulator(profile=profile) as sim:
+    with PybulletWorld(profile=profile) as sim:
         controller = BalanceController(gait, reflex, stabilizer=stabilizer, profile=profile)
         q0, torso = controller.initial_posture()
         m = sim.reset(q0, torso)

@@ -12,7 +12,7 @@ from fall_predictor.monitor.robot_description import DescriptionError, RobotDesc
 from fall_predictor.monitor.records import PushSpec
 from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.sim.sensors import SensorParams, apply_sensors
-from fall_predictor.sim.simulator import Simulator
+from fall_predictor.sim.pybullet_world import PybulletWorld
 from fall_predictor.sim.trajectory import run_trajectory
 
 
@@ -41,7 +41,7 @@ def test_pinocchio_com_equals_the_simulators_urdf_com():
     # simulator's exact base pose and joint angles gives PyBullet's mass-weighted link CoM.
     model = pin.buildModelFromXML(rm.URDF_PATH.read_text(), pin.JointModelFreeFlyer())
     data = model.createData()
-    with Simulator() as sim:
+    with PybulletWorld() as sim:
         q0 = np.linspace(-0.3, 0.3, 26)
         m = sim.reset(q0, [0.1, 0.2, 1.0], torso_yaw_rad=0.4)
         pos, orn = pb.getBasePositionAndOrientation(sim.robot, physicsClientId=sim.client)

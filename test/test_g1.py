@@ -12,31 +12,32 @@ import pytest
 from fall_predictor.monitor.estimator import StateEstimator
 from fall_predictor.monitor.records import PushSpec
 from fall_predictor.profiles import load_profile
-from fall_predictor.robot.controllers import BalanceController, controller_configs
+from fall_predictor.robot.balance_controller import BalanceController, controller_configs
 from fall_predictor.sim.sensors import SensorParams, apply_sensors
-from fall_predictor.sim.simulator import GRAVITY, Simulator
-from fall_predictor.sim.trajectory import run_trajectory
+from fall_predictor.sim.pybullet_world import GRAVITY, PybulletWorld
+from fall_predictor.sim.trajectory import gait_run, run_trajectory
+from fall_predictor.sim.world import make_world
 
 G1 = load_profile('g1')
 
 
 @pytest.fixture(scope='module')
 def sim():
-    with Simulator(profile=G1) as simulator:
+    with PybulletWorld(profile=G1) as simulator:
         yield simulator
 
 
 def test_the_simulated_g1_is_the_urdf_robot(sim):
     """The PyBullet model weighs what the URDF says (no default 1 kg on its frame links) and
     moves the profile's joints in the URDF's order."""
-    run_trajectory(None, 0.01, simulator=sim)
+    run_trajectory(None, 0.01, world=sim)
     assert sim.total_mass == pytest.approx(G1.total_mass_kg, abs=1e-5)
     assert sim.joint_names == G1.joint_names and len(sim.joint_names) == 29
 
 
 def test_g1_stands_ten_seconds(sim):
     standing = replace(controller_configs(G1)[0], standing=True)
-    run = run_trajectory(None, 10.0, simulator=sim, gait=standing)
+    run = run_trajectory(None, 10.0, **gait_run(sim, standing, 10.0))
     assert not run.fallen
     com = np.array([m.com for m in run.measurements[1000:]])
     # Still: the CoM moves less than 5 mm; the weight is on the soles; the feet stay put.
@@ -53,7 +54,7 @@ def test_g1_walks_ten_seconds(sim):
     """The profile's gait (0.08 m steps, 0.35 s single and 0.2 s double support): the CoM advances
     at the pattern's speed, keeps its height and heading, and every step lands near its plan."""
     gait = controller_configs(G1)[0]
-    run = run_trajectory(None, 10.0, simulator=sim)
+    run = run_trajectory(None, 10.0, world=sim)
     assert not run.fallen and run.t_reflex is None
     ms = run.measurements
     com = np.array([m.com for m in ms])
@@ -78,7 +79,7 @@ def test_g1_walks_ten_seconds(sim):
     (PushSpec(220.0, 0.0, 0.1, 2.0), True),       # forward, beyond any recovery
 ])
 def test_g1_pushes(sim, push, falls):
-    run = run_trajectory(push, 4.5, simulator=sim)
+    run = run_trajectory(push, 4.5, world=sim)
     assert run.fallen is falls
     if falls:
         assert push.t_push < run.t_fallen < push.t_push + 2.0
@@ -91,7 +92,7 @@ def test_g1_pushes(sim, push, falls):
 def test_g1_sensors_give_the_estimator_its_state():
     """Efforts (0.5 N m noise), the pelvis IMU and no F/T, over 4 s of walking with a recovered
     sideways push: the estimated CoM and CoP against the simulator's."""
-    run = run_trajectory(PushSpec(60.0, 90.0, 0.1, 2.0), 4.0, record_sensors=True, profile=G1)
+    run = run_trajectory(PushSpec(60.0, 90.0, 0.1, 2.0), 4.0, record_sensors=True, world=make_world(G1))
     readings = apply_sensors(run.sensor_truths, SensorParams(), seed=3, profile=G1)
     assert readings[0].left_wrench is None and readings[0].imu_frame == 'imu_in_pelvis'
     robot = G1.sensor_layout().description(G1.urdf_xml())
@@ -145,7 +146,7 @@ def test_a_trajectory_from_a_walk_prefix_does_not_depend_on_the_ones_run_before_
     dataset depended on their scheduling). Run alone, again, and after a fall, it is the same bit
     for bit, and it starts from the walk's own samples."""
     from fall_predictor.sim.trajectory import WalkPrefix
-    prefix = WalkPrefix(Simulator(profile=G1), until_s=2.8, walk_duration_s=10.0)
+    prefix = WalkPrefix(PybulletWorld(profile=G1), until_s=2.8, walk_duration_s=10.0)
     try:
         push = PushSpec(100.0, 100.0, 0.1, 2.75)
         alone = run_trajectory(push, 3.4, prefix=prefix)

@@ -52,7 +52,7 @@ def test_the_contact_forces_are_those_that_move_the_robot() -> None:
         f = sum((f for _, f in w._last_contacts['l'] + w._last_contacts['r']), np.zeros(3))
         forces.append(f)
         cops.append(m.cop)
-    result = run_trajectory(None, 3.0, simulator=world, controller=make_controller(G1, command=(
+    result = run_trajectory(None, 3.0, world=world, controller=make_controller(G1, command=(
         0.4, 0.0, 0.0)), on_step=on_step)
     p0, p1 = result.measurements[0].lin_mom, result.measurements[-1].lin_mom
     impulse = (np.sum(forces, axis=0) - [0.0, 0.0, weight_n * len(forces)]) * DT_S
@@ -127,7 +127,7 @@ def test_a_snapshot_continues_bit_for_bit_and_runs_are_deterministic() -> None:
         world = MujocoWorld(G1, dt_s=DT_S)
         control = make_controller(G1, command=(0.4, 0.0, 0.2))
         suite = SensorSuite(SensorParams(), seed=seed, dt_s=DT_S, profile=G1)
-        return run_trajectory(PushSpec(300.0, 45.0, 0.1, 1.0), 1.5, simulator=world,
+        return run_trajectory(PushSpec(300.0, 45.0, 0.1, 1.0), 1.5, world=world,
                               controller=control, sensors=suite, stop_when_fallen=False)
     a, b = run(3), run(3)
     assert [m.com.tolist() for m in a.measurements] == [m.com.tolist() for m in b.measurements]

@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from fall_predictor.robot.controllers import BalanceController, GaitConfig, ReflexConfig
+from fall_predictor.robot.balance_controller import BalanceController, GaitConfig, ReflexConfig
 from fall_predictor.sim.pushes import PushDistribution, trajectory_seed
-from fall_predictor.sim.simulator import Simulator
+from fall_predictor.sim.pybullet_world import PybulletWorld
 
 
 def test_gaits_and_pushes_cover_the_amended_ranges_and_no_more():
@@ -35,7 +35,7 @@ def test_a_trajectory_draws_the_same_gait_and_push_whatever_else_is_drawn():
 
 
 def test_a_standing_gait_keeps_both_feet_where_they_are():
-    with Simulator() as sim:
+    with PybulletWorld() as sim:
         controller = BalanceController(GaitConfig(standing=True), ReflexConfig())
         q0, torso0 = controller.initial_posture()
         m = sim.reset(q0, torso0)

@@ -3,7 +3,7 @@ import pybullet as pb
 import pytest
 
 from fall_predictor.profiles import asimo_like_urdf as rm
-from fall_predictor.robot.controllers import BalanceController
+from fall_predictor.robot.balance_controller import BalanceController
 
 
 @pytest.fixture

@@ -50,7 +50,7 @@ BUILD = {'joints': messages.joint_state_msg, 'imu': messages.imu_msg}
 def readings() -> list:
     """The sensor readings of 0.3 s of the G1 walking under its policy in MuJoCo (noise on)."""
     world = make_world(PROFILE, None, physics_dt_s(POLICY))
-    run = run_trajectory(None, N * world.dt_s, simulator=world,
+    run = run_trajectory(None, N * world.dt_s, world=world,
                          controller=make_controller(PROFILE, None, COMMAND, dt_s=world.dt_s),
                          sensors=SensorSuite(SensorParams(), 7, world.dt_s, PROFILE),
                          stop_when_fallen=False)
@@ -108,7 +108,7 @@ class Rig:
     def play(self, readings: Sequence, skip_imu: range = range(0)) -> None:
         """Publish ``readings`` as the drivers do (each message taken before the next), without
         the IMU readings of the indices ``skip_imu``."""
-        sync = self.node._inputs.sync
+        sync = self.node._input.sync
         for k, s in enumerate(readings):
             for stream, reading in driver_messages([s]):
                 if stream == 'imu' and k in skip_imu:
@@ -226,7 +226,7 @@ def test_a_new_run_restarts_the_policy(rig, readings):
     # its clock from that sample; the 4 samples before are dropped, unanswered.
     got = rig.answers(56)
     _assert_answers(got, offline(readings, range(4, 60, 10), range(4, 60), first_t_s=0.008))
-    assert rig.node.counts['new_runs'] == 1 and rig.node._timeline.jumps == 1
+    assert rig.node.counts['new_runs'] == 1 and rig.node._input.timeline.jumps == 1
 
 
 def test_simulated_robot_walks_the_policy_on_its_sensors_as_the_offline_loop_does() -> None:
@@ -235,7 +235,7 @@ def test_simulated_robot_walks_the_policy_on_its_sensors_as_the_offline_loop_doe
     walks exactly as in the offline loop with the same sensor noise."""
     duration_s = 0.4
     world = make_world(PROFILE, None, physics_dt_s(POLICY))
-    offline_run = run_trajectory(None, duration_s + 0.05, simulator=world,
+    offline_run = run_trajectory(None, duration_s + 0.05, world=world,
                                  controller=make_controller(PROFILE, None, dt_s=world.dt_s),
                                  sensors=SensorSuite(SensorParams(), 100003 * 0 + 1, world.dt_s,
                                                      PROFILE),

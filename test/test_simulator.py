@@ -3,9 +3,9 @@ import numpy as np
 import pybullet as pb
 import pytest
 
-from fall_predictor.robot.controllers import BalanceController
+from fall_predictor.robot.balance_controller import BalanceController
 from fall_predictor.monitor.records import PushSpec
-from fall_predictor.sim.simulator import GRAVITY, Simulator, SimulatorConfig
+from fall_predictor.sim.pybullet_world import GRAVITY, PybulletWorld, PybulletConfig
 from fall_predictor.sim.trajectory import run_trajectory
 
 
@@ -83,7 +83,7 @@ def test_same_push_gives_an_identical_trajectory():
 def test_an_unsupported_robot_ends_fallen():
     q0, torso = BalanceController().initial_posture()
     # Servo gains scaled to nothing: only the drives' friction resists, and the robot collapses.
-    with Simulator(SimulatorConfig(actuation='pd_torque', servo_gain_scale=1e-9)) as limp:
+    with PybulletWorld(config=PybulletConfig(actuation='pd_torque', servo_gain_scale=1e-9)) as limp:
         limp.reset(q0, torso)
         fallen_at = None
         for _ in range(3000):
@@ -129,7 +129,7 @@ def test_quaternions_to_matrices_matches_pybullet():
     """The measurement's quaternion conversion against PyBullet's own, and orthonormal."""
     import pybullet
 
-    from fall_predictor.sim.simulator import quaternions_to_matrices
+    from fall_predictor.sim.pybullet_state import quaternions_to_matrices
     q = np.random.default_rng(13).normal(size=(500, 4))
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     rots = quaternions_to_matrices(q)
@@ -143,7 +143,7 @@ def test_quaternions_to_matrices_is_the_written_out_formula_bit_for_bit():
     """The vectorised conversion computes each entry as the written-out expression does (signed
     zeros too), into a C-ordered array: the measurement's sums, and so every trajectory, depend
     on both."""
-    from fall_predictor.sim.simulator import quaternions_to_matrices
+    from fall_predictor.sim.pybullet_state import quaternions_to_matrices
     q = np.random.default_rng(14).normal(size=(2000, 13))[:, 3:7]     # a strided view, as measured
     q[:4] = [[0.0, 0.0, 0.0, 1.0], [-0.0, 0.0, -0.0, 1.0], [0.5, -0.5, 0.5, -0.5], [1.0, 0.0, 0.0, 0.0]]
     x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
@@ -161,7 +161,7 @@ def test_a_slab_ground_carries_a_standing_robot_as_the_plane_does():
     weight is carried, and the CoM stands within a millimetre of where it stands on a plane."""
     from dataclasses import replace
     from fall_predictor.profiles import load_profile
-    from fall_predictor.robot.controllers import controller_configs
+    from fall_predictor.robot.balance_controller import controller_configs
     g1 = load_profile('g1')
     assert g1.sim_ground == 'slab'
     standing = replace(controller_configs(g1)[0], standing=True)
@@ -169,7 +169,7 @@ def test_a_slab_ground_carries_a_standing_robot_as_the_plane_does():
     for ground in ('slab', 'plane'):
         profile = replace(g1, sim_ground=ground)
         controller = BalanceController(profile=profile, gait=standing)
-        with Simulator(profile=profile) as sim:
+        with PybulletWorld(profile=profile) as sim:
             m = sim.reset(*controller.initial_posture())
             while m.t < 1.0:
                 sim.set_joint_targets(controller.update(m))
@@ -195,7 +195,7 @@ def test_a_policy_posture_stands_on_the_ground_and_relative_meshes_load_from_the
     mesh_dir = profile.sim_urdf_path.resolve().parent / 'meshes'
     assert f'filename="{mesh_dir}/' in copy and 'filename="meshes/' not in copy
     controller = make_controller(profile, 'unitree_rl_gym')
-    sim = Simulator(SimulatorConfig(dt_s=controller.policy.config.physics_dt_s), profile)
+    sim = PybulletWorld(profile, dt_s=controller.policy.config.physics_dt_s)
     try:
         m = sim.start(controller.initial_posture())
         gaps = [p[8] for p in pb.getClosestPoints(sim.robot, sim.plane, 1.0, physicsClientId=sim.client)]

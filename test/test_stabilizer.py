@@ -7,9 +7,9 @@ import pytest
 
 from fall_predictor.monitor.records import Measurement
 from fall_predictor.profiles import asimo_like_urdf as rm
-from fall_predictor.robot.controllers import BalanceController, GaitConfig, ReflexConfig
+from fall_predictor.robot.balance_controller import BalanceController, GaitConfig, ReflexConfig
 from fall_predictor.robot.stabilizer import Stabilizer, StabilizerConfig, foot_wrench
-from fall_predictor.sim.simulator import Simulator
+from fall_predictor.sim.pybullet_world import PybulletWorld
 
 OMEGA = math.sqrt(9.81 / 0.59)
 LEFT, RIGHT = np.array([0.0, 0.1]), np.array([0.0, -0.1])
@@ -94,7 +94,7 @@ def test_invalid_gains_are_refused():
 def walk(duration_s: float, stabilizer: StabilizerConfig, **model_error) -> tuple[bool, np.ndarray, np.ndarray]:
     """Walk unpushed (reflex off); returns fallen, the DCM tracking error of every tick and the
     final CoM."""
-    with Simulator() as sim:
+    with PybulletWorld() as sim:
         controller = BalanceController(GaitConfig(), ReflexConfig(enabled=False), stabilizer=stabilizer,
                                        **model_error)
         q0, torso0 = controller.initial_posture()

@@ -45,7 +45,8 @@ def add_robot_argument(parser: argparse.ArgumentParser) -> None:
 def add_controller_arguments(parser: argparse.ArgumentParser) -> None:
     """``--controller NAME`` and ``--simulator {pybullet,mujoco}``: who walks the robot, and in
     which simulator (defaults: the robot profile's; checked against it by :func:`controller_of`)."""
-    from fall_predictor.profiles.profile import C_BAL, SIMULATORS
+    from fall_predictor.profiles.profile import C_BAL
+    from fall_predictor.sim.world import SIMULATORS
     parser.add_argument('--controller', default=None, metavar='NAME',
                         help=f'the walking controller: {C_BAL!r} (the package\'s balance controller) '
                              'or a learned policy the robot profile names (default: the profile\'s)')

@@ -48,7 +48,7 @@ def cmd_simulate(args) -> int:
                                  dt_s=world.dt_s, walk_duration_s=args.duration + 5.0)
     start = time.perf_counter()
     try:
-        result = run_trajectory(push, args.duration, simulator=world, controller=controller)
+        result = run_trajectory(push, args.duration, world=world, controller=controller)
     finally:
         world.close()
     wall = time.perf_counter() - start
@@ -109,9 +109,6 @@ def cmd_render(args) -> int:
     world = make_world(profile, simulator, physics_dt_s(policy))
     controller = make_controller(profile, controller_name, args.command, dt_s=world.dt_s,
                                  walk_duration_s=args.onset + args.after + 5.0)
-    if hasattr(world, 'draw_ground'):           # PyBullet draws a slab ground as a plane
-        world.start(controller.initial_posture())
-        world.draw_ground()
     push = PushSpec(args.force, args.angle, args.height, args.onset)
     times = list(np.linspace(args.onset - args.before, args.onset + args.after, args.frames))
     images, labels, heading, frame_times = [], [], [], []
@@ -134,7 +131,7 @@ def cmd_render(args) -> int:
     try:
         # With a model, the robot's sensors are simulated (a policy's are anyway) for the monitor.
         result = run_trajectory(push, args.onset + args.after + 0.01, stop_when_fallen=False,
-                                simulator=world, controller=controller, on_step=on_step,
+                                world=world, controller=controller, on_step=on_step,
                                 record_sensors=args.model is not None and policy is None)
     finally:
         world.close()

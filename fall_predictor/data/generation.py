@@ -161,7 +161,7 @@ def _walk_prefix(config: GenerationConfig):
     """The robot's unpushed walk (its profile's gait) up to the latest possible push onset,
     simulated once per worker thread (trajectories then start from its snapshots; each depends only
     on its own push, not on the worker's earlier ones:
-    :meth:`~fall_predictor.sim.simulator.Simulator.restore`)."""
+    :meth:`~fall_predictor.sim.pybullet_world.PybulletWorld.restore`)."""
     from fall_predictor.sim.pushes import robot_gait
     from fall_predictor.sim.trajectory import WalkPrefix
 
@@ -250,8 +250,10 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
         gait = None
         command, push, start = _policy_start(config, index, rng)
     elif config.gait_variety:
+        from fall_predictor.sim.trajectory import gait_run
         gait, push = config.push_distribution.sample_with_gait(rng)
-        start = {'gait': gait, 'simulator': _worker_simulator(config.robot, config.simulator)}
+        start = gait_run(_worker_simulator(config.robot, config.simulator), gait,
+                         push.t_force_end + config.horizon_after_push_s + config.settle_extension_s)
     else:
         gait, push = None, config.push_distribution.sample(rng, robot_gait(config.robot))
         start = {'prefix': _walk_prefix(config)}

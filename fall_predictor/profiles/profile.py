@@ -53,10 +53,8 @@ PROFILE_FILE = 'profile.yaml'
 DEFAULT_ROBOT = 'asimo_like'
 
 
-#: The package's own model-based balance controller (robot/controllers.py), always available.
+#: The package's own model-based balance controller (robot/balance_controller.py), always available.
 C_BAL = 'c_bal'
-#: The simulators a world can be built in (sim/).
-SIMULATORS = ('pybullet', 'mujoco')
 
 
 @dataclass(frozen=True)
@@ -205,10 +203,10 @@ class RobotProfile:
     #: Its datasets draw a gait per trajectory (method §3); False: they walk the profile's gait.
     gait_variety: bool = True
     #: The simulated ground's shape: 'plane' (infinite) or 'slab' (a box with the same top face,
-    #: which spares PyBullet testing links far above it; sim/simulator.py).
+    #: which spares PyBullet testing links far above it; sim/pybullet_world.py).
     sim_ground: str = 'plane'
     #: The balance controller's settings that differ for this robot: per part ('gait', 'reflex',
-    #: 'stabilizer'), field -> value (robot/controllers.py GaitConfig, ReflexConfig, ...).
+    #: 'stabilizer'), field -> value (robot/balance_controller.py GaitConfig, ReflexConfig, ...).
     controller: dict[str, dict[str, Union[float, bool]]] = field(default_factory=dict)
     #: Joint angles [rad] of the posture the controller holds outside the legs (others: zero).
     posture: dict[str, float] = field(default_factory=dict)
@@ -454,9 +452,9 @@ def _parse(path: Path, raw: Any) -> RobotProfile:
     if sim_ground not in ('plane', 'slab'):
         raise ProfileError(f"{path}: sim_ground must be 'plane' or 'slab', got {sim_ground!r}")
     urdf = r.file('urdf')
+    # A name of the world registry (sim/world.py WORLDS), checked where a world is made: an engine
+    # registered at run time is as good as a shipped one.
     simulator = r.text('simulator', 'pybullet')
-    if simulator not in SIMULATORS:
-        raise ProfileError(f'{path}: simulator must be one of {SIMULATORS}, got {simulator!r}')
     mjcf = r.file('mjcf') if r.get('mjcf', None) is not None else None
     try:
         controllers = parse_controllers(path, r.get('controllers', None))

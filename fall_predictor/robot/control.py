@@ -8,7 +8,7 @@ state (the package's model-based C_bal, which the paper's method runs on the sim
 what the robot measures (a learned policy: the sensor model's readings, as on the robot's topics),
 as :attr:`Controller.observes` says. Three implement it:
 
-* :class:`BalanceControl`: C_bal (:class:`~fall_predictor.robot.controllers.BalanceController`),
+* :class:`BalanceControl`: C_bal (:class:`~fall_predictor.robot.balance_controller.BalanceController`),
   every physics step, on the exact state;
 * :class:`PolicyControl`: a team's learned walking policy
   (:class:`~fall_predictor.robot.learned_policy.LearnedPolicy`) at its own rate, on the sensors,
@@ -50,10 +50,69 @@ class JointCommand:
         n = len(self.joint_names)
         for name in ('targets_rad', 'kp', 'kd', 'tau_limit_nm'):
             value = getattr(self, name)
-            if value is not None and (np.shape(value) != (n,) or not np.isfinite(value).all()):
-                raise ValueError(f'{name} must hold {n} finite values, got {value!r}')
+            if value is None:
+                continue
+            # A torque limit may be +inf (none); every other value is finite.
+            bad = (np.isnan(value) | (np.asarray(value) < 0) if name == 'tau_limit_nm'
+                   else ~np.isfinite(value)) if np.shape(value) == (n,) else True
+            if np.any(bad):
+                raise ValueError(f'{name} must hold {n} finite values'
+                                 + (' (limits >= 0, inf: none)' if name == 'tau_limit_nm' else '')
+                                 + f', got {value!r}')
         if (self.kp is None) != (self.kd is None):
             raise ValueError('kp and kd come together (or neither: the robot\'s servos)')
+
+    @property
+    def has_gains(self) -> bool:
+        """Whether the command brings its drives' PD gains (else the robot's servos track it)."""
+        return self.kp is not None
+
+    def fit_onto(self, joint_names: Sequence[str],
+                 rest: Optional['JointCommand'] = None) -> 'JointCommand':
+        """This command on ``joint_names`` (another order, more or fewer joints): a joint it names
+        takes its target and gains; one it does not, ``rest``'s (what the drives held so far).
+        Gains: this command's where it has them; a command without gains takes ``rest``'s (a
+        targets-only message tracked by drives configured elsewhere); a joint neither names a
+        gain for is undriven (kp = kd = 0, no torque limit). The one place a command meets
+        another joint list: both worlds, the controller node and the simulator node fit so."""
+        names = tuple(joint_names)
+        if names == self.joint_names and (self.has_gains or rest is None or not rest.has_gains):
+            return self
+        mine = _positions(self.joint_names, names)
+        held = _positions(rest.joint_names, names) if rest is not None else np.full(len(names), -1)
+        missing = [n for n, a, b in zip(names, mine, held) if a < 0 and b < 0]
+        if missing:
+            raise ValueError(f'no target for joint(s) {", ".join(missing)}: the command names '
+                             f'{", ".join(self.joint_names)}'
+                             + ('' if rest is None else f', what the drives held {", ".join(rest.joint_names)}'))
+
+        def merged(own: Optional[np.ndarray], other: Optional[np.ndarray], fill: float):
+            if own is None and other is None:
+                return None
+            out = np.full(len(names), fill)
+            if other is not None:
+                out[held >= 0] = np.asarray(other, dtype=float)[held[held >= 0]]
+            if own is not None:
+                out[mine >= 0] = np.asarray(own, dtype=float)[mine[mine >= 0]]
+            return out
+
+        rest_targets = None if rest is None else rest.targets_rad
+        targets = merged(self.targets_rad, rest_targets, 0.0)
+        if not self.has_gains:
+            if rest is None or not rest.has_gains:
+                return JointCommand(names, targets)
+            own = (None, None, None)
+        else:
+            own = (self.kp, self.kd, self.tau_limit_nm)
+        other = (None, None, None) if rest is None else (rest.kp, rest.kd, rest.tau_limit_nm)
+        return JointCommand(names, targets, merged(own[0], other[0], 0.0),
+                            merged(own[1], other[1], 0.0), merged(own[2], other[2], np.inf))
+
+
+def _positions(names: Sequence[str], wanted: Sequence[str]) -> np.ndarray:
+    """Index into ``names`` of each of ``wanted`` (-1: not there)."""
+    index = {name: k for k, name in enumerate(names)}
+    return np.array([index.get(name, -1) for name in wanted], dtype=int)
 
 
 @dataclass(frozen=True)
@@ -87,12 +146,18 @@ class Controller(Protocol):
     period_s: float
     #: :data:`OBSERVES_STATE` or :data:`OBSERVES_SENSORS`.
     observes: str
+    #: When and where the controller's own reflex stepped (C_bal's), else None.
+    reflex_event: Optional[object]
 
     def initial_posture(self) -> Posture:
         """The posture a run starts from."""
 
     def command(self, observation: Observation) -> JointCommand:
         """The joint command from ``observation`` (called every :attr:`period_s`)."""
+
+    def hold_command(self) -> JointCommand:
+        """The command that holds :meth:`initial_posture`, tracked by its drives (its own gains,
+        or the robot's servos): what C_fall holds when it takes over before the first command."""
 
 
 class BalanceControl:
@@ -102,7 +167,7 @@ class BalanceControl:
     observes = OBSERVES_STATE
 
     def __init__(self, balance) -> None:
-        #: The model-based balance controller (robot/controllers.py).
+        #: The model-based balance controller (robot/balance_controller.py).
         self.balance = balance
         self.joint_names = tuple(balance.joint_names)
         self.period_s = float(balance.dt_s)
@@ -114,6 +179,9 @@ class BalanceControl:
 
     def command(self, observation: Observation) -> JointCommand:
         return JointCommand(self.joint_names, self.balance.update(observation.measurement))
+
+    def hold_command(self) -> JointCommand:
+        return _posture_command(self)
 
     @property
     def reflex_event(self):
@@ -139,7 +207,8 @@ class PolicyControl:
             raise ValueError(f'a velocity command is (vx, vy, yaw rate), got {command!r}')
         self.joint_names = tuple(policy.joint_names)
         self.period_s = float(policy.period_s)
-        self._kp, self._kd, self._limit = policy.kp, policy.kd, policy.tau_limit
+        #: The drives' gains and torque limits (its deploy config's): every command carries them.
+        self.gains = (policy.kp, policy.kd, policy.tau_limit)
         policy.reset()
 
     def initial_posture(self) -> Posture:
@@ -149,7 +218,10 @@ class PolicyControl:
         if observation.sensors is None:
             raise ValueError(f'{self.name}: a learned policy observes the sensors; the run made none')
         targets = self.policy.act(observation.t_s, observation.sensors, self.velocity_command)
-        return JointCommand(self.joint_names, targets, self._kp, self._kd, self._limit)
+        return JointCommand(self.joint_names, targets, *self.gains)
+
+    def hold_command(self) -> JointCommand:
+        return _posture_command(self, *self.gains)
 
 
 class HoldControl:
@@ -158,6 +230,7 @@ class HoldControl:
 
     observes = OBSERVES_STATE
     name = 'c_fall'
+    reflex_event = None
 
     def __init__(self, held: JointCommand, period_s: float) -> None:
         self.held = held
@@ -170,22 +243,28 @@ class HoldControl:
     def command(self, observation: Observation) -> JointCommand:
         return self.held
 
+    def hold_command(self) -> JointCommand:
+        return self.held
+
+
+def _posture_command(controller, kp=None, kd=None, tau_limit_nm=None) -> JointCommand:
+    """The command holding ``controller``'s initial posture (joints it does not set: zero)."""
+    posture = controller.initial_posture().joint_angles
+    targets = np.array([posture.get(name, 0.0) for name in controller.joint_names])
+    return JointCommand(controller.joint_names, targets, kp, kd, tau_limit_nm)
+
 
 class ControllerSwitch:
     """Runs a walking controller until :meth:`trigger_fall`, then C_fall for good (method §2:
     one-way). C_fall holds the walking controller's last command, or, before its first one, the
     posture it starts from (with its gains, when it brings its own: a policy's).
 
-    ``walking``: a :class:`Controller`, or C_bal itself (a
-    :class:`~fall_predictor.robot.controllers.BalanceController`, wrapped in
-    :class:`BalanceControl`). :meth:`command` answers an observation; :meth:`update` answers C_bal's
-    exact state with the joint targets alone (the model-based loops: data generation, the
-    controller node).
+    ``walking``: a :class:`Controller` (:func:`make_controller`'s). :meth:`command` answers an
+    observation; :meth:`update` answers C_bal's exact state with the joint targets alone (the
+    model-based loops: data generation, the controller node).
     """
 
-    def __init__(self, walking) -> None:
-        if not hasattr(walking, 'command'):
-            walking = BalanceControl(walking)
+    def __init__(self, walking: Controller) -> None:
         self.walking: Controller = walking
         self.fall: Optional[HoldControl] = None
         self.t_switch: Optional[float] = None
@@ -208,12 +287,7 @@ class ControllerSwitch:
         """Switch to C_fall; returns False if already switched."""
         if self.fall is not None:
             return False
-        held = self.last
-        if held is None:
-            posture = self.walking.initial_posture().joint_angles
-            names = self.walking.joint_names
-            gains = getattr(self.walking, '_kp', None), getattr(self.walking, '_kd', None)
-            held = JointCommand(names, np.array([posture.get(n, 0.0) for n in names]), *gains)
+        held = self.last if self.last is not None else self.walking.hold_command()
         self.fall = HoldControl(held, self.walking.period_s)
         self.t_switch = t
         return True
@@ -231,21 +305,34 @@ class ControllerSwitch:
 
 def make_controller(profile, name: Optional[str] = None,
                     command: Optional[Sequence[float]] = None, dt_s: float = 0.001,
-                    walk_duration_s: float = 3600.0) -> Controller:
-    """The walking controller ``name`` of robot ``profile`` (default: its default controller):
-    C_bal with the profile's settings, stepping every ``dt_s`` for ``walk_duration_s``, or the
-    learned policy the profile names, walking at ``command`` (default: its deploy config's
-    initial command)."""
+                    walk_duration_s: float = 3600.0, *, gait=None, reflex=None,
+                    stabilizer=None) -> Controller:
+    """The walking controller ``name`` of robot ``profile`` (default: its default controller), the
+    one place a controller is built (the CLI, data generation, the trajectory loop and the nodes
+    all come here):
+
+    * C_bal, stepping every ``dt_s`` [s] for a walk of ``walk_duration_s`` [s], with the profile's
+      settings, or those given (``gait``, ``reflex``, ``stabilizer``: robot/balance_controller.py's
+      ``GaitConfig``, ``ReflexConfig``, robot/stabilizer.py's ``StabilizerConfig``);
+    * the learned policy the profile names, walking at ``command`` = (vx [m/s], vy [m/s], yaw rate
+      [rad/s]) (default: its deploy config's initial command); its deploy config is parsed once
+      per process (robot/policy_config.py), its network loaded for this controller (its state is
+      this controller's).
+    """
     from fall_predictor.profiles.profile import C_BAL
-    from fall_predictor.robot.controllers import BalanceController, controller_configs
     name = name or profile.default_controller
     policy_profile = profile.controller_profile(name)
     if policy_profile is None:
         if name != C_BAL:
             raise ValueError(f'unknown controller {name!r}')
-        gait, reflex, stabilizer = controller_configs(profile)
-        return BalanceControl(BalanceController(gait, reflex, dt_s, walk_duration_s=walk_duration_s,
-                                                stabilizer=stabilizer, profile=profile))
+        from fall_predictor.robot.balance_controller import BalanceController, controller_configs
+        own = controller_configs(profile)
+        return BalanceControl(BalanceController(gait or own[0], reflex or own[1], dt_s,
+                                                walk_duration_s=walk_duration_s,
+                                                stabilizer=stabilizer or own[2], profile=profile))
+    if gait is not None or reflex is not None or stabilizer is not None:
+        raise ValueError(f'controller {name!r} is a learned policy: gait, reflex and stabilizer '
+                         'are C_bal\'s settings')
     from fall_predictor.robot.learned_policy import LearnedPolicy
     policy = LearnedPolicy.from_yaml(policy_profile.policy_path)
     return PolicyControl(policy, policy.config.command_init if command is None else command,

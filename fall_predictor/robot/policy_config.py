@@ -33,6 +33,7 @@ output and the joints.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -418,7 +419,7 @@ def read_policy_config(path: Union[str, Path]) -> PolicyConfig:
 def load_policy_config(path: Union[str, Path], check_network: bool = True) -> PolicyConfig:
     """:func:`read_policy_config`, then (by default) the network opened and its input and output
     sizes checked against the observation and the joints."""
-    config = read_policy_config(path)
+    config = _read_once(path)
     if check_network:
         try:
             network = load_network(config.policy_path)
@@ -426,3 +427,20 @@ def load_policy_config(path: Union[str, Path], check_network: bool = True) -> Po
             raise PolicyConfigError(f'{config.source}: policy_path: {exc}') from exc
         config.check_network(network)
     return config
+
+
+def _read_once(path: Union[str, Path]) -> PolicyConfig:
+    """:func:`read_policy_config`, parsed once per process for each version of the file (every
+    tool and node that needs a controller's deploy config shares the same frozen config)."""
+    try:
+        resolved = Path(path).resolve()
+        stat = resolved.stat()
+    except OSError:
+        return read_policy_config(path)          # says which file is missing, as it says it
+    return _read_version(resolved, stat.st_mtime_ns, stat.st_size)
+
+
+@functools.lru_cache(maxsize=64)
+def _read_version(path: Path, mtime_ns: int, size: int) -> PolicyConfig:
+    return read_policy_config(path)
+

@@ -47,30 +47,27 @@ from typing import Optional
 import numpy as np
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from sensor_msgs.msg import Imu, JointState
+from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, String
 
-from fall_predictor.contract import messages
-from fall_predictor.contract.topics import (CONTROLLER_MODE, FALL_EVENT, FALLING, GROUND_TRUTH, IMU,
-                                            JOINT_COMMANDS, MEASUREMENT, SENSOR_JOINT_STATES)
+from fall_predictor.contract.topics import CONTROLLER_MODE, FALL_EVENT, FALLING, JOINT_COMMANDS
 from fall_predictor.contract.wire import LEVEL_OK, LEVEL_WARN
 from fall_predictor.monitor.fall_monitor import EVENT_RESET
-from fall_predictor.monitor.plausibility import bound_names, bound_text
-from fall_predictor.monitor.timeline import Stamp, StampTimeline
-from fall_predictor.msg import FallEvent, Measurement
-from fall_predictor.robot.control import ControllerSwitch, JointCommand, Observation, PolicyControl
-from fall_predictor.robot.controllers import BalanceController, controller_configs
+from fall_predictor.monitor.plausibility import bound_text
+from fall_predictor.msg import FallEvent
+from fall_predictor.robot.control import ControllerSwitch, JointCommand, Observation
+from fall_predictor.robot.balance_controller import controller_configs
 from fall_predictor.ros import conversions as ros_qos
-from fall_predictor.ros.controller_params import PARAMS, command_params, load_policy, policy_robot
+from fall_predictor.ros.controller_inputs import ControlStep, SensorInput, StateInput
+from fall_predictor.ros.controller_params import PARAMS, command_params, policy_robot
 from fall_predictor.ros.endpoints import create_publisher, create_subscription
 from fall_predictor.ros.health import (HANDLED_ERRORS, LOG_THROTTLE_S, Diagnostics, InputErrors,
                                        Report, guarded)
-from fall_predictor.ros.in_process import Output, connect_input
+from fall_predictor.ros.in_process import Output
 from fall_predictor.ros.parameters import declare_parameters
-from fall_predictor.ros.policy_inputs import PolicyInputs, PolicySchedule, PolicyStep
 from fall_predictor.ros.robots import profile_for
 from fall_predictor.ros.runner import run_node
-from fall_predictor.ros.simulated_world import controller_choice, physics_step_s
+from fall_predictor.ros.simulated_world import controller_choice, physics_step_s, walking_controller
 
 NODE_NAME = 'controller_node'
 #: The velocity command parameters, in the order of a command (vx, vy, yaw rate).
@@ -85,16 +82,18 @@ class ControllerNode(Node):
         same process (``simulated_robot``) instead of subscribing; ``kwargs`` go to ``Node``."""
         super().__init__(NODE_NAME, **kwargs)
         p = declare_parameters(self, PARAMS)
-        self._walk_duration_s = float(p['walk_duration_s'])
         self._profile = profile = profile_for(str(p['robot']))
         self._choice = choice = controller_choice(profile, str(p['controller']), str(p['simulator']))
-        self._policy = load_policy(choice)
-        command = declare_parameters(self, command_params(choice, self._policy))
+        # C_bal's settings (a learned policy has none of its own here): its step, walk and reflex.
+        self._settings: dict = {} if choice.is_policy else {
+            'dt_s': physics_step_s(profile, choice),
+            'walk_duration_s': float(p['walk_duration_s']),
+            'reflex': replace(controller_configs(profile)[1], enabled=bool(p['reflex_enabled']))}
+        walking = walking_controller(profile, choice, **self._settings)
+        command = declare_parameters(self, command_params(choice, walking))
         self._velocity = tuple(float(command[name]) for name in COMMAND_PARAMS)
-        gait, reflex, stabilizer = controller_configs(profile)
-        self._gait, self._stabilizer = gait, stabilizer
-        self._reflex = replace(reflex, enabled=bool(p['reflex_enabled']))
-        self._dt_s = physics_step_s(profile, choice) if self._policy is None else 0.0
+        if choice.is_policy:
+            self._settings['command'] = self._velocity
         self._fall_trigger_enabled = bool(p['fall_trigger_enabled'])
         self.add_post_set_parameters_callback(self._apply_parameters)
 
@@ -105,41 +104,33 @@ class ControllerNode(Node):
         #: Counters by event name (reported in /diagnostics).
         self.counts = {'commands': 0, 'held': 0, 'modes': 0, 'resets': 0, 'triggers': 0,
                        'policy_steps': 0, 'new_runs': 0}
-        if self._policy is None:
-            source = GROUND_TRUTH if p['ground_truth'] else MEASUREMENT
-            inputs = connect_input(self, Measurement, source, self._on_measurement, upstream,
-                                   lossless=True, take=self._take_measurement)
-            self._timeline = StampTimeline()
+        # What the walking controller observes: C_bal the measurements, a policy the sensors
+        # (over DDS even in simulated_robot: the simulator publishes each sample's sensors before
+        # it awaits the answer).
+        if choice.is_policy:
+            self._input = SensorInput(self, self._answer, self._bad_inputs,
+                                      policy_robot(profile, choice, walking), walking.period_s)
         else:
-            # A policy reads the robot's sensors (over DDS even in simulated_robot: the
-            # simulator publishes each sample's sensors before it awaits the answer).
-            topics = {'joints': self.resolve_topic_name(SENSOR_JOINT_STATES.ros_name),
-                      'imu': self.resolve_topic_name(IMU.ros_name)}
-            robot = policy_robot(profile, choice, self._policy)
-            self._inputs = PolicyInputs(robot.joint_names, robot.joint_bounds, topics=topics)
-            self._timeline = self._inputs.timeline
-            self._schedule = PolicySchedule(self._policy.period_s)
-            inputs = [create_subscription(self, JointState, SENSOR_JOINT_STATES,
-                                          self._on_joint_state, lossless=True),
-                      create_subscription(self, Imu, IMU, self._on_imu, lossless=True)]
+            self._input = StateInput(self, self._answer, self._bad_inputs, bool(p['ground_truth']),
+                                     upstream)
+        inputs = list(self._input.subscriptions)
         inputs.append(create_subscription(self, Bool, FALLING, self._on_falling))
         create_subscription(self, FallEvent, FALL_EVENT, self._on_fall_event)
 
-        self._switch = self._new_switch()
-        #: The last command (answers a sample that carries a fault): the starting posture until
-        #: the first one.
-        posture = self._switch.walking.initial_posture().joint_angles
-        self._command = np.array([posture.get(n, 0.0) for n in profile.joint_names])
-        self._joint_index = {name: k for k, name in enumerate(profile.joint_names)}
-        #: Why the policy last held its command (a sensor fault), and when that was logged.
+        self._switch = self._new_switch(walking)
+        #: The last command (answers a sample that cannot be used): the controller's starting
+        #: posture until the first one.
+        self._command = self._robot_targets(walking.hold_command(),
+                                            np.zeros(len(profile.joint_names)))
+        #: Why the controller last held its command (a sensor fault), and when that was logged.
         self._held_reason = ''
         self._held_logged = -float('inf')
         self._held_at_report = 0
-        self._diagnostics = Diagnostics(self, self._report, lambda: self._timeline.last_ns or 0,
+        self._diagnostics = Diagnostics(self, self._report, lambda: self._input.timeline.last_ns or 0,
                                         inputs, self._bad_inputs)
         self.get_logger().info(
             f'controller ready: {choice.name} on robot {profile.name}'
-            + (f' at {self._velocity} (vx [m/s], vy [m/s], yaw rate [rad/s])' if self._policy else '')
+            + (f' at {self._velocity} (vx [m/s], vy [m/s], yaw rate [rad/s])' if choice.is_policy else '')
             + f', fall_trigger_enabled={self._fall_trigger_enabled}')
 
     def _apply_parameters(self, parameters: list[Parameter]) -> None:
@@ -150,121 +141,72 @@ class ControllerNode(Node):
                 velocity = list(self._velocity)
                 velocity[COMMAND_PARAMS.index(parameter.name)] = float(parameter.value)
                 self._velocity = tuple(velocity)
-                if isinstance(self._switch.walking, PolicyControl):
+                if 'command' in self._settings:       # a policy walks at the command
+                    self._settings['command'] = self._velocity
                     self._switch.walking.velocity_command = self._velocity
 
-    def _new_switch(self) -> ControllerSwitch:
+    def _new_switch(self, walking=None) -> ControllerSwitch:
         """A fresh walking controller for a new run (a policy's state zeroed), and 'balance' on
         the mode topic."""
         self._publish_mode('balance')
-        if self._policy is not None:
-            self._schedule.restart()
-            return ControllerSwitch(PolicyControl(self._policy, self._velocity, self._choice.name))
-        balance = BalanceController(self._gait, self._reflex, self._dt_s, self._walk_duration_s,
-                                    stabilizer=self._stabilizer, profile=self._profile)
-        return ControllerSwitch(balance)
+        self._input.restart()
+        if walking is None:
+            walking = walking_controller(self._profile, self._choice, **self._settings)
+        return ControllerSwitch(walking)
 
     def _publish_mode(self, mode: str) -> None:
         self._mode_pub.publish(ros_qos.controller_mode_msg(mode))
         self.counts['modes'] += 1
 
-    def _publish_command(self, stamp_ns: int, q: np.ndarray) -> None:
-        self._command = q
-        self.output.publish(ros_qos.joint_state_to_msg(stamp_ns, self._profile.joint_names, q))
-        self.counts['commands'] += 1
+    def _robot_targets(self, command: JointCommand, held: np.ndarray) -> np.ndarray:
+        """``command``'s targets on every joint of the robot, in the profile's order (a joint it
+        does not command keeps ``held``)."""
+        names = self._profile.joint_names
+        return command.fit_onto(names, JointCommand(names, held)).targets_rad
 
     @guarded('fall event')
     def _on_fall_event(self, msg: FallEvent) -> None:
         if msg.event != EVENT_RESET:
             return
-        if self._policy is None:
-            self._timeline.reset()
-        else:
-            self._inputs.reset()
+        self._input.reset()
         self._switch = self._new_switch()
         self.counts['resets'] += 1
         self.get_logger().info(f'monitor reset: fresh {self._choice.name}')
 
-    # -- C_bal: the exact state (or the estimated measurement) ----------------------------------
-    @guarded('measurement')
-    def _on_measurement(self, msg: Measurement) -> None:
-        self._control(messages.measurement_from_msg(msg))
-
-    @guarded('measurement')
-    def _take_measurement(self, decoded: messages.StampedMeasurement) -> None:
-        """A measurement handed over in process (``simulated_robot``): the checks a decoded
-        message passes, then the same path."""
-        if decoded.measurement is not None:
-            messages.check_measurement(decoded.measurement)
-        self._control(decoded)
-
-    def _control(self, decoded: messages.StampedMeasurement) -> None:
-        kind = self._timeline.classify(decoded.stamp_ns)
-        if kind is Stamp.NEW_RUN and self._switch.mode == 'balance':
-            self._switch = self._new_switch()   # C_fall stays until the reset (one-way)
-        elif not kind.accepted:
-            return                              # duplicate, out of order, stray: counted
-        if decoded.measurement is None:         # the estimator's sensors failed: hold
-            q = self._command
-            self.counts['held'] += 1
-        else:
-            try:
-                q = self._switch.update(decoded.measurement)
-            except HANDLED_ERRORS as error:
-                # A finite but implausible measurement can make the leg IK fail.
-                self._bad_inputs.reject(f'measurement at {decoded.stamp_ns} ns (controller)', error)
-                return
-        self._publish_command(decoded.stamp_ns, q)
-
-    # -- a learned policy: the robot's sensors ------------------------------------------------
-    @guarded('joint state')
-    def _on_joint_state(self, msg: JointState) -> None:
-        steps, unknown = self._inputs.joint_state(messages.joint_state_reading(msg))
-        if unknown:
-            self.get_logger().info(f'ignoring joints robot {self._profile.name} does not have: '
-                                   f'{bound_names(unknown)}')
-        self._answer(steps)
-
-    @guarded('IMU reading')
-    def _on_imu(self, msg: Imu) -> None:
-        self._answer(self._inputs.imu(messages.imu_reading(msg)))
-
-    def _answer(self, steps: list[PolicyStep]) -> None:
+    # -- the inputs' steps (controller_inputs.py) -------------------------------------------------
+    def _answer(self, steps: list[ControlStep]) -> None:
         for step in steps:
             if step.new_run:
                 self.counts['new_runs'] += 1
                 if self._switch.mode == 'balance':
-                    self._switch = self._new_switch()   # C_fall stays until the reset
+                    self._switch = self._new_switch()   # C_fall stays until the reset (one-way)
             try:
-                q = self._policy_targets(step)
+                q = self._targets(step)
             except HANDLED_ERRORS as error:
-                self._bad_inputs.reject(f'sensor sample at {step.stamp_ns} ns (policy)', error)
+                # A finite but implausible input can make the leg IK or the policy fail.
+                self._bad_inputs.reject(f'sample at {step.stamp_ns} ns (controller)', error)
                 continue
-            self._publish_command(step.stamp_ns, q)
+            self._command = q
+            self.output.publish(ros_qos.joint_state_to_msg(step.stamp_ns, self._profile.joint_names, q))
+            self.counts['commands'] += 1
 
-    def _policy_targets(self, step: PolicyStep) -> np.ndarray:
-        """The targets answering ``step``: C_fall's, the policy's when it is due and the sample
-        usable, else the last command (held, and said why when the policy was due)."""
+    def _targets(self, step: ControlStep) -> np.ndarray:
+        """The targets answering ``step``: C_fall's; the walking controller's when it is due and
+        the input usable; else the last command (held, and said why when it was due)."""
         if self._switch.mode == 'fall':
-            return self._targets(self._switch.command(Observation(step.t_s)))
-        if not self._schedule.due(step.stamp_ns):
+            return self._robot_targets(self._switch.command(Observation(0.0)), self._command)
+        if not step.due:
             return self._command
-        if step.sample is None:
+        if step.observation is None:
             self._hold(step)
             return self._command
-        command = self._switch.command(Observation(step.t_s, None, step.sample))
-        self._schedule.acted(step.stamp_ns)
-        self.counts['policy_steps'] += 1
-        return self._targets(command)
+        command = self._switch.command(step.observation)
+        self._input.acted(step.stamp_ns)
+        if self._choice.is_policy:
+            self.counts['policy_steps'] += 1
+        return self._robot_targets(command, self._command)
 
-    def _targets(self, command: JointCommand) -> np.ndarray:
-        """``command``'s targets on every joint of the robot (others: the last command's)."""
-        q = self._command.copy()
-        for name, target in zip(command.joint_names, command.targets_rad):
-            q[self._joint_index[name]] = target
-        return q
-
-    def _hold(self, step: PolicyStep) -> None:
+    def _hold(self, step: ControlStep) -> None:
         self.counts['held'] += 1
         self._held_reason = bound_text(f'{step.fault} at {step.stamp_ns / 1e9:.3f} s')
         now = time.monotonic()
@@ -276,7 +218,7 @@ class ControllerNode(Node):
     # -- the trigger and health -----------------------------------------------------------------
     @guarded('trigger')
     def _on_falling(self, msg: Bool) -> None:
-        current_t = self._timeline.last_ns and self._timeline.last_ns / 1e9
+        current_t = self._input.timeline.last_ns and self._input.timeline.last_ns / 1e9
         if not msg.data or not self._fall_trigger_enabled or self._switch.mode == 'fall':
             return
         self.counts['triggers'] += 1
@@ -287,17 +229,16 @@ class ControllerNode(Node):
 
     def _report(self) -> Report:
         values = {'controller': self._choice.name, 'mode': self._switch.mode,
-                  't_switch_s': self._switch.t_switch, 'stamp_ns': self._timeline.last_ns,
+                  't_switch_s': self._switch.t_switch, 'stamp_ns': self._input.timeline.last_ns,
                   'fall_trigger_enabled': self._fall_trigger_enabled,
                   'invalid_inputs': self._bad_inputs.count, 'last_error': self._bad_inputs.last,
-                  **self._timeline.counters(), **self.counts}
-        if self._policy is not None:
-            values.update(command=list(self._velocity), held_reason=self._held_reason,
-                          sensor_faults=self._inputs.counts['faults'])
+                  **self._input.timeline.counters(), **self.counts, **self._input.report()}
+        if self._choice.is_policy:
+            values.update(command=list(self._velocity), held_reason=self._held_reason)
         held = self.counts['held'] - self._held_at_report
         self._held_at_report = self.counts['held']
         dropped = self._bad_inputs.new_since_last_call()
-        if held and self._policy is not None:
+        if held and self._choice.is_policy:
             return (LEVEL_WARN, f'{self._switch.mode}; the last command held on {held} samples the '
                                 f'policy could not use: {self._held_reason}', values)
         if dropped:

@@ -1,10 +1,9 @@
 """The controller node's parameters (:mod:`fall_predictor.ros.controller_node`): the walking
 controller, C_bal's settings, and a learned policy's velocity command with the ranges the robot
-profile gives it; and the policy itself, loaded once per node, with the robot description whose
-joint states it reads."""
+profile gives it; the robot description whose joint states a policy reads."""
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Optional
+from typing import TYPE_CHECKING
 
 from fall_predictor.monitor.robot_description import DescriptionError
 from fall_predictor.profiles import RobotProfile
@@ -15,7 +14,6 @@ from fall_predictor.ros.simulated_world import (CONTROLLER_PARAM, SIMULATOR_PARA
 
 if TYPE_CHECKING:
     from fall_predictor.monitor.robot_description import RobotDescription
-    from fall_predictor.robot.learned_policy import LearnedPolicy
 
 PARAMS = (
     ROBOT_PARAM, CONTROLLER_PARAM,
@@ -41,18 +39,18 @@ _COMMANDS = (('command_vx_m_s', 'forward speed [m/s]', 'vx_m_s', 2.0),
              ('command_yaw_rate_rad_s', 'yaw rate [rad/s]', 'yaw_rate_rad_s', 2.0))
 
 
-def command_params(choice: ControllerChoice, policy: Optional['LearnedPolicy']
-                   ) -> tuple[ParamSpec, ...]:
-    """The velocity command parameters: for a learned policy (``policy``, its LearnedPolicy)
-    within the robot profile's command ranges (widened to take the deploy config's initial
-    command, their default); for C_bal, which ignores them, zero within a sane bound."""
+def command_params(choice: ControllerChoice, controller) -> tuple[ParamSpec, ...]:
+    """The velocity command parameters: for a learned policy (``controller``, its
+    robot/control.PolicyControl) within the robot profile's command ranges (widened to take the
+    command it walks at when built, the deploy config's initial command: their default); for
+    C_bal, which ignores them, zero within a sane bound."""
     specs = []
     for k, (name, what, field, bound) in enumerate(_COMMANDS):
-        if policy is None:
+        if choice.policy is None:
             specs.append(ParamSpec(name, 0.0, f'a learned policy\'s commanded {what}; C_bal '
                                    'ignores it', -bound, bound))
             continue
-        default = float(policy.config.command_init[k])
+        default = float(controller.velocity_command[k])
         low, high = getattr(choice.policy.command, field)
         low, high = min(low, default), max(high, default)
         specs.append(ParamSpec(name, default, f'{choice.name}\'s commanded {what}, within the '
@@ -62,22 +60,9 @@ def command_params(choice: ControllerChoice, policy: Optional['LearnedPolicy']
     return tuple(specs)
 
 
-def load_policy(choice: ControllerChoice) -> Optional['LearnedPolicy']:
-    """The learned policy of ``choice`` (robot/learned_policy.LearnedPolicy: its deploy config and
-    network, loaded once), or None for C_bal; NodeStartupError saying why it cannot load."""
-    if choice.policy is None:
-        return None
-    from fall_predictor.robot.learned_policy import LearnedPolicy
-    try:
-        return LearnedPolicy.from_yaml(choice.policy.policy_path)
-    except (ValueError, OSError, RuntimeError) as error:
-        raise NodeStartupError(f'controller {choice.name!r}: {error}') from error
-
-
-def policy_robot(profile: RobotProfile, choice: ControllerChoice,
-                 policy: 'LearnedPolicy') -> 'RobotDescription':
+def policy_robot(profile: RobotProfile, choice: ControllerChoice, policy) -> 'RobotDescription':
     """The robot description (monitor/robot_description.py: its joints and their plausible
-    ranges) whose joint states the learned policy ``policy`` reads; NodeStartupError when the
+    ranges) whose joint states the learned policy ``policy`` (its controller) reads; NodeStartupError when the
     robot's URDF cannot serve or lacks a joint the policy commands."""
     try:
         robot = profile.sensor_layout().description(profile.urdf_xml())

@@ -19,7 +19,8 @@ from typing import Optional
 import numpy as np
 
 from fall_predictor.profiles import ProfileError, RobotProfile
-from fall_predictor.profiles.profile import C_BAL, SIMULATORS, PolicyControllerProfile
+from fall_predictor.profiles.profile import C_BAL, PolicyControllerProfile
+from fall_predictor.sim.world import SIMULATORS
 from fall_predictor.robot.control import JointCommand, Posture
 from fall_predictor.robot.policy_config import PolicyConfigError, load_policy_config
 from fall_predictor.ros.parameters import NodeStartupError, ParamSpec
@@ -69,8 +70,8 @@ def physics_step_s(profile: RobotProfile, choice: ControllerChoice) -> float:
     if choice.simulator == 'mujoco':
         from fall_predictor.sim.mujoco_model import load_model
         return float(load_model(profile).opt.timestep)
-    from fall_predictor.sim.simulator import SimulatorConfig
-    return SimulatorConfig().dt_s
+    from fall_predictor.sim.pybullet_world import PybulletConfig
+    return PybulletConfig().dt_s
 
 
 def _policy_config(policy: PolicyControllerProfile):
@@ -92,40 +93,42 @@ def make_node_world(profile: RobotProfile, choice: ControllerChoice):
                                f'{error}') from error
 
 
+def walking_controller(profile: RobotProfile, choice: ControllerChoice, **settings):
+    """``choice``'s walking controller (robot/control.make_controller, the one place a controller
+    is built; ``settings`` go to it); NodeStartupError saying why it cannot be built."""
+    from fall_predictor.robot.control import make_controller
+    try:
+        return make_controller(profile, choice.name, **settings)
+    except (ValueError, OSError, RuntimeError) as error:
+        raise NodeStartupError(f'controller {choice.name!r}: {error}') from error
+
+
 class CommandDrives:
     """The robot's drives: a joint command message's targets (every joint of the robot, in the
-    profile's order) -> the :class:`JointCommand` the world applies, with the learned policy's PD
-    gains and torque limits on the joints it commands, or the robot's servos (C_bal)."""
+    profile's order) -> the :class:`JointCommand` the world applies, fitted onto the joints the
+    walking controller commands with its drives' gains and torque limits (a learned policy's), or
+    tracked by the robot's servos (C_bal)."""
 
-    def __init__(self, profile: RobotProfile, choice: ControllerChoice) -> None:
+    def __init__(self, profile: RobotProfile, controller) -> None:
+        """``controller``: the walking controller (robot/control.Controller) whose drives track the
+        commands."""
         self.joint_names = tuple(profile.joint_names)
-        if choice.policy is None:
-            self._policy_joints: Optional[tuple[str, ...]] = None
-            self._pick = np.arange(len(self.joint_names))
-            self._gains: tuple = (None, None, None)
-            self.posture: Optional[Posture] = None     # C_bal's: from C_bal (the caller)
-            return
-        config = _policy_config(choice.policy)
-        index = {name: k for k, name in enumerate(self.joint_names)}
-        missing = [j for j in config.joint_names if j not in index]
+        held = controller.hold_command()
+        missing = [j for j in held.joint_names if j not in self.joint_names]
         if missing:
-            raise NodeStartupError(f'controller {choice.name!r} commands joints robot '
+            raise NodeStartupError(f'controller {controller.name!r} commands joints robot '
                                    f'{profile.name!r} does not have: {", ".join(missing)}')
-        self._policy_joints = tuple(config.joint_names)
-        self._pick = np.array([index[j] for j in config.joint_names])
-        limit = config.tau_limit_nm
-        self._gains = (np.asarray(config.kp, dtype=np.float64),
-                       np.asarray(config.kd, dtype=np.float64),
-                       None if limit is None else np.asarray(limit, dtype=np.float64))
-        #: Where the policy's runs start: its default angles (robot/control.PolicyControl's).
-        self.posture = Posture(dict(zip(config.joint_names, config.default_angles_rad)))
+        #: The drives' configuration: the controller's joints with its gains (None: the servos).
+        self._drives: Optional[JointCommand] = held if held.has_gains else None
+        #: Where the controller's runs start.
+        self.posture: Posture = controller.initial_posture()
 
     def __call__(self, targets_rad: np.ndarray) -> JointCommand:
         """The command of ``targets_rad`` (the robot's joints in profile order)."""
-        if self._policy_joints is None:
-            return JointCommand(self.joint_names, np.asarray(targets_rad, dtype=np.float64))
-        return JointCommand(self._policy_joints, np.asarray(targets_rad, dtype=np.float64)[self._pick],
-                            *self._gains)
+        command = JointCommand(self.joint_names, np.asarray(targets_rad, dtype=np.float64))
+        if self._drives is None:
+            return command
+        return command.fit_onto(self._drives.joint_names, self._drives)
 
 
 def check_policy_timing(timing: DriverTiming, dt_s: float, choice: ControllerChoice) -> None:

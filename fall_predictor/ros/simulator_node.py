@@ -80,8 +80,6 @@ from std_srvs.srv import SetBool, Trigger
 
 from fall_predictor.profiles import DEFAULT_ROBOT
 from fall_predictor.ros import conversions as ros_qos
-from fall_predictor.robot.control import Posture
-from fall_predictor.robot.controllers import BalanceController, controller_configs
 from fall_predictor.ros.robots import profile_for
 from fall_predictor.ros.endpoints import create_publisher, create_subscription
 from fall_predictor.ros.health import Diagnostics, InputErrors, Report, steady_clock
@@ -89,7 +87,8 @@ from fall_predictor.ros.parameters import NodeStartupError, declare_parameters
 from fall_predictor.ros.runner import run_node
 from fall_predictor.ros.in_process import Output, take_from
 from fall_predictor.ros.simulated_world import (CommandDrives, check_policy_timing,
-                                                controller_choice, make_node_world)
+                                                controller_choice, make_node_world,
+                                                walking_controller)
 from fall_predictor.ros.simulator_params import PARAMS, check_pacing, driver_timing
 from fall_predictor.sim.pushes import PushDistribution
 from fall_predictor.monitor.records import Measurement, PushSpec
@@ -135,18 +134,11 @@ class SimulatorNode(Node):
         self._push_distribution = PushDistribution(force_n=forces) \
             if profile.name != DEFAULT_ROBOT or choice.is_policy else PushDistribution()
         timing = driver_timing(p, profile)
-        self._drives = CommandDrives(profile, choice)
         if choice.is_policy and not p['publish_sensors']:
             raise NodeStartupError(f'controller {choice.name!r} is a learned policy: it walks on the '
                                    'robot\'s sensor topics, which need publish_sensors true')
-        if choice.is_policy:
-            self._posture = self._drives.posture
-        else:
-            gait, reflex, stabilizer = controller_configs(profile)
-            q0, torso0 = BalanceController(gait, reflex, stabilizer=stabilizer,
-                                           profile=profile).initial_posture()
-            self._posture = Posture(dict(zip(self._joint_names, map(float, q0))), 0.0,
-                                    tuple(float(v) for v in torso0))
+        self._drives = CommandDrives(profile, walking_controller(profile, choice))
+        self._posture = self._drives.posture
         self._world = make_node_world(profile, choice)
         #: The physics step [s]: every sample, pacing and push onset is on its grid.
         self.dt_s = float(self._world.dt_s)

@@ -40,8 +40,8 @@ class CalibrationSetup:
 
 def _run(setup: CalibrationSetup, index: int) -> dict:
     """One calibration run: its force, outcome and push-to-fall time."""
-    from fall_predictor.robot.control import BalanceControl, make_controller
-    from fall_predictor.robot.controllers import BalanceController, controller_configs
+    from fall_predictor.profiles.profile import C_BAL
+    from fall_predictor.robot.control import make_controller
     from fall_predictor.sim.policy_runs import commanded_pushes, physics_dt_s
     from fall_predictor.sim.sensors import SensorParams, SensorSuite
     from fall_predictor.sim.trajectory import run_trajectory
@@ -56,17 +56,15 @@ def _run(setup: CalibrationSetup, index: int) -> dict:
             gait, push = dist.sample_with_gait(rng)
         else:
             gait, push = None, dist.sample(rng, robot_gait(setup.robot))
-        own = controller_configs(profile)
-        controller = BalanceControl(BalanceController(gait or own[0], own[1], world.dt_s,
-                                                      walk_duration_s=push.t_push + 20.0,
-                                                      stabilizer=own[2], profile=profile))
+        controller = make_controller(profile, C_BAL, dt_s=world.dt_s,
+                                     walk_duration_s=push.t_push + 20.0, gait=gait)
         command, sensors = None, None
     else:
         probed = replace(policy, push_force_n=(0.0, setup.probe_force_n))
         command, push = commanded_pushes(probed).sample(rng)
         controller = make_controller(profile, setup.controller, command)
         sensors = SensorSuite(SensorParams(), seed=index, dt_s=world.dt_s, profile=profile)
-    result = run_trajectory(push, push.t_force_end + setup.horizon_s, simulator=world,
+    result = run_trajectory(push, push.t_force_end + setup.horizon_s, world=world,
                             controller=controller, sensors=sensors)
     return {'index': index, 'force_n': push.force_n, 'angle_deg': push.angle_deg,
             'impulse_ns': push.impulse_ns, 'command': None if command is None else list(command),

@@ -36,12 +36,11 @@ import numpy as np  # noqa: E402
 from fall_predictor.monitor import rotations
 from fall_predictor.monitor.records import Measurement, PushSpec
 from fall_predictor.profiles import RobotProfile
+from fall_predictor.robot.control import JointCommand
 from fall_predictor.sim.mujoco_model import (FloatingBase, fixed_frame_in_body, load_model,
                                              robot_geoms, stand_on_ground)
 from fall_predictor.sim.pushes import PushProtocol
-
-#: Contacts reported with less normal force than this carry no load [N].
-MIN_CONTACT_FORCE_N = 1e-6
+from fall_predictor.sim.world import MIN_CONTACT_FORCE_N
 
 
 class MujocoWorld:
@@ -138,25 +137,17 @@ class MujocoWorld:
         return self.measure()
 
     def apply(self, command) -> None:
-        """Hold ``command`` (robot/control.JointCommand) until the next one."""
-        if command.joint_names == self.joint_names:
-            self._targets = np.array(command.targets_rad, dtype=float)
-            kp, kd, limit = command.kp, command.kd, command.tau_limit_nm
-        else:
-            index = {n: k for k, n in enumerate(command.joint_names)}
-            pick = [index.get(n) for n in self.joint_names]
-            self._targets = np.array([self._targets[k] if i is None else command.targets_rad[i]
-                                      for k, i in enumerate(pick)])
-
-            def spread(values):
-                return None if values is None else np.array(
-                    [0.0 if i is None else values[i] for i in pick])
-            kp, kd, limit = spread(command.kp), spread(command.kd), spread(command.tau_limit_nm)
-        if kp is None:
+        """Hold ``command`` (robot/control.JointCommand) until the next one (a joint it does not
+        name keeps its target; with gains, such a joint is undriven)."""
+        if command.joint_names != self.joint_names:
+            command = command.fit_onto(self.joint_names, JointCommand(self.joint_names, self._targets))
+        self._targets = np.array(command.targets_rad, dtype=float)
+        if not command.has_gains:
             self._use_servos()
             self._kp = self._kd = None
         else:
-            self._kp, self._kd = np.asarray(kp, float), np.asarray(kd, float)
+            self._kp, self._kd = np.asarray(command.kp, float), np.asarray(command.kd, float)
+        limit = command.tau_limit_nm
         self._limit = self._effort if limit is None else np.minimum(np.asarray(limit), self._effort)
 
     def _use_servos(self) -> None:

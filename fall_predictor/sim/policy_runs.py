@@ -47,7 +47,7 @@ def policy_run(profile: RobotProfile, policy: PolicyControllerProfile, learned: 
     ``sensor_seed``)."""
     suite = SensorSuite(SensorParams(noise_scale=sensor_noise_scale), seed=sensor_seed,
                         dt_s=world.dt_s, profile=profile)
-    return {'simulator': world, 'controller': PolicyControl(learned, command, name=policy.name),
+    return {'world': world, 'controller': PolicyControl(learned, command, name=policy.name),
             'sensors': suite}
 
 

@@ -40,7 +40,7 @@ def _ground_wrench(sim, side: str, contacts) -> np.ndarray:
 
 
 def sensor_truth(sim) -> SensorTruth:
-    """The exact sensor quantities of ``sim``'s current state (a :class:`Simulator`)."""
+    """The exact sensor quantities of ``sim``'s current state (a :class:`PybulletWorld`)."""
     c = sim.client
     profile = sim.profile
     imu_link = sim.link_index.get(profile.imu_frame)

@@ -1,14 +1,16 @@
-"""PyBullet world of the humanoid: stepping at 1 kHz, pushes, and exact measurements.
+"""The PyBullet world of a robot (the world seam's PyBullet engine, sim/world.py): stepping at the
+physics step, pushes, the robot's servos, exact measurements.
 
-One :class:`Simulator` owns one PyBullet physics client (DIRECT by default, GUI on request).
-:meth:`Simulator.reset` builds a fresh world (ground plane and robot) for each trajectory, so
-runs are independent and reproducible: the same initial posture, controller and push give a
-bit-identical trajectory.
+One :class:`PybulletWorld` owns one PyBullet physics client (DIRECT by default, GUI on request).
+:meth:`PybulletWorld.start` (the seam's) and :meth:`PybulletWorld.reset` (the engine's: a joint
+vector and a base pose) build a fresh world (ground and robot) for each trajectory, so runs are
+independent and reproducible: the same initial posture, controller and push give a bit-identical
+trajectory. The robot's exact state is read in :mod:`fall_predictor.sim.pybullet_state`, its
+sensors' in :mod:`fall_predictor.sim.pybullet_sensors`.
 """
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Optional, Sequence
 
 import numpy as np
@@ -17,6 +19,8 @@ import pybullet as pb
 from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2, Measurement, PushSpec
 from fall_predictor.profiles import DEFAULT_ROBOT, RobotProfile, load_profile
 from fall_predictor.robot.actuation import ServoArrays, servo_arrays, servo_torques
+from fall_predictor.robot.control import JointCommand
+from fall_predictor.sim import pybullet_state
 from fall_predictor.sim.urdf_loading import pybullet_urdf
 from fall_predictor.sim.pushes import PushProtocol
 
@@ -24,9 +28,7 @@ GRAVITY = STANDARD_GRAVITY_M_S2
 DT_S = 0.001
 #: Half the side of a slab ground [m] (and half its thickness): far beyond any walk.
 GROUND_HALF_EXTENT_M = 100.0
-#: Contacts reported with less normal force than this carry no load (solver slop) [N].
-MIN_CONTACT_FORCE_N = 1e-6
-#: How far [m] the robot is lifted before a snapshot is restored (:meth:`Simulator.restore`):
+#: How far [m] the robot is lifted before a snapshot is restored (:meth:`PybulletWorld.restore`):
 #: far above any link's reach of the ground, so no contact survives.
 LIFT_BEFORE_RESTORE_M = 50.0
 #: A posture without a base position starts this high [m], then is lowered onto the ground.
@@ -36,7 +38,7 @@ START_CLEARANCE_M = 0.001
 
 
 @dataclass(frozen=True)
-class SimulatorConfig:
+class PybulletConfig:
     dt_s: float = DT_S
     gui: bool = False
     #: Fewer than ~50 iterations leave a standing robot vibrating (momentum ~0.5 kg m/s) and
@@ -59,39 +61,17 @@ class SimulatorConfig:
             raise ValueError(f"actuation must be 'position' or 'pd_torque', got {self.actuation!r}")
 
 
-# Rotation matrix entries from quaternion products (x, y, z, w = q0..q3): entry k is
-# 2 (q_a q_b + s q_c q_d), and 1 minus that on the diagonal; the products' indices into the
-# flattened outer product q q^T, and the signs s.
-_R_A = np.array([5, 1, 2, 1, 0, 6, 2, 6, 0])       # yy, xy, xz, xy, xx, yz, xz, yz, xx
-_R_B = np.array([10, 11, 7, 11, 10, 3, 7, 3, 5])   # zz, zw, yw, zw, zz, xw, yw, xw, yy
-_R_SIGN = np.array([1.0, -1.0, 1.0, 1.0, 1.0, -1.0, -1.0, 1.0, 1.0])
-_R_DIAGONAL = np.array([0, 4, 8])
-
-
-def quaternions_to_matrices(q: np.ndarray) -> np.ndarray:
-    """Rotation matrices (n, 3, 3) from PyBullet quaternions (n, 4) in (x, y, z, w) order.
-
-    All nine entries at once from the outer products (a few array operations for all bodies, not
-    ~40); each entry is the same floating-point expression as written out, e.g. 1 - 2 (yy + zz),
-    2 (xy - zw) (a - b is a + (-b) exactly)."""
-    n = len(q)
-    products = (q[:, :, None] * q[:, None, :]).reshape(n, 16)
-    # Into a C-ordered array (a fancy-indexed result is column-major here, and the einsums of the
-    # angular momentum sum in another order on it: other last bits).
-    out = np.empty((n, 9))
-    np.multiply(products[:, _R_B], _R_SIGN, out=out)
-    out += products[:, _R_A]
-    out *= 2
-    out[:, _R_DIAGONAL] = 1 - out[:, _R_DIAGONAL]
-    return out.reshape(n, 3, 3)
-
-
-class Simulator:
+class PybulletWorld:
     """The robot in a fresh PyBullet world; :meth:`step` applies joint targets and measures."""
 
-    def __init__(self, config: SimulatorConfig = SimulatorConfig(),
-                 profile: Optional[RobotProfile] = None):
-        self.config = config
+    def __init__(self, profile: Optional[RobotProfile] = None, dt_s: Optional[float] = None,
+                 config: PybulletConfig = PybulletConfig(), **options) -> None:
+        """``profile``: the robot (default: the package's default robot); ``dt_s``: the physics
+        step (default: ``config``'s, 1 ms); ``options``: :class:`PybulletConfig` fields that
+        override ``config``'s (the world seam passes an engine's settings so)."""
+        if dt_s is not None:
+            options['dt_s'] = dt_s
+        self.config = config = replace(config, **options) if options else config
         #: The simulated robot (its profile: URDF, feet, servo gains).
         self.profile = profile or load_profile(DEFAULT_ROBOT)
         self._urdf = str(pybullet_urdf(self.profile.sim_urdf_path))
@@ -100,6 +80,7 @@ class Simulator:
             raise RuntimeError('could not start a PyBullet physics client')
         self.robot = -1
         self.plane = -1
+        self._ground_drawn = False
         self.t = 0.0
         self.tick = 0
         self._measured = None      # this step's PyBullet reads (measure)
@@ -119,6 +100,7 @@ class Simulator:
         pb.setTimeStep(self.config.dt_s, physicsClientId=c)
         pb.setPhysicsEngineParameter(numSolverIterations=self.config.solver_iterations,
                                      deterministicOverlappingPairs=1, physicsClientId=c)
+        self._ground_drawn = False
         self.plane = self._ground()
         pb.changeDynamics(self.plane, -1, lateralFriction=self.config.ground_friction, physicsClientId=c)
         orn = pb.getQuaternionFromEuler((0, 0, torso_yaw_rad))
@@ -220,9 +202,10 @@ class Simulator:
 
     def draw_ground(self) -> None:
         """Show a slab ground as the checkerboard plane a plane ground is drawn as (a plane that
-        collides with nothing), for the GUI and for rendered frames."""
-        if self.profile.sim_ground != 'slab':
+        collides with nothing), for the GUI and for rendered frames (once per world)."""
+        if self.profile.sim_ground != 'slab' or self._ground_drawn:
             return
+        self._ground_drawn = True
         c = self.client
         drawn = pb.createMultiBody(0, pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=c),
                                    physicsClientId=c)
@@ -262,7 +245,7 @@ class Simulator:
             pb.disconnect(self.client)
             self.client = -1
 
-    def __enter__(self) -> 'Simulator':
+    def __enter__(self) -> 'PybulletWorld':
         return self
 
     def __exit__(self, *exc) -> None:
@@ -333,28 +316,15 @@ class Simulator:
     def apply(self, command) -> None:
         """Hold ``command`` (robot/control.JointCommand): its targets, tracked by the robot's
         servos (the profile's table; a command with its own gains is tracked by those, within the
-        drives' envelope)."""
+        drives' envelope; a joint it does not name keeps its target and gains)."""
         if command.joint_names != self.joint_names:
-            index = {n: k for k, n in enumerate(command.joint_names)}
-            targets = self._targets.copy()
-            for k, name in enumerate(self.joint_names):
-                if name in index:
-                    targets[k] = command.targets_rad[index[name]]
-        else:
-            targets = command.targets_rad
-        if command.kp is not None:
-            self._command_gains(command)
-        self.set_joint_targets(targets)
-
-    def _command_gains(self, command) -> None:
-        from dataclasses import replace as _replace
-        index = {n: k for k, n in enumerate(command.joint_names)}
-        kp, kd = self.servo.kp.copy(), self.servo.kd.copy()
-        for k, name in enumerate(self.joint_names):
-            if name in index:
-                kp[k], kd[k] = command.kp[index[name]], command.kd[index[name]]
-        if not (np.array_equal(kp, self.servo.kp) and np.array_equal(kd, self.servo.kd)):
-            self.servo = _replace(self.servo, kp=kp, kd=kd)
+            gains = (self.servo.kp, self.servo.kd) if command.has_gains else (None, None)
+            command = command.fit_onto(self.joint_names,
+                                       JointCommand(self.joint_names, self._targets, *gains))
+        if command.has_gains and not (np.array_equal(command.kp, self.servo.kp)
+                                      and np.array_equal(command.kd, self.servo.kd)):
+            self.servo = replace(self.servo, kp=np.array(command.kp), kd=np.array(command.kd))
+        self.set_joint_targets(command.targets_rad)
 
     def sensor_truth(self):
         """The exact sensor quantities of the current state (sim/sensors.py)."""
@@ -366,6 +336,7 @@ class Simulator:
         """An RGB image (height, width, 3) of the world (PyBullet's TinyRenderer, headless),
         the camera ``distance_m`` from ``target``, looking along ``yaw_deg``, ``pitch_deg``."""
         c = self.client
+        self.draw_ground()
         view = pb.computeViewMatrixFromYawPitchRoll(
             cameraTargetPosition=[float(v) for v in target], distance=distance_m, yaw=yaw_deg,
             pitch=pitch_deg, roll=0.0, upAxisIndex=2, physicsClientId=c)
@@ -411,88 +382,15 @@ class Simulator:
         """Joint positions [rad], velocities [rad/s] and the motor torques [N m] of the last step."""
         return self._q.copy(), self._dq.copy(), self._torques.copy()
 
+    # -- the robot's exact state (sim/pybullet_state.py) ----------------------------------------
     def link_frame_pose(self, link: int) -> tuple[tuple, tuple]:
-        """World position and quaternion (x, y, z, w) of ``link``'s frame (not its inertial frame)
-        at the current step: from this step's measurement when it read them, else from PyBullet."""
-        measured = self._measured
-        if measured is not None and measured[0] == self.tick and link in self._row:
-            state = measured[1][self._row[link]]
-            return state[4], state[5]
-        state = pb.getLinkState(self.robot, link, computeForwardKinematics=1, physicsClientId=self.client)
-        return state[4], state[5]
+        """World position and quaternion (x, y, z, w) of ``link``'s frame at the current step."""
+        return pybullet_state.link_frame_pose(self, link)
 
     def ground_contacts(self) -> tuple:
         """PyBullet's contact points between the robot and the ground at the current step."""
-        measured = self._measured
-        if measured is not None and measured[0] == self.tick:
-            return measured[2]
-        return pb.getContactPoints(bodyA=self.robot, bodyB=self.plane, physicsClientId=self.client)
+        return pybullet_state.ground_contacts(self)
 
     def measure(self) -> Measurement:
         """CoM, momenta about the CoM, heading, contacts and CoP of the current state."""
-        c = self.client
-        base_pos, base_orn = pb.getBasePositionAndOrientation(self.robot, physicsClientId=c)
-        base_lin, base_ang = pb.getBaseVelocity(self.robot, physicsClientId=c)
-        links = pb.getLinkStates(self.robot, self.bodies[1:], computeLinkVelocity=1,
-                                 computeForwardKinematics=1, physicsClientId=c)
-        # One row of (position, quaternion, linear velocity, angular velocity) per body (one flat
-        # list, then one array: cheaper than an array of row tuples).
-        flat = [*base_pos, *base_orn, *base_lin, *base_ang]
-        for ls in links:
-            flat += ls[0]
-            flat += ls[1]
-            flat += ls[6]
-            flat += ls[7]
-        state = np.array(flat).reshape(-1, 13)
-        pos, quat, vel, omega = state[:, 0:3], state[:, 3:7], state[:, 7:10], state[:, 10:13]
-        m = self.masses
-        com = m @ pos / self.total_mass
-        lin_mom = m @ vel
-        # Angular momentum about the CoM: orbital part sum m (r - c) x v, plus each link's
-        # spin R I R^T w (R: inertial frame orientation, I: its diagonal inertia).
-        rel = pos - com
-        mv = vel * m[:, None]
-        ang = np.array([(rel[:, 1] * mv[:, 2] - rel[:, 2] * mv[:, 1]).sum(),
-                        (rel[:, 2] * mv[:, 0] - rel[:, 0] * mv[:, 2]).sum(),
-                        (rel[:, 0] * mv[:, 1] - rel[:, 1] * mv[:, 0]).sum()])
-        rots = quaternions_to_matrices(quat)
-        w_body = np.einsum('nji,nj->ni', rots, omega)
-        ang += np.einsum('nij,nj->i', rots, self.inertias * w_body)
-        rot0 = rots[0]
-        heading = math.atan2(rot0[1, 0], rot0[0, 0])
-
-        contacts = pb.getContactPoints(bodyA=self.robot, bodyB=self.plane, physicsClientId=c)
-        # Kept for the sensor truth of the same step (sim.sensors), which needs the same reads.
-        self._measured = (self.tick, links, contacts)
-        per_foot: dict[int, list[tuple[float, float, float]]] = {lk: [] for lk in self.foot_links.values()}
-        non_foot = False
-        for cp in contacts:
-            if cp[9] <= MIN_CONTACT_FORCE_N:
-                continue
-            link = cp[3]
-            if link in per_foot:
-                per_foot[link].append((cp[6][0], cp[6][1], cp[9]))
-            else:
-                non_foot = True
-        left = np.array(per_foot[self.foot_links['l']], dtype=float).reshape(-1, 3)
-        right = np.array(per_foot[self.foot_links['r']], dtype=float).reshape(-1, 3)
-        both = np.vstack([left, right])
-        total_force = both[:, 2].sum()
-        if total_force > 0:
-            cop = np.array([both[:, 2] @ both[:, 0] / total_force, both[:, 2] @ both[:, 1] / total_force, 0.0])
-        else:
-            cop = np.full(3, np.nan)
-        feet = {}
-        for side, lk in self.foot_links.items():
-            # The sole centre: the foot link's frame (not its inertial frame) and the sole offset.
-            state = links[self._row[lk]]
-            frame_rot = np.array(pb.getMatrixFromQuaternion(state[5])).reshape(3, 3)
-            fp = np.asarray(state[4]) + frame_rot @ self._sole_offsets[side]
-            if self._sole_rotations[side] is not None:
-                frame_rot = frame_rot @ self._sole_rotations[side]
-            feet[side] = np.array([fp[0], fp[1], math.atan2(frame_rot[1, 0], frame_rot[0, 0])])
-        meas = Measurement(t=self.t, com=com, lin_mom=lin_mom, ang_mom=ang, heading=heading, cop=cop,
-                           left_contacts=left, right_contacts=right, left_foot=feet['l'],
-                           right_foot=feet['r'], non_foot_contact=non_foot, torso_rotation=rot0)
-        self._prev_measurement = meas
-        return meas
+        return pybullet_state.measure(self)

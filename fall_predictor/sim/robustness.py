@@ -145,6 +145,6 @@ def survives(item: tuple) -> bool:
         control = cache[2]
         control.velocity_command = tuple(command)
         control.policy.reset()
-        result = run_trajectory(push, push.t_force_end + horizon_s, simulator=cache[1],
+        result = run_trajectory(push, push.t_force_end + horizon_s, world=cache[1],
                                 controller=control)
     return not result.fallen

@@ -14,7 +14,7 @@ With C_bal's fixed gait every trajectory walks the same walk until its push, so 
 the push need not be simulated again for each one: a :class:`WalkPrefix` simulates the unpushed
 walk once, keeps its samples and snapshots, and pushed trajectories start from the last snapshot
 before their push. A trajectory from a prefix depends only on its push, not on what the prefix's
-simulator ran before (:meth:`Simulator.restore`); for a robot with one collision shape per link it
+world ran before (:meth:`~fall_predictor.sim.world.World.restore`); for a robot with one collision shape per link it
 equals one run from a fresh world bit for bit; for one whose links have several (the G1's sole
 spheres, whose contacts PyBullet restores only approximately) it departs from that run from the
 first step after the snapshot, as two runs whose contact forces differ slightly do
@@ -28,15 +28,15 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from fall_predictor.profiles import RobotProfile
-from fall_predictor.robot.control import Controller, ControllerSwitch, Observation, OBSERVES_SENSORS
-from fall_predictor.robot.controllers import (BalanceController, GaitConfig, ReflexConfig,
-                                              controller_configs)
-from fall_predictor.robot.stabilizer import StabilizerConfig
+from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
+from fall_predictor.robot.control import (Controller, ControllerSwitch, Observation, OBSERVES_SENSORS,
+                                          make_controller)
 from fall_predictor.monitor.records import Measurement, PushSpec
 from fall_predictor.profiles import asimo_like_urdf as rm
+from fall_predictor.robot.stabilizer import StabilizerConfig
+from fall_predictor.sim.pybullet_world import PybulletConfig
 from fall_predictor.sim.sensors import SensorParams, SensorSuite
-from fall_predictor.sim.simulator import Simulator, SimulatorConfig
+from fall_predictor.sim.world import World, make_world
 
 #: The simulated robot, as datasets record it.
 ROBOT_NAME = 'asimo_like'
@@ -45,7 +45,9 @@ ROBOT_JOINT_NAMES = rm.JOINT_NAMES
 #: How the simulated robot is driven (recorded in every dataset's manifest).
 #: :func:`run_trajectory`: how long a run goes on at a time while ``go_on_while`` says so [s].
 EXTENSION_STEP_S = 0.5
-ROBOT_CONTROL = {'actuation': SimulatorConfig().actuation, 'stabilizer': StabilizerConfig().enabled}
+#: C_bal's walk is planned this much longer than the run it walks [s]: it never ends in a run.
+WALK_MARGIN_S = 5.0
+ROBOT_CONTROL = {'actuation': PybulletConfig().actuation, 'stabilizer': StabilizerConfig().enabled}
 
 
 @dataclass
@@ -96,39 +98,29 @@ class _Run:
     sensor_readings: Optional[list] = None
 
 
-def _configs(sim: Simulator, gait: Optional[GaitConfig], reflex: Optional[ReflexConfig],
-             stabilizer: Optional[StabilizerConfig]) -> tuple:
-    """The controller settings given, else the simulated robot's (its profile's)."""
-    own = controller_configs(sim.profile)
-    return (gait or own[0], reflex or own[1], stabilizer or own[2])
-
-
-def _new_run(sim, gait: Optional[GaitConfig], reflex: Optional[ReflexConfig],
-             walk_duration_s: float, stabilizer: Optional[StabilizerConfig] = None,
-             record_sensors: bool = False, controller: Optional[Controller] = None,
-             sensors: Optional[SensorSuite] = None) -> _Run:
-    """A run from the controller's starting posture in a fresh world: ``controller``, or C_bal
-    with the settings given (else the robot's); ``sensors``: the live sensor model (made when the
-    controller observes the sensors and none is given)."""
+def _new_run(world: World, walk_duration_s: float, record_sensors: bool = False,
+             controller: Optional[Controller] = None, sensors: Optional[SensorSuite] = None) -> _Run:
+    """A run from the controller's starting posture in a fresh world: ``controller``, or the
+    robot's default controller (C_bal with its profile's settings, or its learned policy) walking
+    for ``walk_duration_s``; ``sensors``: the live sensor model (made when the controller observes
+    the sensors and none is given)."""
     if controller is None:
-        gait, reflex, stabilizer = _configs(sim, gait, reflex, stabilizer)
-        controller = BalanceController(gait, reflex, sim.dt_s, walk_duration_s=walk_duration_s,
-                                       stabilizer=stabilizer, profile=sim.profile)
+        controller = make_controller(world.profile, dt_s=world.dt_s, walk_duration_s=walk_duration_s)
     switch = ControllerSwitch(controller)
     if sensors is None and switch.walking.observes == OBSERVES_SENSORS:
-        sensors = SensorSuite(SensorParams(), 0, sim.dt_s, sim.profile)
-    m = sim.start(switch.walking.initial_posture())
-    q, dq, _ = sim.joint_states()
+        sensors = SensorSuite(SensorParams(), 0, world.dt_s, world.profile)
+    m = world.start(switch.walking.initial_posture())
+    q, dq, _ = world.joint_states()
     run = _Run(switch, m, [m], [q], [dq], sensors=sensors)
     if record_sensors or sensors is not None:
-        truth = sim.sensor_truth()
+        truth = world.sensor_truth()
         run.sensor_truths = [truth] if record_sensors else None
         if sensors is not None:
             run.sensor_readings = [sensors.read(truth)]
     return run
 
 
-def _advance(sim, run: _Run, t_end: float, stop_when_fallen: bool,
+def _advance(sim: World, run: _Run, t_end: float, stop_when_fallen: bool,
              fall_trigger: Optional[Callable[[Measurement], bool]] = None,
              on_step: Optional[Callable] = None) -> None:
     """Step until ``t_end``, or until the first fallen state if ``stop_when_fallen``;
@@ -165,22 +157,21 @@ def _advance(sim, run: _Run, t_end: float, stop_when_fallen: bool,
 
 
 class WalkPrefix:
-    """The unpushed walk of one simulator, simulated once, with snapshots to start from.
+    """The unpushed walk of one world, simulated once, with snapshots to start from.
 
-    Owns its simulator's world: do not :meth:`Simulator.reset` it while the prefix is in use.
+    Owns its world: do not start it again while the prefix is in use. ``controller``: the walking
+    controller (default: the robot's, walking for ``walk_duration_s``); a deterministic one (C_bal:
+    its fixed gait), whose copies at each snapshot continue as it would have.
     """
 
-    def __init__(self, sim: Simulator, until_s: float, walk_duration_s: float,
-                 gait: Optional[GaitConfig] = None, reflex: Optional[ReflexConfig] = None,
-                 snapshot_every_s: float = 0.1, stabilizer: Optional[StabilizerConfig] = None,
+    def __init__(self, sim: World, until_s: float, walk_duration_s: float,
+                 controller: Optional[Controller] = None, snapshot_every_s: float = 0.1,
                  record_sensors: bool = False):
         self.sim = sim
-        gait, reflex, stabilizer = _configs(sim, gait, reflex, stabilizer)
-        self.gait, self.reflex, self.stabilizer = gait, reflex, stabilizer
         self.walk_duration_s = walk_duration_s
-        run = _new_run(sim, gait, reflex, walk_duration_s, stabilizer, record_sensors)
+        run = _new_run(sim, walk_duration_s, record_sensors, controller)
         self.record_sensors = record_sensors
-        self._snapshots: list[tuple[float, int, int, _Run]] = []
+        self._snapshots: list[tuple[float, int, object, _Run]] = []
         every = max(1, int(round(snapshot_every_s / sim.dt_s)))
         while sim.t < until_s - 1e-9:
             if sim.tick % every == 0:
@@ -209,50 +200,43 @@ class WalkPrefix:
                     self.run.joint_positions[:n], self.run.joint_velocities[:n], sensor_truths=truths)
 
 
-def run_trajectory(push: Optional[PushSpec], duration_s: float,
-                   gait: Optional[GaitConfig] = None, reflex: Optional[ReflexConfig] = None,
-                   sim_config: SimulatorConfig = SimulatorConfig(),
+def run_trajectory(push: Optional[PushSpec], duration_s: float, *,
+                   world: Optional[World] = None,
+                   controller: Optional[Controller] = None,
+                   prefix: Optional[WalkPrefix] = None,
                    stop_when_fallen: bool = True,
                    fall_trigger: Optional[Callable[[Measurement], bool]] = None,
-                   simulator: Optional[Simulator] = None,
-                   prefix: Optional[WalkPrefix] = None,
-                   stabilizer: Optional[StabilizerConfig] = None,
                    record_sensors: bool = False,
-                   profile: Optional[RobotProfile] = None,
+                   sensors: Optional[SensorSuite] = None,
                    go_on_while: Optional[Callable[[list[Measurement]], bool]] = None,
                    max_extension_s: float = 0.0,
-                   controller: Optional[Controller] = None,
-                   sensors: Optional[SensorSuite] = None,
                    on_step: Optional[Callable] = None) -> TrajectoryResult:
-    """Simulate from the standing posture for up to ``duration_s`` seconds.
+    """Simulate from the controller's starting posture for up to ``duration_s`` seconds.
 
-    ``simulator``: the world to run in (any world of sim/world.py; default: a fresh PyBullet
-    one); ``controller``: the walking controller (default: C_bal with the settings given, else
-    the robot's); ``sensors``: the sensor model run live (its readings are in the result; a
-    controller that observes the sensors gets one with the default parameters when none is
-    given); ``on_step(world, measurement)``: called after each step.
+    ``world``: the world to run in (any world of sim/world.py; default: a fresh one of the
+    package's default robot, closed at the end); ``controller``: the walking controller (default:
+    the robot's, robot/control.make_controller); ``sensors``: the sensor model run live (its
+    readings are in the result; a controller that observes the sensors gets one with the default
+    parameters when none is given); ``on_step(world, measurement)``: called after each step.
 
     Stops early when fallen (if ``stop_when_fallen``). ``fall_trigger`` (a predictor) is asked
-    every step; when it says falling, C_bal hands over to C_fall for the
-    rest of the run. With a ``prefix`` the walk before the push is taken from it (same result,
-    less simulation); it must have been made with the same gait, reflex and simulator settings.
-    ``record_sensors`` keeps the exact sensor quantities of every step (the prefix must have
-    been made with it too). Controller settings not given are the robot's (its profile's:
-    ``profile``, else the simulator's robot). ``go_on_while``: asked with the samples so far
-    when a run that has not fallen reaches ``duration_s``; while it says so the run goes on, in
-    steps of :data:`EXTENSION_STEP_S`, for up to ``max_extension_s`` more seconds (a robot
-    still moving when the horizon ends: its outcome is not known yet).
+    every step; when it says falling, the walking controller hands over to C_fall for the rest
+    of the run. With a ``prefix`` the walk before the push is taken from it (same result, less
+    simulation). ``record_sensors`` keeps the exact sensor quantities of every step (the prefix
+    must have been made with it too). ``go_on_while``: asked with the samples so far when a run
+    that has not fallen reaches ``duration_s``; while it says so the run goes on, in steps of
+    :data:`EXTENSION_STEP_S`, for up to ``max_extension_s`` more seconds (a robot still moving
+    when the horizon ends: its outcome is not known yet).
     """
     if prefix is not None and push is not None and push.t_push <= prefix.until_s:
         sim = prefix.sim
         run = prefix.start_at(push.t_push)
         own = False
     else:
-        own = simulator is None and prefix is None
-        sim = prefix.sim if prefix is not None else (simulator or Simulator(sim_config, profile))
-        run = _new_run(sim, gait, reflex, walk_duration_s=duration_s + max_extension_s + 5.0,
-                       stabilizer=stabilizer, record_sensors=record_sensors,
-                       controller=controller, sensors=sensors)
+        own = world is None and prefix is None
+        sim = prefix.sim if prefix is not None else (world or make_world(load_profile(DEFAULT_ROBOT)))
+        run = _new_run(sim, duration_s + max_extension_s + WALK_MARGIN_S, record_sensors, controller,
+                       sensors)
     try:
         if push is not None:
             sim.schedule_push(push)
@@ -263,7 +247,7 @@ def run_trajectory(push: Optional[PushSpec], duration_s: float,
             _advance(sim, run, min(sim.t + EXTENSION_STEP_S, end_s), stop_when_fallen, fall_trigger,
                      on_step)
         t_fallen = run.t_fallen
-        event = getattr(run.switch.walking, 'reflex_event', None)
+        event = run.switch.walking.reflex_event
         return TrajectoryResult(push=push, measurements=run.measurements,
                                 joint_positions=np.array(run.joint_positions),
                                 joint_velocities=np.array(run.joint_velocities),
@@ -275,3 +259,13 @@ def run_trajectory(push: Optional[PushSpec], duration_s: float,
     finally:
         if own:
             sim.close()
+
+
+def gait_run(world: World, gait, duration_s: float) -> dict:
+    """:func:`run_trajectory`'s world and controller for C_bal walking ``gait`` (robot/controllers
+    ``GaitConfig``) in ``world`` for a run of up to ``duration_s`` [s] (extensions included): its
+    walk planned as :func:`run_trajectory` plans its default one."""
+    from fall_predictor.profiles.profile import C_BAL
+    return {'world': world, 'controller': make_controller(
+        world.profile, C_BAL, dt_s=world.dt_s, walk_duration_s=duration_s + WALK_MARGIN_S, gait=gait)}
+

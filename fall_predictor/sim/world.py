@@ -5,21 +5,30 @@ commands (:class:`~fall_predictor.robot.control.JointCommand`) through the robot
 physics step, applies the pushes of the push protocol, steps, and measures: the exact state the
 labels and C_bal read (:class:`~fall_predictor.monitor.records.Measurement`) and the exact sensor
 quantities the sensor model turns into readings (:class:`~fall_predictor.sim.sensors.SensorTruth`).
-Two engines implement it: PyBullet (:class:`~fall_predictor.sim.simulator.Simulator`, from the
-URDF) and MuJoCo (:class:`~fall_predictor.sim.mujoco_world.MujocoWorld`, from the MJCF or the
-URDF). Nothing above this seam imports an engine: the push protocol (:class:`~fall_predictor.sim.
-pushes.PushProtocol`), the
-sensor model, the drivers' timing, the ground truth, the recording and the controllers exist once.
+Nothing above this seam imports an engine: the push protocol (:class:`~fall_predictor.sim.pushes.
+PushProtocol`), the sensor model, the drivers' timing, the ground truth, the recording and the
+controllers exist once.
+
+The engines are registered by name in :data:`WORLDS` (the profile's ``simulator:`` and every
+``--simulator``/``simulator`` parameter take these names): PyBullet
+(:class:`~fall_predictor.sim.pybullet_world.PybulletWorld`, from the URDF) and MuJoCo
+(:class:`~fall_predictor.sim.mujoco_world.MujocoWorld`, from the MJCF or the URDF). A third engine
+is one module with a class of the :class:`World` methods, constructed as ``cls(profile, dt_s=None,
+**options)``, and one line in :data:`WORLDS` (or :func:`register_world` at run time).
 """
 from __future__ import annotations
 
-from typing import Optional, Protocol
+import importlib
+from typing import Optional, Protocol, Sequence, Union
 
 import numpy as np
 
 from fall_predictor.monitor.records import Measurement, PushSpec
 from fall_predictor.profiles import RobotProfile
-from fall_predictor.profiles.profile import SIMULATORS
+
+#: Contacts reported with less normal force than this carry no load (solver slop) [N], in any
+#: engine.
+MIN_CONTACT_FORCE_N = 1e-6
 
 
 class World(Protocol):
@@ -38,7 +47,9 @@ class World(Protocol):
         sample."""
 
     def apply(self, command) -> None:
-        """Hold ``command`` (robot/control.JointCommand) until the next one."""
+        """Hold ``command`` (robot/control.JointCommand) until the next one: fitted onto the
+        world's joints (:meth:`~fall_predictor.robot.control.JointCommand.fit_onto`), a joint it
+        does not name keeping what it held."""
 
     def schedule_push(self, push: PushSpec) -> None:
         """Apply ``push`` when the world's time reaches its onset."""
@@ -52,25 +63,65 @@ class World(Protocol):
     def sensor_truth(self):
         """The exact sensor quantities of the current state (sim/sensors.SensorTruth)."""
 
+    def save_state(self) -> object:
+        """A snapshot of the world (an engine's own token) to :meth:`restore` later."""
+
+    def restore(self, state: object, tick: int, measurement: Measurement) -> None:
+        """Return to ``state`` (a :meth:`save_state` taken at ``tick``, whose sample was
+        ``measurement``), whatever was simulated since; no push pending."""
+
+    def render(self, width: int, height: int, target: Sequence[float], yaw_deg: float,
+               pitch_deg: float = -12.0, distance_m: float = 2.6) -> np.ndarray:
+        """An RGB image (height, width, 3), the camera ``distance_m`` from ``target`` [m], looking
+        along ``yaw_deg`` [deg], ``pitch_deg`` [deg] below the horizon."""
+
     def close(self) -> None:
         """Release the engine."""
+
+
+#: The registered engines: name -> the world class, or 'module:Class' imported when first used
+#: (a robot simulated in one engine never imports another's).
+WORLDS: dict[str, Union[str, type]] = {
+    'pybullet': 'fall_predictor.sim.pybullet_world:PybulletWorld',
+    'mujoco': 'fall_predictor.sim.mujoco_world:MujocoWorld',
+}
+#: The simulators the package ships, by name (the registry's names at import).
+SIMULATORS: tuple[str, ...] = tuple(WORLDS)
+
+
+def simulator_names() -> tuple[str, ...]:
+    """Every registered simulator's name, those registered at run time included."""
+    return tuple(WORLDS)
+
+
+def register_world(name: str, world_class: Union[str, type]) -> None:
+    """Register ``world_class`` (a class of the :class:`World` methods, or its 'module:Class') as
+    simulator ``name``; an engine of that name already registered is replaced."""
+    if not name or not isinstance(name, str):
+        raise ValueError(f'a simulator is registered under a non-empty name, got {name!r}')
+    WORLDS[name] = world_class
+
+
+def world_class(simulator: str) -> type:
+    """The world class registered as ``simulator`` (ValueError naming the registered ones)."""
+    entry = WORLDS.get(simulator)
+    if entry is None:
+        raise ValueError(f'simulator must be one of {", ".join(WORLDS)}, got {simulator!r}')
+    if isinstance(entry, str):
+        module, _, name = entry.partition(':')
+        entry = getattr(importlib.import_module(module), name)
+    return entry
 
 
 def make_world(profile: RobotProfile, simulator: Optional[str] = None,
                dt_s: Optional[float] = None, **options) -> World:
     """A world of ``profile``'s robot in ``simulator`` (default: the profile's); ``dt_s``: the
     physics step (default: the engine's for this robot: 1 ms in PyBullet, the MJCF's in
-    MuJoCo); ``options``: the engine's settings (``SimulatorConfig`` fields for PyBullet)."""
+    MuJoCo); ``options``: the engine's settings (``PybulletConfig`` fields for PyBullet)."""
     simulator = simulator or profile.simulator
-    if simulator not in SIMULATORS:
-        raise ValueError(f'simulator must be one of {SIMULATORS}, got {simulator!r}')
-    if simulator == 'mujoco':
-        from fall_predictor.sim.mujoco_world import MujocoWorld
-        return MujocoWorld(profile, dt_s=dt_s, **options)
-    from dataclasses import replace
-
-    from fall_predictor.sim.simulator import Simulator, SimulatorConfig
-    config = SimulatorConfig(**options)
-    if dt_s is not None:
-        config = replace(config, dt_s=dt_s)
-    return Simulator(config, profile)
+    try:
+        cls = world_class(simulator)
+    except ValueError as error:
+        source = '' if simulator != profile.simulator else f'{profile.source}: '
+        raise ValueError(f'{source}{error}') from None
+    return cls(profile, dt_s=dt_s, **options)
