@@ -45,10 +45,11 @@ def machine_paths(text: str) -> list[str]:
 
 
 def test_the_check_finds_machine_paths_and_only_them():
-    text = ('"per_run": "/tmp/remeasure/x.runs.csv", default /work/.mirror/repo, /home/me/a '
+    tmp, work, home = ('/' + root for root in ('tmp', 'work', 'home'))   # not one in this file
+    text = (f'"per_run": "{tmp}/remeasure/x.runs.csv", default {work}/.mirror/repo, {home}/me/a '
             '#!/usr/bin/env bash; source /opt/ros/jazzy/setup.bash; https://example.org/tmp/x; '
             '`/fall_predictor/state`, docs/tmp/x, <tmp>/bench_x, /dev/zero')
-    assert machine_paths(text) == ['/tmp/remeasure/x.runs.csv', '/work/.mirror/repo', '/home/me/a']
+    assert machine_paths(text) == [f'{tmp}/remeasure/x.runs.csv', f'{work}/.mirror/repo', f'{home}/me/a']
 
 
 def test_no_tracked_file_names_a_folder_of_one_machine():
@@ -94,3 +95,31 @@ def test_portable_paths_are_relative_to_the_repository_or_the_temporary_folder(t
 @pytest.mark.parametrize('name', ['bench_latency.py', 'bench_robot_streams.py', 'bench_soak.py'])
 def test_benchmarks_that_record_folders_write_them_portable(name):
     assert 'portable(' in (ROOT / 'benchmarks' / name).read_text()
+
+
+_DOCS_PATH = re.compile(r'(?<![\w/.-])(docs/[\w./-]+\.(?:json|jsonl|png|md|csv))')
+
+
+def _strings(value):
+    if isinstance(value, dict):
+        for v in value.values():
+            yield from _strings(v)
+    elif isinstance(value, list):
+        for v in value:
+            yield from _strings(v)
+    elif isinstance(value, str):
+        yield value
+
+
+def test_the_docs_paths_a_committed_json_names_are_where_the_files_are():
+    """A command or output a JSON records names the folder of docs/ its file is committed in (not
+    where it was written before the pages were reorganised), so that it can be run again."""
+    wrong = {}
+    for path in tracked_text_files():
+        if path.suffix != '.json' or not path.is_relative_to(ROOT / 'docs'):
+            continue
+        for text in _strings(json.loads(path.read_text())):
+            for named in _DOCS_PATH.findall(text):
+                if not (ROOT / named).parent.is_dir():
+                    wrong.setdefault(str(path.relative_to(ROOT)), set()).add(named)
+    assert not wrong, wrong
