@@ -10,8 +10,8 @@ An entry of ``docs/figures.yaml``::
 
 A value is ``SOURCE FORMAT``. ``SOURCE`` is ``FILE:PATH``: a JSON file of the repository and the
 path to a number in it, keys and list indices separated by ``/`` (``runs/*/robots/g1/x``: ``*``
-takes every item); or ``AGG(SOURCE, SOURCE, ...)`` with ``AGG`` one of min, max, median, sum,
-len, over every number the sources give. ``FORMAT`` is the page's rounding as a Python format
+takes every item; a ``.jsonl`` file is the list of its lines); or ``AGG(SOURCE, SOURCE, ...)``
+with ``AGG`` one of min, max, median, sum, len over every number the sources give, or abs of one. ``FORMAT`` is the page's rounding as a Python format
 spec (``.3f``; ``.3g``; ``100*.0f`` for a fraction written in percent); ``int`` for a count,
 ``str`` for a string as it is, ``numerator`` for N of a string ``N/M``. ``[field=value,...]`` in a
 path keeps the items of a list (or the values of a mapping) with those fields.
@@ -29,13 +29,18 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 FIGURES = ROOT / 'docs' / 'figures.yaml'
-AGGREGATES = {'min': min, 'max': max, 'median': statistics.median, 'sum': sum, 'len': len}
+AGGREGATES = {'min': min, 'max': max, 'median': statistics.median, 'sum': sum, 'len': len,
+              'abs': lambda values: abs(values[0]) if len(values) == 1 else None}
 _AGGREGATE = re.compile(r'^(\w+)\((.*)\)$')
 
 
 @lru_cache(maxsize=None)
 def _json(file: str) -> Any:
-    return json.loads((ROOT / file).read_text())
+    """A JSON file, or a JSON-lines file as the list of its lines."""
+    text = (ROOT / file).read_text()
+    if file.endswith('.jsonl'):
+        return [json.loads(line) for line in text.splitlines() if line.strip()]
+    return json.loads(text)
 
 
 def _walk(value: Any, keys: list[str], where: str) -> list[Any]:
