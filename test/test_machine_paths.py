@@ -123,3 +123,15 @@ def test_the_docs_paths_a_committed_json_names_are_where_the_files_are():
                 if not (ROOT / named).parent.is_dir():
                     wrong.setdefault(str(path.relative_to(ROOT)), set()).add(named)
     assert not wrong, wrong
+
+
+def test_the_command_rewrites_a_json_in_place_keeping_its_layout(tmp_path):
+    """What scripts/rebuild/ runs on evaluate's JSON: the per-run file named as the repository
+    knows it, the rest of the text untouched."""
+    import portable_paths
+    csv = ROOT / 'docs' / 'prediction' / 'g1_c_bal' / 'heldout' / 'g1_model.runs.csv'
+    file = tmp_path / 'g1_model.json'
+    file.write_text(json.dumps({'fpr': 0.027, 'per_run': str(csv), 'model': 'models/g1_model.json'}))
+    assert portable_paths.main([str(file)]) == 0
+    assert file.read_text() == json.dumps({'fpr': 0.027, 'per_run': 'docs/prediction/g1_c_bal/heldout/g1_model.runs.csv',
+                                           'model': 'models/g1_model.json'})
