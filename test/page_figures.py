@@ -12,7 +12,8 @@ A value is ``SOURCE FORMAT``. ``SOURCE`` is ``FILE:PATH``: a JSON file of the re
 path to a number in it, keys and list indices separated by ``/`` (``runs/*/robots/g1/x``: ``*``
 takes every item; a ``.jsonl`` file is the list of its lines); or ``AGG(SOURCE, SOURCE, ...)``
 with ``AGG`` one of min, max, median, sum, len over every number the sources give, or abs of one. ``FORMAT`` is the page's rounding as a Python format
-spec (``.3f``; ``.3g``; ``100*.0f`` for a fraction written in percent); ``int`` for a count,
+spec (``.3f``; ``.3g``; ``100*.0f`` for a fraction written in percent; ``_d`` for a count
+written ``20 001``); ``int`` for a count,
 ``str`` for a string as it is, ``numerator`` for N of a string ``N/M``. ``[field=value,...]`` in a
 path keeps the items of a list (or the values of a mapping) with those fields.
 """
@@ -96,7 +97,10 @@ def formatted(spec: str) -> str:
     if fmt == 'numerator':                     # "5/32" -> "5"
         return str(value).split('/')[0]
     scale, _, fmt = fmt.rpartition('*')
-    return format(value * float(scale or 1), fmt)
+    value = value * float(scale or 1)
+    if fmt.endswith('d'):                      # a count; _d: thousands apart by a space (20 001)
+        return format(int(value), fmt).replace('_', ' ')
+    return format(value, fmt)
 
 
 def entries() -> list[dict]:
