@@ -56,6 +56,8 @@ from fall_predictor.ros.simulator_node import NODE_NAME, SimulatorNode
 from fall_predictor.monitor.records import FALLING, FEATURE_NAMES, N_CONTACT_MODES, Measurement
 from fall_predictor.contract.topics import STATE
 
+from portable_paths import portable             # noqa: E402  (benchmarks/ is on the path)
+
 _SIMULATOR_CHILD = '--simulator-child'
 
 
@@ -251,7 +253,7 @@ def main() -> None:
     result = run_benchmark(args.duration, args.real_time_factor, args.model,
                            default_domain_id() if args.domain_id is None else args.domain_id,
                            args.single_process_monitor, args.composed_robot, args.sensors)
-    text = json.dumps(result, indent=1)
+    text = json.dumps(portable(result), indent=1)   # no machine path in a committed file
     print(text)
     if args.out is not None:
         args.out.write_text(text + '\n')

@@ -10,7 +10,7 @@ bootstrap 95 % interval, against the noise scale).
 Usage::
 
     python benchmarks/bench_noise_sweep.py --model models/default_model.json \
-        --trajectories 100 --seed 1 --work /tmp/noise --jobs 2 \
+        --trajectories 100 --seed 1 --work data/noise --jobs 2 \
         --out docs/estimation/noise_sweep.json --plot docs/estimation/noise_sweep.png
 
 Generation resumes: rerunning with the same --work reuses finished trajectories.

@@ -48,6 +48,8 @@ from fall_predictor.sim.sensors import SensorParams, apply_sensors
 from fall_predictor.sim.trajectory import run_trajectory
 from fall_predictor.sim.world import make_world
 
+from portable_paths import portable             # noqa: E402  (benchmarks/ is on the path)
+
 MODELS = Path(__file__).resolve().parents[1] / 'models'
 AIMS_US = {'estimator_us': 50.0, 'features_plus_predictor_us': 20.0}
 
@@ -173,7 +175,7 @@ def main(argv: list[str] | None = None) -> dict:
         row['features_plus_predictor_aim_met'] = bool(fp <= AIMS_US['features_plus_predictor_us'])
         result['robots'][name] = row
     result['load_average'] = os.getloadavg()
-    text = json.dumps(result, indent=1)
+    text = json.dumps(portable(result), indent=1)   # no machine path in a committed file
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(text + '\n')

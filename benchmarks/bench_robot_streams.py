@@ -41,6 +41,8 @@ from fall_predictor.monitor.sensor_records import SensorSample
 from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
 from fall_predictor.sim.drivers import DriverTiming, driver_messages
 
+from portable_paths import portable             # noqa: E402  (benchmarks/ is on the path)
+
 MODELS = Path(__file__).resolve().parents[1] / 'models'
 
 
@@ -176,7 +178,7 @@ def main(argv: list[str] | None = None) -> int:
               'offline_simulator_lead_median_s': round(float(np.median(reference_leads)), 3)
               if reference_leads else None,
               'summary': summary, 'runs': results}
-    text = json.dumps(report, indent=1, sort_keys=True)
+    text = json.dumps(portable(report), indent=1, sort_keys=True)   # no machine path committed
     print(json.dumps(summary, indent=1, sort_keys=True))
     if args.out:
         args.out.write_text(text + '\n')

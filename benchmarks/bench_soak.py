@@ -51,6 +51,7 @@ from fall_predictor.msg import FallState, Measurement as MeasurementMsg
 from fall_predictor.ros import conversions as ros_qos
 
 from pacing import wait_until                   # noqa: E402  (benchmarks/ is on the path)
+from portable_paths import portable             # noqa: E402  (benchmarks/ is on the path)
 
 REPO = Path(__file__).resolve().parents[1]
 KINDS = ('out_of_bounds', 'nan', 'not_a_rotation', 'out_of_order')
@@ -302,7 +303,7 @@ def main() -> None:
     finally:
         if args.work is None:
             shutil.rmtree(work, ignore_errors=True)
-    text = json.dumps(result, indent=1)
+    text = json.dumps(portable(result), indent=1)   # no machine path in a committed file
     print(text)
     if args.out is not None:
         args.out.write_text(text + '\n')

@@ -5,7 +5,7 @@ Usage (full ROS 2 install, package built with colcon)::
 
     ros2 launch fall_predictor fall_predictor.launch.py
     ros2 launch fall_predictor fall_predictor.launch.py real_time_factor:=0.0 record:=true \
-        bag_path:=/tmp/fall_bags model_path:=/path/to/model.json
+        bag_path:=fall_bags model_path:=/path/to/model.json
     ros2 launch fall_predictor fall_predictor.launch.py sensors:=false  # exact state, no estimator
     ros2 launch fall_predictor fall_predictor.launch.py composed_robot:=true  # simulated_robot
     ros2 launch fall_predictor fall_predictor.launch.py controller:=c_bal simulator:=mujoco

@@ -67,3 +67,33 @@ def test_a_changed_figure_makes_the_cards_stale(tmp_path, monkeypatch):
     monkeypatch.setattr(model_cards, '_load', lambda path: (json.loads(changed.read_text())
                                                             if path == entry['heldout'] else original(path)))
     assert model_cards.render() != (MODELS / 'README.md').read_text()
+
+
+def test_every_card_gives_the_models_cost_from_one_run_against_one_reference():
+    """Each card's cost comes from the one run that timed every shipped model (bench_model_cost.py),
+    its ratio to the reference model of that run; no card goes without one."""
+    run = json.loads((ROOT / model_cards.COST).read_text())
+    assert set(run['models']) == shipped()
+    reference = run['models'][run['reference']]
+    assert reference['ratio_to_reference'] == {'features_plus_predictor': 1.0, 'estimator': 1.0}
+    for name, row in run['models'].items():
+        for stage, key in (('features_plus_predictor', 'features_plus_predictor_us'),
+                           ('estimator', 'estimator_us')):
+            assert abs(row['ratio_to_reference'][stage] - row[key] / reference[key]) <= 0.006, (name, stage)
+        assert row['robot'] == cards()[name]['robot'], name
+    page = (MODELS / 'README.md').read_text()
+    assert 'not measured' not in page
+    assert page.count('- **Cost**: ') == len(shipped())
+    assert page.count(f"× `{run['reference']}`'s in the same run") == len(shipped()) - 1
+
+
+def test_a_card_with_a_second_held_out_measurement_shows_both_and_its_reading_first():
+    for name, entry in cards().items():
+        if not entry.get('remeasured'):
+            continue
+        again = json.loads((ROOT / entry['remeasured']).read_text())
+        assert Path(again['model']).name == name and again['trained_on_this_dataset'] is False
+        row = next(line for line in model_cards.summary_table(cards()).splitlines() if f'[`{name}`]' in line)
+        assert f'{again["fpr"]:.3f} re-made' in row, row
+        if entry.get('read_fpr_as'):
+            assert f'| {entry["read_fpr_as"]}: ' in row, row

@@ -77,8 +77,8 @@ def _xbot_policy(tmp_path: Path) -> Path:
     humanoid-gym git repository (``HUMANOID_GYM_REPO``)."""
     if os.environ.get('XBOT_POLICY'):
         return Path(os.environ['XBOT_POLICY'])
-    repo = Path(os.environ.get('HUMANOID_GYM_REPO', '/work/.mirror/roboterax+humanoid-gym/repo'))
-    if not repo.exists():
+    repo = Path(os.environ.get('HUMANOID_GYM_REPO', ''))       # no default: a clone is the user's
+    if not os.environ.get('HUMANOID_GYM_REPO') or not repo.exists():
         pytest.skip('humanoid-gym policy not at hand (set XBOT_POLICY or HUMANOID_GYM_REPO)')
     path = tmp_path / 'policy_example.pt'
     blob = subprocess.run(['git', '-C', str(repo), 'show', 'HEAD:logs/XBot_ppo/exported/policies/policy_example.pt'],

@@ -16,7 +16,7 @@ README = ROOT / 'README.md'
 DOCS = ROOT / 'docs'
 RESULTS = DOCS / 'results.md'
 METHOD = DOCS / 'method.md'
-README_MAX_LINES = 200
+README_MAX_LINES = 250
 
 
 def markdown_files() -> list[Path]:
@@ -78,7 +78,7 @@ def number(cell: str) -> float:
 
 # -- README -----------------------------------------------------------------------------------
 
-def test_readme_is_at_most_200_lines():
+def test_readme_is_at_most_250_lines():
     n = len(README.read_text(encoding='utf-8').splitlines())
     assert n <= README_MAX_LINES, f'README.md has {n} lines (limit {README_MAX_LINES})'
 
@@ -131,7 +131,7 @@ def test_contributing_layout_names_existing_sub_packages():
 @pytest.mark.parametrize('path', markdown_files(), ids=lambda p: str(p.relative_to(ROOT)))
 def test_no_link_points_outside_the_repository(path):
     text = path.read_text(encoding='utf-8')
-    for outside in ('../shared', 'SPEC.md', '/work/', 'seed/000_'):
+    for outside in ('../shared', 'SPEC.md', 'seed/000_'):   # machine paths: test_machine_paths.py
         assert outside not in text, f'{path.name} mentions {outside!r}'
     found = links(path)
     for target in found:

@@ -19,7 +19,7 @@
   stem ending in ``_in`` (``h_out`` -> ``h_in``, ``c_out`` -> ``c_in``), zeroed by ``reset()``.
 
 Why numpy runs a ``.pt``: onnxruntime cannot read TorchScript (converting needs torch), and numpy
-costs no more. Median cost of a call (2000 calls, the 2-core development machine): Unitree's G1
+costs no more. Median call, one session (the G1 today: docs/monitor/model_cost.json): Unitree's G1
 LSTM policy (47 -> LSTM 64 -> 32 -> 12) 18 us in numpy, 21 us in onnxruntime; humanoid-gym's
 XBot-L MLP (705 -> 512 -> 256 -> 128 -> 12) 80 us and 79 us (torch, one thread: 99 and 83 us),
 the time to read its 2 MB of weights.

@@ -20,6 +20,7 @@ POLICY_TEST=$DATA/g1pol_test1000 C_BAL_TEST=$DATA/g1_test1000_5050
 across() {
   $FP evaluate --data "$3" --model "$2" --jobs "$JOBS" --per-run "$OUT/heldout/${1}_on_$4.runs.csv" \
     --json > "$OUT/heldout/${1}_on_$4.json"
+  portable "$OUT/heldout/${1}_on_$4.json"
 }
 for m in g1_attitude_model g1_model g1_conservative_model; do
   across "$m" "models/$m.json" "$POLICY_TEST" g1_unitree_rl

@@ -24,5 +24,9 @@ train_shipped() {
 heldout() {
   local name=$1 test=$2
   $FP evaluate --data "$test" --model "$OUT/$name" --jobs "$JOBS" --per-run "$OUT/heldout/${name%.json}.runs.csv" \
-    --json > "$OUT/heldout/$name"
+    --json > "$OUT/heldout/$name"  portable "$OUT/heldout/$name"
 }
+
+# portable FILE...: the JSON's paths relative to the repository (or <tmp>/...), never this
+# machine's folders (evaluate names its --per-run file as given).
+portable() { $PY benchmarks/portable_paths.py "$@"; }
