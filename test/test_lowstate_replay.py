@@ -145,3 +145,25 @@ def test_held_joints_off_target_are_a_warning_in_words(runs):
     assert not sample.fault
     assert 'left_elbow_joint at 1.20 rad (held at 0.00)' in sample.warning
     assert 'trained with them held' in sample.warning
+
+
+def test_a_lowstate_recording_imports_as_a_dataset(runs, tmp_path):
+    """``ros2 bag record /lowstate`` of the G1 (no robot_description, log time = receive time)
+    imports with the profile's table and URDF: a fall where the simulator saw it."""
+    from fall_predictor.contract.unitree_hg import LOWSTATE, LOWSTATE_TYPE
+    from fall_predictor.data.bag_writer import BagWriter
+    from fall_predictor.data.robot_import import import_robot_recordings, is_robot_recording
+    bags = []
+    for name in ('fall_forward', 'survived_sideways'):
+        bag = tmp_path / name
+        with BagWriter(bag) as writer:
+            for receive_ns, record in lowstate_records(runs[name].sensor_readings, PROFILE.unitree_hg, 5):
+                writer.write_raw(LOWSTATE.name, LOWSTATE_TYPE, receive_ns, lowstate_cdr(record))
+        assert is_robot_recording(bag)
+        bags.append(bag)
+    rows, rejected = import_robot_recordings(bags, tmp_path / 'dataset', robot='g1_12dof')
+    assert not rejected and [r.fallen for r in rows] == [True, False]
+    start_s = RECEIVE_EPOCH_NS / 1e9 + runs['fall_forward'].sensor_readings[0].t
+    assert abs((rows[0].t_fallen - start_s) - runs['fall_forward'].t_fallen) < 0.1
+    rows, rejected = import_robot_recordings(bags[:1], tmp_path / 'no_table', robot='asimo_like')
+    assert not rows and 'names its motors by index only' in next(iter(rejected.values()))
