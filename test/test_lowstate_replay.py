@@ -167,3 +167,16 @@ def test_a_lowstate_recording_imports_as_a_dataset(runs, tmp_path):
     assert abs((rows[0].t_fallen - start_s) - runs['fall_forward'].t_fallen) < 0.1
     rows, rejected = import_robot_recordings(bags[:1], tmp_path / 'no_table', robot='asimo_like')
     assert not rows and 'names its motors by index only' in next(iter(rejected.values()))
+
+
+def test_the_29_joint_state_with_held_joints_matches_the_12_joint_models_estimate(runs):
+    """The bounds docs/method.md §12 states (benchmarks/bench_lowstate_g1.py measures them on 20
+    held-out runs): CoM within 1.5 cm, CoM velocity within 0.06 m/s (p99), the same contact mode
+    at 99 % of the samples, angular momentum within 0.05 kg m^2/s (median)."""
+    from fall_predictor.data.held_joints import held_joint_errors, summarise_held
+    summary = summarise_held([held_joint_errors(runs[name].sensor_readings, PUSH_AT_S, seed=k)
+                              for k, (name, *_) in enumerate(RUNS)])
+    assert summary['com_m']['p99'] <= 0.015, summary['com_m']
+    assert summary['com_velocity_m_s']['p99'] <= 0.06, summary['com_velocity_m_s']
+    assert summary['contact_mode_agreement'] >= 0.99
+    assert summary['angular_momentum_kg_m2_s']['median'] <= 0.05

@@ -203,7 +203,7 @@ class StateEstimatorNode(MonitorLifecycleNode):
                                    f'{self.resolve_topic_name(ROBOT_DESCRIPTION.ros_name)}')
 
     def _cleanup(self) -> None:
-        self._layout = self._pipeline = None
+        self._layout = self._pipeline = self._converter = None
         for sub in self._wrench_subscriptions:
             self._inputs.remove(sub)
             self.destroy_subscription(sub)
