@@ -114,3 +114,17 @@ def test_lowstate_over_dds_gives_the_offline_alarm(runs, tmp_path):
     assert PUSH_AT_S <= alarms['fall'][0] < fall.t_fallen
     assert abs(alarms['fall'][0] - reference) <= 0.05, (alarms, reference)
     assert alarms['survived'] == [], alarms
+
+
+def test_a_profile_without_a_motor_table_refuses_to_start_in_words(tmp_path):
+    """input:=unitree_hg with a robot whose profile names no motors: exit code 1, one FATAL line
+    saying so, no traceback."""
+    import subprocess
+    process = subprocess.run(
+        [sys.executable, '-m', 'fall_predictor.ros.state_estimator_node', '--ros-args',
+         '-p', 'input:=unitree_hg', '-p', 'robot:=asimo_like'],
+        capture_output=True, text=True, timeout=60, env=ros_environment(test_domain_id(191)))
+    output = process.stdout + process.stderr
+    assert process.returncode == 1 and 'Traceback' not in output, output
+    fatal = [line for line in output.splitlines() if '[FATAL]' in line]
+    assert len(fatal) == 1 and 'asimo_like has no unitree_hg section' in fatal[0], output
