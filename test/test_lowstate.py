@@ -115,3 +115,62 @@ def test_the_23_joint_variant_fills_the_joints_it_lacks():
     names = list(sample.joints.names)
     assert sample.joints.position[names.index('waist_roll_joint')] == 0.0
     assert sample.joints.position[names.index('left_shoulder_pitch_joint')] == pytest.approx(record(5).q[15])
+
+
+def g1_standing_lowstate(n: int):
+    """test/g1_streams.py's standing G1 (known CoM height) as its board's lowstate: the joints
+    at their motor slots, the IMU w-x-y-z, tick in ms, received 0.4 ms after each tick."""
+    from g1_streams import g1_standing
+    messages, com_height, _ = g1_standing(n)
+    slot = {name: k for k, name in enumerate(G1.unitree_hg.variants[5].motors)}
+    records = []
+    for (_, joints), (_, imu) in zip(messages[0::2], messages[1::2]):
+        k = len(records)
+        q, dq, tau = np.zeros(MOTOR_SLOTS), np.zeros(MOTOR_SLOTS), np.zeros(MOTOR_SLOTS)
+        index = [slot[name] for name in joints.names]
+        q[index], dq[index], tau[index] = joints.position, joints.velocity, joints.effort
+        x, y, z, w = imu.orientation_xyzw
+        records.append((EPOCH_NS + k * 2_000_000 + 400_000, LowStateRecord(
+            tick=1000 + 2 * k, mode_machine=5, mode_pr=0, imu_quat_wxyz=np.array([w, x, y, z]),
+            gyro_rad_s=imu.angular_velocity, accel_m_s2=imu.linear_acceleration, q=q, dq=dq,
+            tau_est=tau, motor_status=np.zeros(MOTOR_SLOTS, np.uint32))))
+    return records, com_height
+
+
+def estimates(records):
+    from fall_predictor.monitor.sensor_pipeline import SensorPipeline
+    layout = G1.sensor_layout()
+    pipeline = SensorPipeline(layout.description(G1.urdf_xml()), layout.imu_frame, layout.force_sensors)
+    converter = LowStateConverter(G1.unitree_hg, G1.imu_frame, G1.joint_names)
+    out = []
+    for receive_ns, r in records:
+        sample = converter.convert(r, receive_ns)
+        if sample is not None:
+            out += pipeline.lowstate(sample)
+    return out
+
+
+def test_a_standing_g1s_lowstate_gives_its_known_com_height_and_each_fault_named():
+    records, com_height = g1_standing_lowstate(60)
+    good = estimates(records)
+    assert len(good) == 60 and not any(e.fault for e in good[1:])
+    assert good[-1].measurement.com[2] == pytest.approx(com_height, abs=0.005)
+    faults = {
+        # (new readings: the same ones again would be the same message twice, dropped)
+        'repeated tick': (30, lambda r: replace(r, tick=records[29][1].tick, q=r.q + 1e-4),
+                          'tick 1058 repeated'),
+        'tick back': (30, lambda r: replace(r, tick=3), 'tick went back from 1058 to 3 ms'),
+        'motor error': (30, lambda r: replace(r, motor_status=np.where(np.arange(MOTOR_SLOTS) == 9, 0x8, 0)
+                                              .astype(np.uint32)), 'motor 9 (right_knee_joint) status 0x8'),
+        'zero quaternion': (30, lambda r: replace(r, imu_quat_wxyz=np.zeros(4)), 'not a unit quaternion'),
+        'mode_machine': (30, lambda r: replace(r, mode_machine=6), 'mode_machine 6'),
+    }
+    for name, (at, change, words) in faults.items():
+        faulty = list(records)
+        faulty[at] = (faulty[at][0], change(faulty[at][1]))
+        if name == 'tick back':                 # the counter goes on from its new value
+            faulty[at + 1:] = [(t, replace(r, tick=3 + 2 * (k + 1))) for k, (t, r) in enumerate(faulty[at + 1:])]
+        out = estimates(faulty)
+        refused = [e for e in out[1:] if e.fault]
+        assert len(refused) == 1 and words in refused[0].fault, (name, [e.fault for e in refused])
+        assert refused[0].measurement is None and out[-1].measurement is not None, name
