@@ -14,7 +14,8 @@ The layout (plain little-endian CDR, offsets from the end of the 4-byte encapsul
 ``ddq``, ``tau_est`` float32, ``temperature`` int16[2], ``vol`` float32, ``sensor`` uint32[2],
 ``motorstate`` uint32, ``reserve`` uint32[4] (56 bytes a motor, ``q`` of motor k at 72 + 56 k);
 then ``wireless_remote`` uint8[40], ``reserve`` uint32[4], ``crc``: 2088 bytes. Tested against
-rosbags' and rclpy's serialization.
+rosbags' serialization. Read so, a message costs 6 µs; rclpy's message object of it ~0.7 ms (35
+nested ``MotorState`` objects), a third of the 2 ms between messages.
 """
 from __future__ import annotations
 

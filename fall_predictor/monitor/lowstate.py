@@ -227,8 +227,9 @@ class LowStateConverter:
             keep = self._robot_joints
             used = [(k, n) for k, n in enumerate(variant.motors) if n and (not keep or n in keep)]
             fixed = [(n, a) for n, a in variant.fixed_joints.items() if not keep or n in keep]
-            held = [(k, n, self.profile.held_joints[n]) for k, n in enumerate(variant.motors)
-                    if n in self.profile.held_joints]
+            held_at = [(k, n) for k, n in enumerate(variant.motors) if n in self.profile.held_joints]
+            held = (np.array([k for k, _ in held_at], dtype=np.int64), tuple(n for _, n in held_at),
+                    np.array([self.profile.held_joints[n] for _, n in held_at]))
             cached = (np.array([k for k, _ in used], dtype=np.int64), tuple(n for _, n in used),
                       tuple(n for n, _ in fixed), np.array([a for _, a in fixed], dtype=float), held)
             self._layouts[variant.mode_machine] = cached
@@ -280,19 +281,20 @@ class LowStateConverter:
             imu, fault = None, _join(fault, f'{self.topic} imu_state refused: {refused}')
         return LowStateSample(stamp_ns, joints, imu, fault, self._held_warning(record, held))
 
-    def _held_warning(self, record: LowStateRecord, held: list) -> str:
-        if not held:
+    def _held_warning(self, record: LowStateRecord, held: tuple) -> str:
+        slots, names, targets = held
+        if not len(slots):
             return ''
+        q = np.asarray(record.q, dtype=float)[slots]
+        off = np.abs(q - targets)
         tolerance = self.profile.held_tolerance_rad
-        off = [(abs(float(record.q[k]) - target), name, float(record.q[k]), target)
-               for k, name, target in held if abs(float(record.q[k]) - target) > tolerance]
-        if not off:
+        if not (off > tolerance).any():
             return ''
         self.counts['held_joint_warnings'] += 1
-        worst = ', '.join(f'{name} at {q:.2f} rad (held at {target:.2f})'
-                          for _, name, q, target in sorted(off, reverse=True)[:3])
-        return (f'{len(off)} held joints more than {tolerance:g} rad off their targets: {worst}; '
-                f'the model of {self.profile_name} was trained with them held')
+        worst = [i for i in np.argsort(-off)[:3] if off[i] > tolerance]
+        listed = ', '.join(f'{names[i]} at {q[i]:.2f} rad (held at {targets[i]:.2f})' for i in worst)
+        return (f'{int((off > tolerance).sum())} held joints more than {tolerance:g} rad off their '
+                f'targets: {listed}; the model of {self.profile_name} was trained with them held')
 
 
 def _join(*faults: str) -> str:

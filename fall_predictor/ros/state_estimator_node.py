@@ -289,8 +289,14 @@ class StateEstimatorNode(MonitorLifecycleNode):
         try:
             record = unitree_hg.lowstate_record(data)
         except WireFormatError:
+            # Another encoding: rclpy's message object (~0.7 ms for 35 nested motors, against
+            # 6 us for the CDR read).
             self.counts['rclpy_decoded_messages'] += 1
-            record = unitree_hg.lowstate_from_msg(deserialize_message(data, self._lowstate_msg))
+            try:
+                msg = deserialize_message(data, self._lowstate_msg)
+            except Exception as error:  # rclpy raises several types for bytes it cannot read
+                raise WireFormatError(f'LowState message does not deserialize: {error}') from None
+            record = unitree_hg.lowstate_from_msg(msg)
         sample = self._converter.convert(record, receive_ns)
         for notice in self._converter.take_notices():
             self.get_logger().warning(notice)
