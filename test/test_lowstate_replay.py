@@ -165,6 +165,8 @@ def test_a_lowstate_recording_imports_as_a_dataset(runs, tmp_path):
     assert not rejected and [r.fallen for r in rows] == [True, False]
     start_s = RECEIVE_EPOCH_NS / 1e9 + runs['fall_forward'].sensor_readings[0].t
     assert abs((rows[0].t_fallen - start_s) - runs['fall_forward'].t_fallen) < 0.1
+    # The URDF the estimator used (the profile's) goes with the dataset, so it estimates again.
+    assert (tmp_path / 'dataset' / 'robot.urdf').read_text() == PROFILE.urdf_xml()
     rows, rejected = import_robot_recordings(bags[:1], tmp_path / 'no_table', robot='asimo_like')
     assert not rows and 'names its motors by index only' in next(iter(rejected.values()))
 

@@ -254,15 +254,17 @@ def import_robot_recordings(bags: Iterable[str | os.PathLike], out: str | os.Pat
     sources = [Path(b).resolve() for b in given]
     (out / 'bags').mkdir(parents=True)
     (out / 'index').mkdir()
-    rows, rejected, described = [], {}, None
+    rows, rejected, described, profile_urdf = [], {}, None, None
     for source, t_push_file_s in zip(sources, file_times):
         tid = trajectory_id(len(rows))
         try:
             row = robot_recording_row(source, tid, urdf, robot, t_push_file_s)
+            from fall_predictor.data.sensorbag import read_robot_description
+            recorded = urdf or read_robot_description(source)
+            if recorded is None and profile_urdf is None:
+                profile_urdf = lowstate_urdf(source, robot)     # a Unitree robot's: its profile's
             if described is None:
-                from fall_predictor.data.sensorbag import read_robot_description
-                described = robot_from_urdf(urdf or read_robot_description(source)
-                                            or lowstate_urdf(source, robot))
+                described = robot_from_urdf(recorded or profile_urdf)
         except (DatasetError, BagError) as error:
             rejected[str(source)] = str(error)
             continue
@@ -278,6 +280,8 @@ def import_robot_recordings(bags: Iterable[str | os.PathLike], out: str | os.Pat
                                for source in (PUSH_FROM_TOPIC, PUSH_FROM_FILE, PUSH_UNKNOWN)}}
     if unused:
         manifest['push_times']['file_entries_unused'] = unused
+    if urdf is None:
+        urdf = profile_urdf
     if urdf is not None:                 # recordings without /robot_description
         atomic_write_text(out / ROBOT_URDF_FILE, urdf)
         manifest['urdf_file'] = ROBOT_URDF_FILE
