@@ -73,7 +73,7 @@ def test_stamps_keep_the_ticks_spacing_not_the_receive_jitter():
     n = 400
     ticks = 1000 + 2 * np.arange(n)
     receive = EPOCH_NS + ticks * 1_000_000 + 400_000 + rng.integers(0, 3_000_000, n)
-    _, samples = converted(receive, ticks)
+    converter, samples = converted(receive, ticks)
     stamps = np.array([s.stamp_ns for s in samples])
     steps = np.diff(stamps)
     # After the least-delayed message has been seen, a step is the tick's 2 ms plus the drift
@@ -85,6 +85,8 @@ def test_stamps_keep_the_ticks_spacing_not_the_receive_jitter():
     assert np.all(np.abs(settled - 2_000_000) <= 50_000)
     assert np.all(stamps <= receive)                       # never later than the message arrived
     assert samples[0].joints.names == G1.joint_names and samples[0].imu.frame_id == 'imu_in_pelvis'
+    assert converter.take_notices() == ['/lowstate: mode_machine 5 (g1_29dof_rev_1_0), 29 motors '
+                                        'named by the robot profile']
     np.testing.assert_allclose(samples[0].imu.orientation_xyzw, [0, 0, 0, 1])
 
 

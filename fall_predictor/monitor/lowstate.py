@@ -152,6 +152,7 @@ class LowStateConverter:
         self.config = config
         self._robot_joints = frozenset(robot_joints)
         self._layouts: dict[int, tuple] = {}
+        self._variant_seen: Optional[int] = None
         self._notices: list[str] = []
         self.counts = {'lowstate_messages': 0, 'duplicate_messages': 0, 'repeated_ticks': 0,
                        'tick_restarts': 0, 'tick_wraps': 0, 'motor_faults': 0,
@@ -250,6 +251,11 @@ class LowStateConverter:
                 f'{self.topic} says mode_machine {record.mode_machine}, but {self.profile_name} '
                 f'describes {self.profile.describe()}: its motors would be named wrong; start the '
                 'monitor with the profile of this robot\'s variant')))
+        if variant.mode_machine != self._variant_seen:
+            self._variant_seen = variant.mode_machine
+            named = sum(1 for m in variant.motors if m)
+            self._notices.append(f'{self.topic}: mode_machine {variant.mode_machine} '
+                                 f'({variant.name}), {named} motors named by {self.profile_name}')
         if record.mode_pr != MODE_PR_PITCH_ROLL:
             return LowStateSample(stamp_ns, None, None, _join(fault, (
                 f'{self.topic} reports the ankles as motors A/B (mode_pr {record.mode_pr}), not as '

@@ -299,7 +299,7 @@ class StateEstimatorNode(MonitorLifecycleNode):
             record = unitree_hg.lowstate_from_msg(msg)
         sample = self._converter.convert(record, receive_ns)
         for notice in self._converter.take_notices():
-            self.get_logger().warning(notice)
+            self.get_logger().info(notice)         # the variant; a tick wrap or restart, once
         if sample is None:
             return                      # the same message twice (counted)
         if sample.warning:
