@@ -3,6 +3,7 @@
 Usage (full ROS 2 install, package built with colcon)::
 
     ros2 launch fall_predictor monitor.launch.py namespace:=robot1
+    ros2 launch fall_predictor monitor.launch.py input:=unitree_hg robot:=g1_12dof   # a Unitree G1
     ros2 launch fall_predictor monitor.launch.py measurement_topic:=/robot1/estimator/measurement \
         params_file:=/path/to/my_monitor.yaml model_path:=/path/to/my_robot_model.json
 
@@ -10,7 +11,11 @@ By default the feature and predictor nodes run in one process on one executor (t
 ``fall_monitor`` executable); ``single_process:=false`` starts them as separate processes.
 The state estimator runs in front of them on the robot's raw sensors (``joint_states``,
 ``imu/data``, the foot wrenches, ``robot_description``); ``estimator:=false`` leaves it out
-for a robot that publishes ``fall_predictor/measurement`` itself. All
+for a robot that publishes ``fall_predictor/measurement`` itself. ``input:=unitree_hg`` is a
+Unitree humanoid on its own topic: the estimator reads ``lowstate`` (``unitree_hg/msg/LowState``)
+instead of ``joint_states`` and ``imu/data``, and publishes the profile's ``robot_description``
+(the robot publishes none); the profile names the motors (``g1``, or ``g1_12dof`` for the G1
+under Unitree's 12-joint policy). All
 topics are relative, so ``namespace`` moves the whole interface (``/robot1/fall_predictor/...``);
 ``measurement_topic`` remaps the monitor's input. Parameters come from ``config/monitor.yaml``
 (``params_file``), whose ``/**/<node>`` sections match under any namespace. ``robot`` (a robot
@@ -34,6 +39,7 @@ from launch_ros.substitutions import FindPackageShare
 #: declare it: ROS 2 would ignore it elsewhere without a word).
 SCOPED_PARAMETERS = {
     'robot': ('state_estimator_node', 'feature_node', 'predictor_node'),
+    'input': ('state_estimator_node',),
     'model_path': ('feature_node', 'predictor_node'),
 }
 
@@ -78,6 +84,10 @@ def generate_launch_description() -> LaunchDescription:
                               description='the monitor\'s input topic (remapping)'),
         DeclareLaunchArgument('single_process', default_value='true',
                               description='true: fall_monitor (one process); false: one per node'),
+        DeclareLaunchArgument('input', default_value='',
+                              description="the robot's sensor topics: '' = the params file's "
+                                          "(sensor_msgs: joint_states, imu/data, foot wrenches); "
+                                          "unitree_hg: a Unitree humanoid's lowstate"),
         DeclareLaunchArgument('estimator', default_value='true',
                               description='true (default): the state estimator on the raw sensor '
                                           'topics; false: the robot publishes the measurement'),

@@ -37,5 +37,9 @@ for name in available_profiles():
   || { echo "colcon build: the installed package does not import"; exit 1; }
 test -f "$work/install/fall_predictor/share/fall_predictor/msg/FallState.msg" \
   || { echo "colcon build: msg/FallState.msg missing from share/fall_predictor"; exit 1; }
+for file in msg/LowState.msg LICENSE; do
+  test -f "$share/vendor/unitree_hg/$file" \
+    || { echo "colcon build: vendor/unitree_hg/$file missing from share/fall_predictor"; exit 1; }
+done
 echo "colcon build: OK in ${seconds} s (executables in lib/fall_predictor, messages and Python package" \
      "import from the install tree with the robot profiles, launch/config/models/examples/msg in share)"

@@ -13,13 +13,13 @@ SLOW_MODULES = frozenset({
     'test_state_estimator_node', 'test_robot_replay', 'test_recorder_crash', 'test_recorder_repair',
     'test_recorder_node', 'test_ros_fall_monitor', 'test_lifecycle', 'test_ros_clock_steps',
     'test_markers', 'test_ros_common', 'test_ros_qos', 'test_launch_files',
-    'test_ros_policy_controller', 'test_bringup_policy',
+    'test_ros_policy_controller', 'test_bringup_policy', 'test_lowstate_node',
     # a Dask cluster
     'test_cluster',
     # long simulations: controllers and stabilizer over pushes, the G1, rates, imports, CLI runs
     'test_stabilizer', 'test_controllers', 'test_g1', 'test_robot_rates', 'test_robot_import',
     'test_cli', 'test_dataset', 'test_state_source', 'test_estimation_cli', 'test_simulator',
-    'test_team_model', 'test_onboard_replay',
+    'test_team_model', 'test_onboard_replay', 'test_lowstate_replay',
 })
 
 

@@ -196,13 +196,13 @@ def test_a_launch_file_sets_no_node_a_parameter_it_does_not_declare(file_name, d
         assert not ignored, f'{file_name}: {executable} ignores {sorted(ignored)}'
 
 
-def test_the_monitor_launch_gives_robot_and_model_only_to_the_nodes_that_declare_them(declared):
+def test_the_monitor_launch_gives_robot_model_and_input_only_to_the_nodes_that_declare_them(declared):
     """The estimator shares the fall_monitor process with the feature and predictor nodes; a
     model_path given to the whole process would reach it and be ignored: each launch argument
     goes, by node-scoped params-file sections, to exactly the nodes that declare it."""
     launch = LaunchFile('monitor.launch.py')
     scoped = launch.scoped_parameters()
-    assert set(scoped) == {'robot', 'model_path'} <= set(launch.launch_arguments())
+    assert set(scoped) == {'robot', 'model_path', 'input'} <= set(launch.launch_arguments())
     monitor_nodes = PROCESS_NODES['fall_monitor']
     for parameter, nodes in scoped.items():
         assert set(nodes) == {n for n in monitor_nodes if parameter in declared[n]}, parameter

@@ -32,6 +32,7 @@ from rosbags.typesys.store import Typestore
 
 from fall_predictor.contract import messages
 from fall_predictor.contract.definitions import message_definitions
+from fall_predictor.contract.unitree_hg import unitree_hg_definitions
 from fall_predictor.contract.topics import (FEATURES, FEATURES_LABEL, JOINT_STATES, MEASUREMENT,
                                             MEASUREMENT_LABEL, PUSH, STATE, STATE_LABEL,
                                             TOPICS_BY_NAME, WireFormatError, ns_to_time,
@@ -55,10 +56,11 @@ class BagError(Exception):
 
 @lru_cache(maxsize=1)
 def typestore() -> Typestore:
-    """The ROS 2 Jazzy message type store with this package's own messages (built once)."""
+    """The ROS 2 Jazzy message type store with this package's own messages and Unitree's
+    low-level state (``vendor/unitree_hg``: a G1's ``lowstate`` recordings), built once."""
     store = get_typestore(Stores.ROS2_JAZZY)
     types = {}
-    for name, text in message_definitions().items():
+    for name, text in {**message_definitions(), **unitree_hg_definitions()}.items():
         types.update(get_types_from_msg(text, name))
     store.register(types)
     return store

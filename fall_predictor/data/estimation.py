@@ -56,7 +56,7 @@ def run_pipeline(path: str | os.PathLike[str], urdf: Optional[str] = None,
     except DescriptionError as error:
         raise BagError(f'{bag}: /robot_description: {error}') from error
     estimates: list[Estimate] = []
-    for stream, reading in read_sensor_messages(bag):
+    for stream, reading in read_sensor_messages(bag, robot):
         estimates.extend(pipeline.add(stream, reading))
     return estimates + pipeline.flush()
 

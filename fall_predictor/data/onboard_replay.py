@@ -65,3 +65,56 @@ def first_alarm(chain: OnboardChain, messages: Iterable[tuple[str, Reading]]) ->
         if found is not None:
             return found
     return alarm(chain.flush())
+
+
+# -- one run two ways: the standard sensor topics, and a Unitree humanoid's lowstate ---------------
+@dataclass(frozen=True)
+class Replay:
+    """What the monitor said over one replay: the sample index of its first FALLING event (None:
+    no alarm), and each sample's status and reason, in order."""
+
+    alarm_index: Optional[int]
+    statuses: tuple[int, ...]
+    reasons: tuple[str, ...]
+
+
+def replay(chain: OnboardChain, messages: Iterable[tuple[str, Reading]],
+           index_of_stamp: dict[int, int]) -> Replay:
+    """Every state of ``messages`` through ``chain``; the alarm's sample from its stamp
+    (``index_of_stamp``: the sample index of each driving stamp)."""
+    outputs = []
+    for stream, reading in messages:
+        outputs.extend(chain.add(stream, reading))
+    outputs.extend(chain.flush())
+    alarm = next((index_of_stamp[o.stamp_ns] for o in outputs
+                  if o.event is not None and o.event.kind == EVENT_FALLING), None)
+    return Replay(alarm, tuple(o.state.status for o in outputs), tuple(o.state.reason for o in outputs))
+
+
+def standard_messages(readings, imu_frame: str, clock_ns: int
+                      ) -> tuple[list[tuple[str, Reading]], dict[int, int]]:
+    """A run's readings as ``joint_states`` and ``imu/data`` stamped on a ROS clock that read
+    ``clock_ns`` at the run's start (joints first, the IMU at the same stamp), and the sample
+    index of each stamp."""
+    from fall_predictor.monitor.sensor_records import ImuReading, JointStateReading
+    messages, index = [], {}
+    for k, r in enumerate(readings):
+        stamp = clock_ns + round(r.t * 1e9)
+        index[stamp] = k
+        messages.append(('joints', JointStateReading(stamp, r.joint_names, r.q, r.dq, r.tau)))
+        messages.append(('imu', ImuReading(stamp, imu_frame, r.imu_quat_xyzw, r.gyro_rad_s,
+                                           r.accel_m_s2)))
+    return messages, index
+
+
+def lowstate_messages(records, converter) -> tuple[list[tuple[str, Reading]], dict[int, int]]:
+    """LowState ``records`` ((receive time [ns], record), in arrival order) through
+    ``converter`` (:class:`~fall_predictor.monitor.lowstate.LowStateConverter`), as the estimator
+    node takes them, and the sample index of each stamp it gave."""
+    messages, index = [], {}
+    for k, (receive_ns, record) in enumerate(records):
+        sample = converter.convert(record, receive_ns)
+        if sample is not None:
+            index[sample.stamp_ns] = k
+            messages.append(('lowstate', sample))
+    return messages, index

@@ -2,7 +2,9 @@
 
 A robot records ``/joint_states``, ``/imu/data``, ``/left_foot/wrench``, ``/right_foot/wrench``
 and ``/robot_description`` (or the URDF is given), and perhaps the package's push topic; there is
-no true state. Each recording becomes one trajectory of a dataset whose features can only come
+no true state. A Unitree humanoid records ``/lowstate`` alone (``ros2 bag record /lowstate``):
+its motors named and its IMU taken by the profile's table (``--robot g1_12dof``), its URDF the
+profile's unless the recording has one. Each recording becomes one trajectory of a dataset whose features can only come
 from the estimated state (``--state estimated``). Its labels come from the same estimator:
 
 * **fallen** when the estimated CoM height drops below ``FALLEN_HEIGHT_FRACTION`` of its
@@ -190,7 +192,7 @@ def robot_recording_row(bag: Path, tid: str, urdf: Optional[str] = None,
     from fall_predictor.monitor.geometry import fused_roll_pitch
 
     if urdf is None:
-        urdf = read_robot_description(bag)
+        urdf = read_robot_description(bag) or lowstate_urdf(bag, robot)
         if urdf is None:
             raise DatasetError(f'{bag}: no /robot_description in the recording; give the URDF (--urdf)')
     ms = estimated_measurements(bag, urdf=urdf, robot=robot)
@@ -204,7 +206,7 @@ def robot_recording_row(bag: Path, tid: str, urdf: Optional[str] = None,
     t = np.array([m.t for m in ms])
     z = np.array([m.com[2] for m in ms])
     standing = float(np.median(z[t <= t[0] + STANDING_WINDOW_S]))
-    t_imu, quat, _ = read_imu(bag)
+    t_imu, quat, _ = read_imu(bag, robot)
     tilt = np.degrees(np.max(np.abs(fused_roll_pitch(quat)), axis=1))
     tilted = tilt[np.clip(np.searchsorted(t_imu, t), 0, len(t_imu) - 1)] > FALLEN_TILT_DEG
     fallen = (z < FALLEN_HEIGHT_FRACTION * standing) | tilted
@@ -252,14 +254,17 @@ def import_robot_recordings(bags: Iterable[str | os.PathLike], out: str | os.Pat
     sources = [Path(b).resolve() for b in given]
     (out / 'bags').mkdir(parents=True)
     (out / 'index').mkdir()
-    rows, rejected, described = [], {}, None
+    rows, rejected, described, profile_urdf = [], {}, None, None
     for source, t_push_file_s in zip(sources, file_times):
         tid = trajectory_id(len(rows))
         try:
             row = robot_recording_row(source, tid, urdf, robot, t_push_file_s)
+            from fall_predictor.data.sensorbag import read_robot_description
+            recorded = urdf or read_robot_description(source)
+            if recorded is None and profile_urdf is None:
+                profile_urdf = lowstate_urdf(source, robot)     # a Unitree robot's: its profile's
             if described is None:
-                from fall_predictor.data.sensorbag import read_robot_description
-                described = robot_from_urdf(urdf or read_robot_description(source))
+                described = robot_from_urdf(recorded or profile_urdf)
         except (DatasetError, BagError) as error:
             rejected[str(source)] = str(error)
             continue
@@ -275,6 +280,8 @@ def import_robot_recordings(bags: Iterable[str | os.PathLike], out: str | os.Pat
                                for source in (PUSH_FROM_TOPIC, PUSH_FROM_FILE, PUSH_UNKNOWN)}}
     if unused:
         manifest['push_times']['file_entries_unused'] = unused
+    if urdf is None:
+        urdf = profile_urdf
     if urdf is not None:                 # recordings without /robot_description
         atomic_write_text(out / ROBOT_URDF_FILE, urdf)
         manifest['urdf_file'] = ROBOT_URDF_FILE
@@ -283,14 +290,33 @@ def import_robot_recordings(bags: Iterable[str | os.PathLike], out: str | os.Pat
     return rows, rejected
 
 
+def lowstate_urdf(bag: Path, robot: str) -> Optional[str]:
+    """A Unitree humanoid's recording has no ``/robot_description`` (the robot publishes none):
+    the URDF of its profile, as the estimator node publishes it; None for other recordings
+    (DatasetError when the profile has no motor table for it)."""
+    from fall_predictor.contract.unitree_hg import LOWSTATE
+    from fall_predictor.data.bagio import iter_messages
+    from fall_predictor.profiles import load_profile
+    if next(iter(iter_messages(Path(bag), (LOWSTATE.name,))), None) is None:
+        return None
+    profile = load_profile(robot)
+    if profile.unitree_hg is None:
+        raise DatasetError(f'{bag}: {LOWSTATE.name} names its motors by index only: give the '
+                           'robot profile with their table (--robot g1, or g1_12dof for the '
+                           '12-joint policy)')
+    return profile.urdf_xml()
+
+
 def is_robot_recording(bag: str | os.PathLike) -> bool:
-    """Whether a bag is a robot's recording: an IMU topic and no simulator measurement topic."""
+    """Whether a bag is a robot's recording: an IMU topic (or a Unitree humanoid's
+    ``/lowstate``) and no simulator measurement topic."""
     from fall_predictor.data.bagio import iter_messages
     from fall_predictor.contract.topics import IMU, MEASUREMENT
+    from fall_predictor.contract.unitree_hg import LOWSTATE
 
     def has(topic: str) -> bool:
         return next(iter(iter_messages(Path(bag), (topic,))), None) is not None
     try:
-        return has(IMU.name) and not has(MEASUREMENT.name)
+        return (has(IMU.name) or has(LOWSTATE.name)) and not has(MEASUREMENT.name)
     except BagError:
         return False

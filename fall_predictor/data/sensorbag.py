@@ -8,6 +8,11 @@ the order they were received: offline estimation feeds them to the same
 :class:`~fall_predictor.monitor.sensor_pipeline.SensorPipeline` the live node runs. The ground
 truth goes on ``/fall_predictor/measurement`` of the generated bags; the sensor parameters and
 the drivers' timing are in the bag's ``custom_data``.
+
+A Unitree humanoid's recording (``ros2 bag record /lowstate``) is read too: each
+``unitree_hg/msg/LowState`` goes through :class:`~fall_predictor.monitor.lowstate.LowStateConverter`
+(the motor table of the robot's profile), its receive time the recorder's log time, exactly as the
+estimator node converts it live (stream ``'lowstate'``).
 """
 from __future__ import annotations
 
@@ -24,10 +29,12 @@ from fall_predictor.contract.topics import (IMU, LEFT_FOOT_WRENCH, RIGHT_FOOT_WR
                                             ROBOT_DESCRIPTION, SENSOR_JOINT_STATES,
                                             SENSOR_PARAMS_METADATA_KEY, time_to_ns)
 from fall_predictor.data.bag_writer import BagWriter
+from fall_predictor.contract.unitree_hg import LOWSTATE, lowstate_from_msg
 from fall_predictor.data.bagio import BagError, iter_messages
+from fall_predictor.monitor.lowstate import LowStateConverter, LowStateSample
 from fall_predictor.monitor.sensor_records import ImuReading, JointStateReading, WrenchReading
 
-Reading = Union[JointStateReading, ImuReading, WrenchReading]
+Reading = Union[JointStateReading, ImuReading, WrenchReading, LowStateSample]
 #: Sensor topic of each stream name of :mod:`fall_predictor.sim.drivers`, and back.
 STREAM_TOPICS = {'joints': SENSOR_JOINT_STATES, 'imu': IMU, 'l': LEFT_FOOT_WRENCH,
                  'r': RIGHT_FOOT_WRENCH}
@@ -54,14 +61,37 @@ def write_sensor_message(bag: BagWriter, stream: str, reading: Reading) -> None:
     bag.write_raw(spec.name, spec.msg_type, reading.stamp_ns, _ENCODERS[stream](reading))
 
 
-def read_sensor_messages(path: str | os.PathLike[str]) -> Iterator[tuple[str, Reading]]:
+def read_sensor_messages(path: str | os.PathLike[str], robot: Optional[str] = None
+                         ) -> Iterator[tuple[str, Reading]]:
     """The sensor messages of a bag in the order they were received (log time): (stream,
-    reading), stream one of 'joints', 'imu', 'l', 'r'."""
+    reading), stream one of 'joints', 'imu', 'l', 'r', or 'lowstate' (a Unitree humanoid's, named
+    by the motor table of profile ``robot``, a name or path; converted samples, a repeated
+    delivery left out)."""
     convert = {'joints': messages.joint_state_reading, 'imu': messages.imu_reading,
                'l': messages.wrench_reading, 'r': messages.wrench_reading}
-    for message in iter_messages(Path(path), tuple(_TOPIC_STREAMS)):
+    converter: Optional[LowStateConverter] = None
+    for message in iter_messages(Path(path), (*_TOPIC_STREAMS, LOWSTATE.name)):
+        if message.topic == LOWSTATE.name:
+            if converter is None:
+                converter = lowstate_converter(path, robot)
+            sample = converter.convert(lowstate_from_msg(message.msg), message.t_ns)
+            if sample is not None:
+                yield 'lowstate', sample
+            continue
         stream = _TOPIC_STREAMS[message.topic]
         yield stream, convert[stream](message.msg)
+
+
+def lowstate_converter(path: str | os.PathLike[str], robot: Optional[str]) -> LowStateConverter:
+    """The converter of a recording's ``/lowstate``: the motor table of profile ``robot``
+    (BagError when there is none to name the motors with)."""
+    from fall_predictor.profiles import load_profile
+    profile = None if robot is None else load_profile(robot)
+    if profile is None or profile.unitree_hg is None:
+        raise BagError(f'{path}: {LOWSTATE.name} names its motors by index only: give the robot '
+                       'profile with their table (--robot g1, or g1_12dof for the 12-joint policy)')
+    return LowStateConverter(profile.unitree_hg, profile.imu_frame, profile.joint_names,
+                             LOWSTATE.name, f'robot profile {profile.name}')
 
 
 def read_robot_description(path: str | os.PathLike[str]) -> Optional[str]:
@@ -82,14 +112,15 @@ def read_sensor_params(path: str | os.PathLike[str]) -> Optional[dict]:
     return None if text is None else json.loads(text)
 
 
-def read_imu(path: str | os.PathLike[str]):
-    """The bag's ``/imu/data``: header times [s] (n,), orientations (n, 4) as x, y, z, w and
-    angular velocities [rad/s] (n, 3) in the IMU frame, in stamp order. A bag without IMU
-    messages raises :class:`BagError`."""
+def read_imu(path: str | os.PathLike[str], robot: Optional[str] = None):
+    """The bag's ``/imu/data`` (or the IMU of its ``/lowstate``, robot ``robot``): header times
+    [s] (n,), orientations (n, 4) as x, y, z, w and angular velocities [rad/s] (n, 3) in the IMU
+    frame, in stamp order. A bag without IMU messages raises :class:`BagError`."""
     import numpy as np
     bag = Path(path)
-    rows = sorted((r.stamp_ns, *r.orientation_xyzw, *r.angular_velocity)
-                  for stream, r in read_sensor_messages(bag) if stream == 'imu')
+    imus = (r if stream == 'imu' else r.imu for stream, r in read_sensor_messages(bag, robot)
+            if stream == 'imu' or (stream == 'lowstate' and r.imu is not None))
+    rows = sorted((r.stamp_ns, *r.orientation_xyzw, *r.angular_velocity) for r in imus)
     if not rows:
         raise BagError(f'{bag}: no {IMU.name} messages (was it generated with --sensor-noise?)')
     a = np.array(rows, dtype=float)

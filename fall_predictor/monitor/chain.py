@@ -16,12 +16,13 @@ from typing import Optional, Union
 
 from fall_predictor.monitor.fall_monitor import FallEvent, FallMonitor, MonitorState
 from fall_predictor.monitor.features import FeatureSettings
+from fall_predictor.monitor.lowstate import LowStateSample
 from fall_predictor.monitor.plausibility import ImplausibleSample
 from fall_predictor.monitor.records import Measurement
 from fall_predictor.monitor.sensor_pipeline import Estimate, SensorPipeline
 from fall_predictor.monitor.sensor_records import ImuReading, JointStateReading, WrenchReading
 
-Reading = Union[JointStateReading, ImuReading, WrenchReading]
+Reading = Union[JointStateReading, ImuReading, WrenchReading, LowStateSample]
 
 
 def base_tilt_rad(rotation) -> float:
@@ -50,7 +51,8 @@ class OnboardChain:
         self.monitor = monitor
 
     def add(self, stream: str, reading: Reading) -> list[ChainOutput]:
-        """One sensor message: stream 'joints', 'imu', 'l' or 'r'."""
+        """One sensor message: stream 'joints', 'imu', 'l' or 'r' (or 'lowstate': a Unitree
+        LowState converted by :class:`~fall_predictor.monitor.lowstate.LowStateConverter`)."""
         return [self._decide(e) for e in self.pipeline.add(stream, reading)]
 
     def flush(self) -> list[ChainOutput]:

@@ -38,6 +38,7 @@ from typing import Optional
 
 from fall_predictor.monitor.effort_wrench import leg_joint_ids
 from fall_predictor.monitor.estimator import EstimatorConfig, StateEstimator
+from fall_predictor.monitor.lowstate import LowStateSample
 from fall_predictor.monitor.plausibility import ImplausibleSample, bound_names, check_measurement
 from fall_predictor.monitor.records import Measurement
 from fall_predictor.monitor.robot_description import SIDES, RobotDescription
@@ -173,14 +174,29 @@ class SensorPipeline:
         self.sync.add_wrench(side, reading)
         return self._after_reading(None)
 
+    def lowstate(self, sample: LowStateSample) -> list[Estimate]:
+        """One Unitree LowState (:mod:`~fall_predictor.monitor.lowstate`): its IMU and joints at
+        one stamp, which drives an estimate; one with a fault gives that fault at once."""
+        if sample.imu is not None:
+            self.sync.add_imu(sample.imu)
+        if sample.joints is not None:
+            self.sync.add_joint_state(sample.joints)
+        out = self._after_reading(sample.stamp_ns, sample.fault)
+        if sample.fault:
+            out.extend(self._estimate_pending())
+        return out
+
     def add(self, stream: str, reading) -> list[Estimate]:
-        """One message of ``stream`` ('joints', 'imu', 'l' or 'r': the drivers' stream names);
-        the estimates it completes (joint names the description lacks are dropped: use
-        :meth:`joint_state` to hear of them). ValueError if a joint state is malformed."""
+        """One message of ``stream`` ('joints', 'imu', 'l' or 'r': the drivers' stream names;
+        'lowstate': a :class:`~fall_predictor.monitor.lowstate.LowStateSample`); the estimates it
+        completes (joint names the description lacks are dropped: use :meth:`joint_state` to hear
+        of them). ValueError if a joint state is malformed."""
         if stream == 'joints':
             return self.joint_state(reading)[0]
         if stream == 'imu':
             return self.imu(reading)
+        if stream == 'lowstate':
+            return self.lowstate(reading)
         return self.wrench(stream, reading)
 
     def flush(self) -> list[Estimate]:

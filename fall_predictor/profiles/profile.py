@@ -44,6 +44,7 @@ from typing import Any, Optional, Union
 
 import yaml
 
+from fall_predictor.monitor.lowstate import LowStateProfile, parse_unitree_hg
 from fall_predictor.monitor.records import SoleGeometry
 from fall_predictor.monitor.robot_description import SIDES, SensorLayout
 
@@ -221,6 +222,8 @@ class RobotProfile:
     controllers: dict[str, PolicyControllerProfile] = field(default_factory=dict)
     #: The controller of its datasets and nodes unless told otherwise.
     default_controller: str = C_BAL
+    #: How a Unitree humanoid's ``lowstate`` names its motors (monitor/lowstate.py), or None.
+    unitree_hg: Optional[LowStateProfile] = None
 
     # -- controllers -------------------------------------------------------------------------
     @property
@@ -458,6 +461,7 @@ def _parse(path: Path, raw: Any) -> RobotProfile:
     mjcf = r.file('mjcf') if r.get('mjcf', None) is not None else None
     try:
         controllers = parse_controllers(path, r.get('controllers', None))
+        unitree_hg = parse_unitree_hg(path, r.get('unitree_hg', None))
     except ValueError as error:
         raise ProfileError(str(error)) from None
     default_controller = r.text('default_controller', C_BAL)
@@ -474,4 +478,5 @@ def _parse(path: Path, raw: Any) -> RobotProfile:
         sim_ground=sim_ground,
         controller=controller,
         posture=posture, model=r.text('model', 'default_model.json'), simulator=simulator,
-        mjcf_path=mjcf, controllers=controllers, default_controller=default_controller)
+        mjcf_path=mjcf, controllers=controllers, default_controller=default_controller,
+        unitree_hg=unitree_hg)

@@ -14,6 +14,12 @@ topics: in this process the predictor takes the features of its own feature node
     ros2 run fall_predictor fall_monitor [--estimator] --ros-args -r __ns:=/robot1 \\
         --params-file config/monitor.yaml
 
+A Unitree G1 (its ``lowstate`` instead of ``joint_states`` and ``imu/data``; the estimator's
+``input`` parameter, method §12)::
+
+    ros2 run fall_predictor fall_monitor --estimator --ros-args -p input:=unitree_hg \\
+        -p robot:=g1_12dof
+
 Namespace and remappings given on the command line apply to every node of the process; do not
 rename the nodes (``-r __node:=``), each keeps its own name. Exit code 1, with one FATAL line,
 when a node cannot start (no model, a bad parameter): then none runs.
