@@ -63,7 +63,7 @@ def main() -> None:
     for k in range(args.runs):
         command, push = pushes.sample(rng)
         world = make_world(profile, None, physics_dt_s(policy))
-        run = run_trajectory(push, push.t_push + AFTER_PUSH_S, simulator=world,
+        run = run_trajectory(push, push.t_push + AFTER_PUSH_S, world=world,
                              controller=make_controller(profile, None, command, dt_s=world.dt_s),
                              sensors=SensorSuite(SensorParams(), args.seed + k, world.dt_s, profile))
         world.close()

@@ -40,7 +40,7 @@ def runs():
     out = {}
     for k, (name, force, angle, vx) in enumerate(RUNS):
         world = make_world(PROFILE, None, physics_dt_s(policy))
-        run = run_trajectory(PushSpec(force, angle, 0.1, PUSH_AT_S), 4.0, simulator=world,
+        run = run_trajectory(PushSpec(force, angle, 0.1, PUSH_AT_S), 4.0, world=world,
                              controller=make_controller(PROFILE, None, (vx, 0.0, 0.0), dt_s=world.dt_s),
                              sensors=SensorSuite(SensorParams(), k, world.dt_s, PROFILE))
         world.close()
