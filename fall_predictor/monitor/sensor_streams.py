@@ -354,6 +354,11 @@ class JointTable:
             out.extend(self.bounds.violations(self.q, self.dq))
         return out
 
+    def flags(self) -> list[str]:
+        """Joints past their limits or speed but possible, in words (a sample that has them is
+        kept and flagged: :mod:`~fall_predictor.monitor.plausibility`)."""
+        return [] if self.bounds is None else self.bounds.exceedances(self.q, self.dq)
+
 
 def _joint_list(what: str, names: list[str]) -> str:
     return f'joint{"s" if len(names) > 1 else ""} {bound_names(names)} {what}'

@@ -45,7 +45,7 @@ from typing import Any, Optional, Union
 import yaml
 
 from fall_predictor.monitor.records import SoleGeometry
-from fall_predictor.monitor.robot_description import SIDES, SensorLayout
+from fall_predictor.monitor.robot_description import SIDES, SensorLayout, joint_limits_of
 
 PROFILES_DIR = Path(__file__).resolve().parent
 PROFILE_FILE = 'profile.yaml'
@@ -223,6 +223,9 @@ class RobotProfile:
     controllers: dict[str, PolicyControllerProfile] = field(default_factory=dict)
     #: The controller of its datasets and nodes unless told otherwise.
     default_controller: str = C_BAL
+    #: ``monitor.joint_limits``: per joint, the limits the monitor judges its encoders by in
+    #: place of the URDF's (``lower_rad``, ``upper_rad``, ``velocity_rad_s``; any of them).
+    joint_limits: dict[str, dict[str, float]] = field(default_factory=dict)
 
     # -- controllers -------------------------------------------------------------------------
     @property
@@ -262,7 +265,8 @@ class RobotProfile:
     def sensor_layout(self) -> SensorLayout:
         """Soles, IMU frame and the feet with a force/torque sensor."""
         return SensorLayout({side: self.feet[side].sole() for side in SIDES}, self.imu_frame,
-                            tuple(side for side in SIDES if self.feet[side].force_torque_frame))
+                            tuple(side for side in SIDES if self.feet[side].force_torque_frame),
+                            self.joint_limits)
 
     def urdf_xml(self) -> str:
         """The robot description's text (``/robot_description``)."""
@@ -432,6 +436,10 @@ def _parse(path: Path, raw: Any) -> RobotProfile:
     monitor = r.child('monitor')
     fallen = monitor.number('fallen_com_height_m', 0.05, 3.0)
     guard = monitor.number('guard_com_height_m', fallen, 3.0)
+    try:
+        joint_limits = joint_limits_of(monitor.get('joint_limits', {}))
+    except ValueError as error:
+        raise ProfileError(f'{path}: {error}') from None
     controller = {}
     for part, fields in r.get('controller', {}).items():
         if part not in ('gait', 'reflex', 'stabilizer') or not isinstance(fields, dict):
@@ -476,4 +484,6 @@ def _parse(path: Path, raw: Any) -> RobotProfile:
         sim_ground=sim_ground,
         controller=controller,
         posture=posture, model=r.text('model', 'default_model.json'), simulator=simulator,
-        mjcf_path=mjcf, controllers=controllers, default_controller=default_controller)
+        mjcf_path=mjcf, controllers=controllers, default_controller=default_controller,
+        joint_limits=joint_limits)
+
