@@ -17,8 +17,18 @@ how the observation is made. :func:`load_policy_config` reads such a file as it 
   sin and cos of the phase, command x (lin_vel, lin_vel, ang_vel), (q - default) x dof_pos,
   dq x dof_vel, last action, body angular velocity x ang_vel, base Euler angles x quat; the last
   ``frame_stack`` frames stacked oldest first;
-* **an explicit ``observation:`` list** of terms, each ``- NAME: SCALE`` or ``- NAME: {scale:
-  ..., relative_to_default: ..., period_s: ...}`` (terms: :data:`TERM_SIZES`).
+* **an explicit ``observation:`` list** of terms in the network's order, each ``- NAME: SCALE`` or
+  ``- NAME: {scale: ..., clip: ..., ...}`` (terms: :data:`TERM_SIZES`, under their own or a
+  maker's name: :data:`TERM_ALIASES`; options: :data:`TERM_OPTIONS`): any other policy's
+  observation. A gait clock is ``gait_clock`` (``order: cos_sin`` or ``sin_cos``, ``period_s`` or
+  ``frequency_hz``, ``offset`` as a fraction of a cycle, ``when_standing``: ``run``, ``zero``,
+  ``hold`` or ``reset`` below ``standing_below`` of the command's norm) or ``gait_phase`` (the
+  phase itself, in [0, 1)).
+
+A maker's file is read in its own shape (:mod:`~fall_predictor.robot.deploy_fields`): fields in
+sections (``common:``, ``policy:``), under the maker's names (``stiffness``, ``default_qpos``, or
+any name mapped by ``field_names``), gains and angles per joint as mappings. The schema, with
+examples, is in docs/method.md §13 ("A deploy config of any layout").
 
 Added by this package: ``joint_names`` (required: the MJCF/URDF joint of each action, in the
 policy's order), ``observation_layout`` (default: unitree_rl_gym when its scale fields are there,
@@ -40,13 +50,33 @@ from typing import Any, Optional, Union
 
 import yaml
 
+from fall_predictor.robot.deploy_fields import (Fields as _Fields, PolicyConfigError, flatten,
+                                                number as _number, numbers as _numbers,
+                                                scale as _scale)
 from fall_predictor.robot.networks import load_network
+
+__all__ = ['PolicyConfig', 'PolicyConfigError', 'ObservationTerm', 'load_policy_config',
+           'read_policy_config']
 
 #: Observation terms -> their size (None: one per joint).
 TERM_SIZES: dict[str, Optional[int]] = {
     'base_ang_vel': 3, 'projected_gravity': 3, 'base_euler_xyz': 3, 'command': 3,
     'joint_pos': None, 'joint_vel': None, 'last_action': None, 'gait_phase_sin_cos': 2,
+    'gait_clock': 2, 'gait_phase': 1,
 }
+#: The gait clock's terms (a period, and the clock's options).
+CLOCK_TERMS = ('gait_phase_sin_cos', 'gait_clock', 'gait_phase')
+#: Makers' names of the terms (IsaacLab's, legged_gym's).
+TERM_ALIASES = {'ang_vel': 'base_ang_vel', 'gyro': 'base_ang_vel', 'gravity': 'projected_gravity',
+                'commands': 'command', 'velocity_commands': 'command', 'dof_pos': 'joint_pos',
+                'joint_pos_rel': 'joint_pos', 'dof_vel': 'joint_vel', 'joint_vel_rel': 'joint_vel',
+                'actions': 'last_action', 'euler': 'base_euler_xyz', 'rpy': 'base_euler_xyz',
+                'clock': 'gait_clock', 'phase': 'gait_phase'}
+#: The options of a term: every term's, then the clock's.
+TERM_OPTIONS = ('scale', 'clip', 'relative_to_default', 'period_s', 'frequency_hz', 'order',
+                'offset', 'when_standing', 'standing_below')
+CLOCK_ORDERS = ('sin_cos', 'cos_sin')
+STANDING_CLOCKS = ('run', 'zero', 'hold', 'reset')
 LAYOUTS = ('unitree_rl_gym', 'humanoid_gym')
 ACTION_OFFSETS = ('default_angles', 'zero')
 #: Unitree's deploy_mujoco.py: the gait period it hard-codes [s].
@@ -63,12 +93,10 @@ _KNOWN = {'policy_path', 'joint_names', 'simulation_dt', 'dt', 'control_decimati
           'kps', 'kds', 'default_angles', 'action_scale', 'action_offset', 'num_actions', 'num_obs',
           'num_single_obs', 'cmd_init', 'observation_layout', 'observation', 'frame_stack',
           'clip_observations', 'clip_actions', 'tau_limit', 'gait_period_s', 'cycle_time',
-          'num_observations'} | _LAYOUT_FIELDS['unitree_rl_gym'] | _LAYOUT_FIELDS['humanoid_gym']
-
-
-class PolicyConfigError(ValueError):
-    """A policy config is missing, malformed or does not fit its network; the message names the
-    file and the field."""
+          'num_observations', 'field_names', 'ignored_fields'} | _LAYOUT_FIELDS['unitree_rl_gym'] \
+    | _LAYOUT_FIELDS['humanoid_gym']
+#: Where the schema of a deploy config is told, for the errors that need it.
+SCHEMA_DOC = 'docs/method.md §13, "A deploy config of any layout"'
 
 
 @dataclass(frozen=True)
@@ -81,6 +109,16 @@ class ObservationTerm:
     scale: tuple[float, ...] = (1.0,)
     relative_to_default: bool = True
     period_s: Optional[float] = None
+    #: After the scale: the term's elements clipped to [low, high] (None: not clipped).
+    clip: Optional[tuple[float, float]] = None
+    #: A gait_clock's order of its two values: 'sin_cos' or 'cos_sin'.
+    order: str = 'sin_cos'
+    #: The clock's phase offset, a fraction of a cycle in [0, 1).
+    offset: float = 0.0
+    #: The clock at a standing command (norm <= standing_below): 'run' on, its values 'zero' (the
+    #: phase held), the phase held ('hold'), or back to 0 and restarted from there ('reset').
+    when_standing: str = 'run'
+    standing_below: float = 0.0
 
     def size(self, num_joints: int) -> int:
         n = TERM_SIZES[self.name]
@@ -130,8 +168,8 @@ class PolicyConfig:
             if len(term.scale) not in (1, term.size(n)):
                 raise PolicyConfigError(f'{where}: observation term {term.name} needs 1 or '
                                         f'{term.size(n)} scales, got {len(term.scale)}')
-            if term.name == 'gait_phase_sin_cos' and not (term.period_s or 0) > 0:
-                raise PolicyConfigError(f'{where}: observation term gait_phase_sin_cos needs a '
+            if term.name in CLOCK_TERMS and not (term.period_s or 0) > 0:
+                raise PolicyConfigError(f'{where}: observation term {term.name} needs a '
                                         f'period > 0 [s] (gait_period_s or cycle_time)')
 
     @property
@@ -146,7 +184,7 @@ class PolicyConfig:
     @property
     def gait_period_s(self) -> Optional[float]:
         """The period of the policy's gait clock [s] (its phase observation), or None."""
-        return next((t.period_s for t in self.observation if t.name == 'gait_phase_sin_cos'), None)
+        return next((t.period_s for t in self.observation if t.name in CLOCK_TERMS), None)
 
     @property
     def single_obs_size(self) -> int:
@@ -174,61 +212,6 @@ class PolicyConfig:
 
 # -- reading -------------------------------------------------------------------------------------
 
-class _Fields:
-    """Typed access to the YAML mapping, naming the file and field in every error."""
-
-    def __init__(self, path: Path, raw: dict) -> None:
-        self.path, self.raw = path, raw
-
-    def error(self, field: str, text: str) -> PolicyConfigError:
-        return PolicyConfigError(f'{self.path}: {field}: {text}')
-
-    def get(self, field: str, default: Any = ...) -> Any:
-        if field not in self.raw or self.raw[field] is None and default is not ...:
-            if default is ...:
-                raise self.error(field, 'missing (required)')
-            return default
-        return self.raw[field]
-
-    def either(self, first: str, second: str, default: Any = ...) -> Any:
-        """The value of ``first`` or its synonym ``second`` (both given: they must agree)."""
-        if first in self.raw and second in self.raw and self.raw[first] != self.raw[second]:
-            raise self.error(first, f'{self.raw[first]!r} disagrees with {second} {self.raw[second]!r}')
-        if first in self.raw:
-            return self.raw[first]
-        if second in self.raw:
-            return self.raw[second]
-        if default is ...:
-            raise self.error(first, f'missing (required; humanoid-gym calls it {second})')
-        return default
-
-
-def _number(f: _Fields, field: str, value: Any, low: float = -math.inf, positive: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-            or value < low or (positive and value <= 0):
-        bound = '> 0' if positive else (f'>= {low:g}' if low > -math.inf else 'finite')
-        raise f.error(field, f'must be a number {bound}, got {value!r}')
-    return float(value)
-
-
-def _numbers(f: _Fields, field: str, value: Any, n: int, broadcast: bool = True,
-             positive: bool = False) -> tuple[float, ...]:
-    """``n`` numbers from a list of ``n`` (or one number, when ``broadcast``)."""
-    if broadcast and isinstance(value, (int, float)) and not isinstance(value, bool):
-        return (_number(f, field, value, positive=positive),) * n
-    if not isinstance(value, (list, tuple)) or len(value) != n:
-        raise f.error(field, f'must be a list of {n} numbers{" or one number" if broadcast else ""}, '
-                             f'got {value!r}')
-    return tuple(_number(f, field, v, positive=positive) for v in value)
-
-
-def _scale(f: _Fields, field: str, value: Any) -> tuple[float, ...]:
-    values = [value] if not isinstance(value, (list, tuple)) else list(value)
-    if not values:
-        raise f.error(field, 'an empty scale')
-    return tuple(_number(f, field, v) for v in values)
-
-
 def _policy_path(f: _Fields) -> Path:
     text = f.get('policy_path')
     if not isinstance(text, str) or not text:
@@ -247,13 +230,7 @@ def _default_angles(f: _Fields, joints: tuple[str, ...], required: bool) -> tupl
     value = f.get('default_angles', ... if required else None)
     if value is None:
         return (0.0,) * len(joints)
-    if isinstance(value, dict):
-        if set(value) != set(joints):
-            raise f.error('default_angles', f'a mapping must name exactly the joint_names; missing '
-                                            f'{sorted(set(joints) - set(value))}, extra '
-                                            f'{sorted(set(value) - set(joints))}')
-        return tuple(_number(f, 'default_angles', value[j]) for j in joints)
-    return _numbers(f, 'default_angles', value, len(joints), broadcast=False)
+    return _numbers(f, 'default_angles', value, len(joints), broadcast=False, joints=joints)
 
 
 def _layout(f: _Fields) -> str:
@@ -268,8 +245,10 @@ def _layout(f: _Fields) -> str:
         elif 'obs_scales' in f.raw:
             layout = 'humanoid_gym'
         else:
-            raise f.error('observation_layout', f'missing: name one of {LAYOUTS} or give an '
-                                                f'observation list')
+            raise f.error('observation_layout', f'missing: name one of {LAYOUTS} or, for a config '
+                                                f'of another layout, describe the network\'s input '
+                                                f'as an observation: list of terms in its order '
+                                                f'({SCHEMA_DOC})')
     if layout not in LAYOUTS:
         raise f.error('observation_layout', f'must be one of {LAYOUTS}, got {layout!r}')
     return layout
@@ -283,6 +262,7 @@ def _gait_period(f: _Fields, default: Optional[float]) -> Optional[float]:
 def _terms(f: _Fields, layout: str) -> tuple[ObservationTerm, ...]:
     foreign = set(f.raw) & (_LAYOUT_FIELDS['unitree_rl_gym'] | _LAYOUT_FIELDS['humanoid_gym'])
     foreign -= _LAYOUT_FIELDS.get(layout, set())
+    foreign = {k for k in foreign if not _ignored(f.where.get(k, k), f.ignored)}
     if foreign:
         raise f.error(sorted(foreign)[0], f'not used by the observation layout {layout} (remove '
                                           f'it, or choose the layout it belongs to)')
@@ -322,31 +302,72 @@ def _explicit_terms(f: _Fields) -> tuple[ObservationTerm, ...]:
     items = f.get('observation')
     if not isinstance(items, list) or not items:
         raise f.error('observation', 'must be a non-empty list of terms (- NAME: SCALE)')
-    terms = []
-    for k, item in enumerate(items):
-        field = f'observation[{k}]'
-        if not isinstance(item, dict) or len(item) != 1:
-            raise f.error(field, f'each term is a mapping with one key, the term name, got {item!r}')
-        (name, value), = item.items()
-        if name not in TERM_SIZES:
-            raise f.error(field, f'unknown term {name!r} (known: {", ".join(TERM_SIZES)})')
-        options = value if isinstance(value, dict) else {'scale': 1.0 if value is None else value}
-        unknown = set(options) - {'scale', 'relative_to_default', 'period_s'}
-        if unknown:
-            raise f.error(field, f'unknown options {sorted(unknown)} (scale, relative_to_default, period_s)')
-        relative = options.get('relative_to_default', True)
-        if not isinstance(relative, bool):
-            raise f.error(field, f'relative_to_default must be true or false, got {relative!r}')
-        period = options.get('period_s')
-        if name == 'gait_phase_sin_cos' and period is None:
-            period = _gait_period(f, None)
-            if period is None:
-                raise f.error(field, 'gait_phase_sin_cos needs a period: period_s here, or '
-                                     'gait_period_s (cycle_time)')
-        terms.append(ObservationTerm(name, _scale(f, f'{field}.scale', options.get('scale', 1.0)),
-                                     relative, None if period is None
-                                     else _number(f, f'{field}.period_s', period, positive=True)))
-    return tuple(terms)
+    return tuple(_term(f, f'observation[{k}]', item) for k, item in enumerate(items))
+
+
+def _term(f: _Fields, field: str, item: Any) -> ObservationTerm:
+    """One term of an explicit observation list (module docstring)."""
+    if not isinstance(item, dict) or len(item) != 1:
+        raise f.error(field, f'each term is a mapping with one key, the term name, got {item!r}')
+    (written, value), = item.items()
+    name = TERM_ALIASES.get(written, written)
+    if name not in TERM_SIZES:
+        raise f.error(field, f'unknown term {written!r} (known: {", ".join(TERM_SIZES)}; also '
+                             f'under the names {", ".join(TERM_ALIASES)})')
+    options = value if isinstance(value, dict) else {'scale': 1.0 if value is None else value}
+    unknown = set(options) - set(TERM_OPTIONS[:3] + (TERM_OPTIONS[3:] if name in CLOCK_TERMS else ()))
+    if unknown:
+        known = TERM_OPTIONS if name in CLOCK_TERMS else TERM_OPTIONS[:3]
+        raise f.error(field, f'unknown options {sorted(unknown)} ({", ".join(known)})')
+    relative = options.get('relative_to_default', True)
+    if not isinstance(relative, bool):
+        raise f.error(field, f'relative_to_default must be true or false, got {relative!r}')
+    clock = _clock(f, field, name, options) if name in CLOCK_TERMS else {}
+    return ObservationTerm(name, _scale(f, f'{field}.scale', options.get('scale', 1.0)), relative,
+                           clip=_clip(f, f'{field}.clip', options.get('clip')), **clock)
+
+
+def _clip(f: _Fields, field: str, value: Any) -> Optional[tuple[float, float]]:
+    """A term's clip: c (to [-c, c]) or [low, high]."""
+    if value is None:
+        return None
+    if isinstance(value, (list, tuple)) and len(value) == 2:
+        low, high = (_number(f, field, v) for v in value)
+    else:
+        high = _number(f, field, value, positive=True)
+        low = -high
+    if not low < high:
+        raise f.error(field, f'must be c > 0 or [low, high] with low < high, got {value!r}')
+    return low, high
+
+
+def _clock(f: _Fields, field: str, name: str, options: dict) -> dict[str, Any]:
+    """A clock term's period and options (module docstring)."""
+    period, frequency = options.get('period_s'), options.get('frequency_hz')
+    if period is not None and frequency is not None:
+        raise f.error(field, 'give period_s or frequency_hz, not both')
+    if frequency is not None:
+        period = 1.0 / _number(f, f'{field}.frequency_hz', frequency, positive=True)
+    if period is None:
+        period = _gait_period(f, None)
+        if period is None:
+            raise f.error(field, f'{name} needs a period: period_s here, or gait_period_s (cycle_time)')
+    order = options.get('order', 'sin_cos')
+    if isinstance(order, list):
+        order = '_'.join(map(str, order))
+    if order not in CLOCK_ORDERS or name == 'gait_phase_sin_cos' and order != 'sin_cos':
+        raise f.error(f'{field}.order', f'must be one of {CLOCK_ORDERS} (gait_clock), got '
+                                        f'{options.get("order")!r}')
+    offset = _number(f, f'{field}.offset', options.get('offset', 0.0), low=0.0)
+    standing = options.get('when_standing', 'run')
+    if standing not in STANDING_CLOCKS:
+        raise f.error(f'{field}.when_standing', f'must be one of {STANDING_CLOCKS}, got {standing!r}')
+    if not offset < 1.0:
+        raise f.error(f'{field}.offset', f'is a fraction of a cycle, in [0, 1), got {offset!r}')
+    return {'period_s': _number(f, f'{field}.period_s', period, positive=True), 'order': order,
+            'offset': offset, 'when_standing': standing,
+            'standing_below': _number(f, f'{field}.standing_below',
+                                      options.get('standing_below', 0.0), low=0.0)}
 
 
 def _optional_positive(f: _Fields, field: str) -> Optional[float]:
@@ -365,10 +386,18 @@ def read_policy_config(path: Union[str, Path]) -> PolicyConfig:
         raise PolicyConfigError(f'{path}: not valid YAML: {exc}') from exc
     if not isinstance(raw, dict):
         raise PolicyConfigError(f'{path}: the file must be a mapping of fields')
-    f = _Fields(path, raw)
-    unknown = sorted(set(raw) - _KNOWN - _IGNORED)
+    flat, where = flatten(path, raw)
+    f = _Fields(path, flat, where)
+    ignored = f.get('ignored_fields', [])
+    if not isinstance(ignored, list) or not all(isinstance(i, str) for i in ignored):
+        raise f.error('ignored_fields', f'must be a list of field or section names, got {ignored!r}')
+    f.ignored = ignored
+    unknown = sorted(k for k in set(flat) - _KNOWN - _IGNORED if not _ignored(where[k], ignored))
     if unknown:
-        raise f.error(unknown[0], f'unknown field (known: {", ".join(sorted(_KNOWN))})')
+        raise f.error(unknown[0], f'unknown field (known: {", ".join(sorted(_KNOWN))}; a field of '
+                                  f'your own under another name: field_names: {{{where[unknown[0]]}: '
+                                  f'KNOWN}}; one this package does not use: ignored_fields: '
+                                  f'[{where[unknown[0]]}]; {SCHEMA_DOC})')
     joints = f.get('joint_names')
     if not isinstance(joints, list) or not joints or not all(isinstance(j, str) and j for j in joints):
         raise f.error('joint_names', f'must be the list of the joint of each action, in the '
@@ -393,14 +422,15 @@ def read_policy_config(path: Union[str, Path]) -> PolicyConfig:
         source=path, policy_path=_policy_path(f), joint_names=joints,
         physics_dt_s=_number(f, 'simulation_dt', f.either('simulation_dt', 'dt'), positive=True),
         decimation=decimation,
-        kp=_numbers(f, 'kps', f.get('kps'), n),
-        kd=_numbers(f, 'kds', f.get('kds'), n),
+        kp=_numbers(f, 'kps', f.get('kps'), n, joints=joints),
+        kd=_numbers(f, 'kds', f.get('kds'), n, joints=joints),
         default_angles_rad=_default_angles(f, joints, layout == 'unitree_rl_gym'),
-        action_scale=_numbers(f, 'action_scale', f.get('action_scale'), n),
+        action_scale=_numbers(f, 'action_scale', f.get('action_scale'), n, joints=joints),
         observation=_terms(f, layout), observation_layout=layout, action_offset=offset,
         frame_stack=frame_stack, clip_observations=_optional_positive(f, 'clip_observations'),
         clip_actions=_optional_positive(f, 'clip_actions'),
-        tau_limit_nm=None if tau is None else _numbers(f, 'tau_limit', tau, n, positive=True),
+        tau_limit_nm=None if tau is None else _numbers(f, 'tau_limit', tau, n, positive=True,
+                                                       joints=joints),
         command_init=_numbers(f, 'cmd_init', f.get('cmd_init', [0.0, 0.0, 0.0]), 3, broadcast=False))
     if any(k < 0 for k in config.kp + config.kd):
         raise f.error('kps', 'gains must be >= 0')
@@ -413,6 +443,12 @@ def read_policy_config(path: Union[str, Path]) -> PolicyConfig:
         raise f.error('num_observations', f'{total!r}, but {config.single_obs_size} values per frame '
                                           f'x frame_stack {frame_stack} make {config.obs_size}')
     return config
+
+
+def _ignored(dotted: str, ignored: list[str]) -> bool:
+    """Whether a field written at ``dotted`` is, or lies in a section, listed in ignored_fields."""
+    return any(dotted == i or dotted.startswith(i + '.') or dotted.rsplit('.', 1)[-1] == i
+               for i in ignored)
 
 
 def load_policy_config(path: Union[str, Path], check_network: bool = True) -> PolicyConfig:

@@ -1,0 +1,110 @@
+"""A team's deploy config in its own shape (robot/deploy_fields.py): sections, its own field names,
+per-joint mappings; every mistake said naming the file and the field as the team wrote it."""
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+from fall_predictor.robot.deploy_fields import PolicyConfigError, flatten, per_joint
+from fall_predictor.robot.policy_config import load_policy_config, read_policy_config
+
+FIXTURES = Path(__file__).resolve().parent / 'fixtures' / 'policies'
+MAKERS = FIXTURES / 'makers'
+
+
+def test_sections_open_and_synonyms_map_saying_where_each_field_was():
+    flat, where = flatten('f.yaml', {'common': {'dt': 0.002, 'stiffness': [1, 2]},
+                                     'policy': {'control': {'decimation': 4}, 'obs_scales': {'a': 1}},
+                                     'field_names': {'policy.net': 'policy_path'},
+                                     'default_qpos': {'j1': 0.1}})
+    assert flat == {'dt': 0.002, 'kps': [1, 2], 'decimation': 4, 'obs_scales': {'a': 1},
+                    'field_names': {'policy.net': 'policy_path'}, 'default_angles': {'j1': 0.1}}
+    assert where['kps'] == 'common.stiffness' and where['decimation'] == 'policy.control.decimation'
+    flat, where = flatten('f.yaml', {'policy': {'net': 'a.pt'}, 'field_names': {'policy.net': 'policy_path'}})
+    assert flat['policy_path'] == 'a.pt' and where['policy_path'] == 'policy.net'
+
+
+def test_the_same_field_twice_must_agree():
+    with pytest.raises(PolicyConfigError, match=r'f\.yaml: policy\.kp: 3 disagrees with common\.kps '
+                                                r'\[1, 2\] \(both give kps\)'):
+        flatten('f.yaml', {'common': {'kps': [1, 2]}, 'policy': {'kp': 3}})
+    flat, _ = flatten('f.yaml', {'common': {'dt': 0.002}, 'policy': {'dt': 0.002}})
+    assert flat == {'dt': 0.002}
+
+
+def test_per_joint_mappings_by_name_or_part_of_it():
+    joints = ('left_hip_yaw', 'left_knee', 'right_hip_yaw', 'right_knee')
+    assert per_joint({'hip_yaw': 100, 'knee': 150}, joints) == ([100, 150, 100, 150], [], [])
+    assert per_joint({'hip': 1, 'left_knee': 2, 'knee': 3}, joints) == ([1, 2, 1, 3], [], [])
+    # A joint two keys give different values, a joint no key gives, a key no joint has.
+    values, bad, extra = per_joint({'left': 1, 'knee': 2, 'arm': 3}, joints)
+    assert bad == ['left_knee', 'right_hip_yaw'] and extra == ['arm']
+
+
+@pytest.mark.parametrize('edit, field, words', [
+    (lambda t: t.replace('  stiffness: [200, 200, 200, 200, 50, 50, 200, 200, 200, 200, 50, 50]',
+                         '  stiffness: [200, 200]'), 'common.stiffness', 'list of 12 numbers'),
+    (lambda t: t.replace('    decimation: 10', '    decimation: ten'), 'policy.control.decimation',
+     'integer >= 1'),
+    (lambda t: t.replace('  gait_frequency: 1.5', '  gait_frequency: 1.5\n  walk_height: 0.6'),
+     'policy.walk_height', 'unknown field'),
+    (lambda t: t.replace('{order: cos_sin,', '{order: cos_tan,'), 'observation[3].order', 'cos_sin'),
+    (lambda t: t.replace('when_standing: zero', 'when_standing: stop'), 'observation[3].when_standing',
+     "one of ('run', 'zero', 'hold', 'reset')"),
+    (lambda t: t.replace('- commands: 1.0', '- commands: {scale: 1.0, clip: -1}'),
+     'observation[2].clip', 'number > 0'),
+    (lambda t: t.replace('- commands: 1.0', '- velocity: 1.0'), 'observation[2]', "unknown term 'velocity'"),
+    (lambda t: t.replace('frequency_hz: 1.5', 'frequency_hz: 1.5, period_s: 0.6'), 'observation[3]',
+     'period_s or frequency_hz, not both'),
+    (lambda t: t.replace('  num_observations: 47', '  num_observations: 45'), 'policy.num_observations',
+     'make 47'),
+])
+def test_mistakes_in_a_nested_config_name_the_field_as_the_team_wrote_it(tmp_path, edit, field, words):
+    shutil.copy(FIXTURES / 'tiny_mlp.pt', tmp_path)
+    (tmp_path / 'makers').mkdir()
+    path = tmp_path / 'makers' / 't1.yaml'
+    path.write_text(edit((MAKERS / 'booster_style_t1.yaml').read_text()))
+    with pytest.raises(PolicyConfigError) as caught:
+        read_policy_config(path)
+    message = str(caught.value)
+    assert message.startswith(f'{path}: {field}'), message
+    assert words in message and '\n' not in message, message
+
+
+def test_an_unknown_field_says_how_to_map_or_ignore_it(tmp_path):
+    shutil.copy(FIXTURES / 'tiny_mlp.pt', tmp_path)
+    (tmp_path / 'makers').mkdir()
+    path = tmp_path / 'makers' / 't1.yaml'
+    path.write_text((MAKERS / 'booster_style_t1.yaml').read_text().replace(
+        '  gait_frequency: 1.5', '  gait_frequency: 1.5\n  walk_height: 0.6'))
+    with pytest.raises(PolicyConfigError) as caught:
+        read_policy_config(path)
+    assert ('field_names: {policy.walk_height: KNOWN}' in str(caught.value)
+            and 'ignored_fields: [policy.walk_height]' in str(caught.value))
+
+
+def test_a_config_of_another_layout_is_told_how_to_describe_it_in_one_line(tmp_path):
+    shutil.copy(FIXTURES / 'tiny_mlp.pt', tmp_path)
+    text = (MAKERS / 'booster_style_t1.yaml').read_text().replace('../tiny_mlp.pt', 'tiny_mlp.pt')
+    path = tmp_path / 't1.yaml'
+    path.write_text(text[:text.index('observation:')])
+    with pytest.raises(PolicyConfigError) as caught:
+        read_policy_config(path)
+    message = str(caught.value)
+    assert message.startswith(f'{path}: observation_layout: missing: name one of')
+    assert 'describe the network\'s input as an observation: list of terms' in message
+    assert 'docs/method.md §13' in message and '\n' not in message
+
+
+def test_a_nested_config_is_checked_against_its_network(tmp_path):
+    """The fixture's 47 inputs against a network of 10: said, with the terms."""
+    shutil.copy(FIXTURES / 'tiny_mlp.pt', tmp_path)
+    (tmp_path / 'makers').mkdir()
+    path = tmp_path / 'makers' / 't1.yaml'
+    shutil.copy(MAKERS / 'booster_style_t1.yaml', path)
+    with pytest.raises(PolicyConfigError, match=r'the network takes 10 inputs, the observation has 47 '
+                                                r'\(47 per frame x frame_stack 1: projected_gravity 3, '
+                                                r'base_ang_vel 3, command 3, gait_clock 2'):
+        load_policy_config(path)
