@@ -56,8 +56,13 @@ def test_per_joint_mappings_by_name_or_part_of_it():
     (lambda t: t.replace('- commands: 1.0', '- commands: {scale: 1.0, clip: -1}'),
      'observation[2].clip', 'number > 0'),
     (lambda t: t.replace('- commands: 1.0', '- velocity: 1.0'), 'observation[2]', "unknown term 'velocity'"),
-    (lambda t: t.replace('frequency_hz: 1.5', 'frequency_hz: 1.5, period_s: 0.6'), 'observation[3]',
-     'period_s or frequency_hz, not both'),
+    (lambda t: t.replace('frequency_hz: policy.gait_frequency', 'frequency_hz: policy.gait_frequency, '
+                                                                 'period_s: 0.6'),
+     'observation[3]', 'period_s or frequency_hz, not both'),
+    (lambda t: t.replace('- dof_vel: policy.normalization.dof_vel', '- dof_vel: policy.normalization.dof_v'),
+     'observation[5].scale', "'policy.normalization.dof_v' names no number of the file"),
+    (lambda t: t.replace('  gait_frequency: 1.5', '  gait_frequency: fast'), 'observation[3].frequency_hz',
+     "'policy.gait_frequency' names no number"),
     (lambda t: t.replace('  num_observations: 47', '  num_observations: 45'), 'policy.num_observations',
      'make 47'),
 ])
@@ -89,7 +94,9 @@ def test_a_config_of_another_layout_is_told_how_to_describe_it_in_one_line(tmp_p
     shutil.copy(FIXTURES / 'tiny_mlp.pt', tmp_path)
     text = (MAKERS / 'booster_style_t1.yaml').read_text().replace('../tiny_mlp.pt', 'tiny_mlp.pt')
     path = tmp_path / 't1.yaml'
-    path.write_text(text[:text.index('observation:')])
+    path.write_text(text[:text.index('observation:')].replace(
+        'ignored_fields: [policy.normalization.lin_vel]', 'ignored_fields: [policy.normalization, '
+        'policy.gait_frequency]'))
     with pytest.raises(PolicyConfigError) as caught:
         read_policy_config(path)
     message = str(caught.value)

@@ -94,9 +94,28 @@ def per_joint(value: dict, joints: tuple[str, ...]) -> tuple[list[Any], list[str
 class Fields:
     """Typed access to the YAML mapping, naming the file and field in every error."""
 
-    def __init__(self, path: Path, raw: dict, where: Optional[dict[str, str]] = None) -> None:
+    def __init__(self, path: Path, raw: dict, where: Optional[dict[str, str]] = None,
+                 written: Optional[dict] = None) -> None:
         self.path, self.raw, self.where = path, raw, where or {}
+        self.written = written if written is not None else raw      #: the file as written
         self.ignored: list[str] = []        #: ignored_fields: the team's fields left unread
+
+    def value_at(self, field: str, value: Any) -> Any:
+        """``value``, or where it names a field of the file (a dotted path as written, or a field's
+        name), that field's value (a list element by element)."""
+        if isinstance(value, list):
+            return [self.value_at(field, v) for v in value]
+        if not isinstance(value, str):
+            return value
+        node: Any = self.written
+        for part in value.split('.'):
+            node = node.get(part, ...) if isinstance(node, dict) else ...
+        if node is ...:
+            node = self.raw.get(value, ...)
+        if node is ... or isinstance(node, (dict, list, str)):
+            raise self.error(field, f'{value!r} names no number of the file (a number, or the dotted '
+                                    f'path of a field holding one, e.g. policy.normalization.dof_vel)')
+        return node
 
     def error(self, field: str, text: str) -> PolicyConfigError:
         """An error naming ``field`` as the team wrote it (its section and own name)."""

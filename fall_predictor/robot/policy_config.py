@@ -315,6 +315,8 @@ def _term(f: _Fields, field: str, item: Any) -> ObservationTerm:
         raise f.error(field, f'unknown term {written!r} (known: {", ".join(TERM_SIZES)}; also '
                              f'under the names {", ".join(TERM_ALIASES)})')
     options = value if isinstance(value, dict) else {'scale': 1.0 if value is None else value}
+    options = {k: v if k in ('order', 'when_standing') else f.value_at(f'{field}.{k}', v)
+               for k, v in options.items()}
     unknown = set(options) - set(TERM_OPTIONS[:3] + (TERM_OPTIONS[3:] if name in CLOCK_TERMS else ()))
     if unknown:
         known = TERM_OPTIONS if name in CLOCK_TERMS else TERM_OPTIONS[:3]
@@ -387,12 +389,13 @@ def read_policy_config(path: Union[str, Path]) -> PolicyConfig:
     if not isinstance(raw, dict):
         raise PolicyConfigError(f'{path}: the file must be a mapping of fields')
     flat, where = flatten(path, raw)
-    f = _Fields(path, flat, where)
+    f = _Fields(path, flat, where, raw)
     ignored = f.get('ignored_fields', [])
     if not isinstance(ignored, list) or not all(isinstance(i, str) for i in ignored):
         raise f.error('ignored_fields', f'must be a list of field or section names, got {ignored!r}')
-    f.ignored = ignored
-    unknown = sorted(k for k in set(flat) - _KNOWN - _IGNORED if not _ignored(where[k], ignored))
+    # The team's fields a term takes its scale, clip or clock from are read, not unknown.
+    f.ignored = ignored + _references(f, flat.get('observation'))
+    unknown = sorted(k for k in set(flat) - _KNOWN - _IGNORED if not _ignored(where[k], f.ignored))
     if unknown:
         raise f.error(unknown[0], f'unknown field (known: {", ".join(sorted(_KNOWN))}; a field of '
                                   f'your own under another name: field_names: {{{where[unknown[0]]}: '
@@ -443,6 +446,21 @@ def read_policy_config(path: Union[str, Path]) -> PolicyConfig:
         raise f.error('num_observations', f'{total!r}, but {config.single_obs_size} values per frame '
                                           f'x frame_stack {frame_stack} make {config.obs_size}')
     return config
+
+
+def _references(f: _Fields, items: Any) -> list[str]:
+    """The fields of the file an observation list's options name (``scale: policy.dof_vel``),
+    each checked to hold a number."""
+    out = []
+    for k, item in enumerate(items if isinstance(items, list) else []):
+        for value in item.values() if isinstance(item, dict) else []:
+            options = value if isinstance(value, dict) else {'scale': value}
+            for key, v in options.items():
+                names = [x for x in (v if isinstance(v, list) else [v]) if isinstance(x, str)]
+                if key not in ('order', 'when_standing') and names:
+                    f.value_at(f'observation[{k}].{key}', names)
+                    out += names
+    return out
 
 
 def _ignored(dotted: str, ignored: list[str]) -> bool:
