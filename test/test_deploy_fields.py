@@ -115,3 +115,34 @@ def test_a_nested_config_is_checked_against_its_network(tmp_path):
                                                 r'\(47 per frame x frame_stack 1: projected_gravity 3, '
                                                 r'base_ang_vel 3, command 3, gait_clock 2'):
         load_policy_config(path)
+
+
+def test_lists_in_the_motors_order_and_an_observation_as_a_mapping(tmp_path):
+    """Unitree's IsaacLab-trained configs list the policy's joints (lab_joint) apart from the
+    motors' (motor_joint), the gains and angles in the motors' order; the observation may be a
+    mapping of terms, in the file's order."""
+    shutil.copy(FIXTURES / 'tiny_mlp.pt', tmp_path)
+    path = tmp_path / 'nav.yaml'
+    path.write_text('''
+policy_path: tiny_mlp.pt
+lab_joint: [left_hip, right_hip, left_knee, right_knee]
+motor_joint: [left_hip, left_knee, right_hip, right_knee, waist]
+simulation_dt: 0.002
+control_decimation: 10
+kps: [100, 150, 101, 151, 300]
+kds: [2, 4, 3, 5, 6]
+default_angles: [-0.2, 0.42, -0.21, 0.43, 0.0]
+action_scale: 0.25
+observation:
+  gravity: 1.0
+  dof_pos: 1.0
+''')
+    config = read_policy_config(path)
+    assert config.joint_names == ('left_hip', 'right_hip', 'left_knee', 'right_knee')
+    assert config.kp == (100.0, 101.0, 150.0, 151.0) and config.kd == (2.0, 3.0, 4.0, 5.0)
+    assert config.default_angles_rad == (-0.2, -0.21, 0.42, 0.43)
+    assert [t.name for t in config.observation] == ['projected_gravity', 'joint_pos']
+    path.write_text(path.read_text().replace('kds: [2, 4, 3, 5, 6]', 'kds: [2, 4, 3, 5]'))
+    with pytest.raises(PolicyConfigError, match=r'nav\.yaml: kds: must be a list of 5 numbers, one per '
+                                                r'motor_joint_names entry'):
+        read_policy_config(path)

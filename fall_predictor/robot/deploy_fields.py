@@ -12,6 +12,9 @@ mapping, naming in every error the field as the team wrote it (``common.stiffnes
   ``default_qpos`` are ``default_angles``, ``torque_limit`` is ``tau_limit``, ...); any other name
   is mapped with ``field_names: {THEIRS: OURS}`` (THEIRS bare or as its dotted path), and a field
   the package has no use for is listed under ``ignored_fields: [...]``.
+* **the motors' order**: with ``motor_joint_names`` (Unitree's ``motor_joint``), the per-joint
+  lists are in that order (the robot's motors), which may differ from the policy's
+  (``joint_names``, Unitree's ``lab_joint``) or hold more joints than it drives;
 * **per-joint mappings**: ``kps``, ``kds``, ``action_scale``, ``tau_limit`` and
   ``default_angles`` may be a mapping of joint name to value; a key that is no joint name applies
   to every joint whose name contains it (legged_gym's ``stiffness: {hip_yaw: 100, knee: 150}``).
@@ -32,11 +35,12 @@ SYNONYMS: dict[str, str] = {
     'dof_names': 'joint_names', 'joint_order': 'joint_names',
     'model_path': 'policy_path', 'sim_dt': 'simulation_dt', 'physics_dt': 'simulation_dt',
     'command_init': 'cmd_init', 'gait_period': 'gait_period_s',
+    'lab_joint': 'joint_names', 'motor_joint': 'motor_joint_names',
 }
 #: Fields whose value may be given per joint as a mapping.
 PER_JOINT = ('kps', 'kds', 'action_scale', 'tau_limit', 'default_angles')
 #: Fields whose value is a mapping itself (never a section).
-MAPPING_FIELDS = frozenset({'obs_scales', 'field_names', *PER_JOINT})
+MAPPING_FIELDS = frozenset({'obs_scales', 'field_names', 'observation', *PER_JOINT})
 
 
 class PolicyConfigError(ValueError):
@@ -99,6 +103,9 @@ class Fields:
         self.path, self.raw, self.where = path, raw, where or {}
         self.written = written if written is not None else raw      #: the file as written
         self.ignored: list[str] = []        #: ignored_fields: the team's fields left unread
+        #: With motor_joint_names: (those names, the index in them of each policy joint): the
+        #: per-joint lists are in the motors' order.
+        self.motor_order: Optional[tuple[list[str], list[int]]] = None
 
     def value_at(self, field: str, value: Any) -> Any:
         """``value``, or where it names a field of the file (a dotted path as written, or a field's
@@ -167,6 +174,11 @@ def numbers(f: Fields, field: str, value: Any, n: int, broadcast: bool = True,
         return tuple(number(f, field, v, positive=positive) for v in values)
     if broadcast and isinstance(value, (int, float)) and not isinstance(value, bool):
         return (number(f, field, value, positive=positive),) * n
+    if joints and f.motor_order is not None and isinstance(value, (list, tuple)):
+        if len(value) != len(f.motor_order[0]):
+            raise f.error(field, f'must be a list of {len(f.motor_order[0])} numbers, one per '
+                                 f'motor_joint_names entry in its order, got {value!r}')
+        value = [value[k] for k in f.motor_order[1]]
     if not isinstance(value, (list, tuple)) or len(value) != n:
         raise f.error(field, f'must be a list of {n} numbers{" or one number" if broadcast else ""}, '
                              f'got {value!r}')

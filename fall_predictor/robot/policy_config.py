@@ -93,7 +93,7 @@ _KNOWN = {'policy_path', 'joint_names', 'simulation_dt', 'dt', 'control_decimati
           'kps', 'kds', 'default_angles', 'action_scale', 'action_offset', 'num_actions', 'num_obs',
           'num_single_obs', 'cmd_init', 'observation_layout', 'observation', 'frame_stack',
           'clip_observations', 'clip_actions', 'tau_limit', 'gait_period_s', 'cycle_time',
-          'num_observations', 'field_names', 'ignored_fields'} | _LAYOUT_FIELDS['unitree_rl_gym'] \
+          'num_observations', 'field_names', 'ignored_fields', 'motor_joint_names'} | _LAYOUT_FIELDS['unitree_rl_gym'] \
     | _LAYOUT_FIELDS['humanoid_gym']
 #: Where the schema of a deploy config is told, for the errors that need it.
 SCHEMA_DOC = 'docs/method.md §13, "A deploy config of any layout"'
@@ -300,6 +300,8 @@ def _terms(f: _Fields, layout: str) -> tuple[ObservationTerm, ...]:
 
 def _explicit_terms(f: _Fields) -> tuple[ObservationTerm, ...]:
     items = f.get('observation')
+    if isinstance(items, dict):                 # NAME: SCALE in the file's order
+        items = [{name: value} for name, value in items.items()]
     if not isinstance(items, list) or not items:
         raise f.error('observation', 'must be a non-empty list of terms (- NAME: SCALE)')
     return tuple(_term(f, f'observation[{k}]', item) for k, item in enumerate(items))
@@ -407,6 +409,13 @@ def read_policy_config(path: Union[str, Path]) -> PolicyConfig:
                                      f'policy\'s order (the MJCF/URDF joint names), got {joints!r}')
     joints = tuple(joints)
     n = len(joints)
+    motors = f.get('motor_joint_names', None)
+    if motors is not None:
+        names = motors if isinstance(motors, list) and all(isinstance(m, str) for m in motors) else []
+        if not names or len(set(names)) != len(names) or set(joints) - set(names):
+            raise f.error('motor_joint_names', f'must list each motor once, every joint_names entry '
+                                               f'among them; missing {sorted(set(joints) - set(names))}')
+        f.motor_order = (motors, [motors.index(j) for j in joints])
     num_actions = f.get('num_actions', n)
     if num_actions != n:
         raise f.error('num_actions', f'{num_actions!r}, but joint_names names {n} joints')
@@ -452,6 +461,8 @@ def _references(f: _Fields, items: Any) -> list[str]:
     """The fields of the file an observation list's options name (``scale: policy.dof_vel``),
     each checked to hold a number."""
     out = []
+    if isinstance(items, dict):
+        items = [{name: value} for name, value in items.items()]
     for k, item in enumerate(items if isinstance(items, list) else []):
         for value in item.values() if isinstance(item, dict) else []:
             options = value if isinstance(value, dict) else {'scale': value}
