@@ -146,3 +146,49 @@ observation:
     with pytest.raises(PolicyConfigError, match=r'nav\.yaml: kds: must be a list of 5 numbers, one per '
                                                 r'motor_joint_names entry'):
         read_policy_config(path)
+
+
+def test_the_shipped_g1_policy_rewritten_nested_with_a_gait_clock_gives_the_same_targets(tmp_path):
+    """Unitree's G1 config written as another maker would (sections, its names, gains per part of
+    the joint name, an explicit observation with a gait_clock): the same joint targets over
+    Unitree's 60 reference steps as the shipped unitree_rl_gym layout (to float rounding: the
+    clock's phase is computed as a fraction first)."""
+    import numpy as np
+
+    from fall_predictor.monitor.sensor_records import SensorSample
+    from fall_predictor.robot.learned_policy import LearnedPolicy
+    shipped = (Path(__file__).resolve().parents[1] / 'fall_predictor' / 'profiles' / 'g1_12dof'
+               / 'controllers' / 'unitree_rl_gym')
+    shutil.copy(shipped / 'motion.pt', tmp_path)
+    joints = read_policy_config(shipped / 'policy.yaml').joint_names
+    (tmp_path / 'nested.yaml').write_text(f'''
+common:
+  sim_dt: 0.002
+  stiffness: {{hip: 100, knee: 150, ankle: 40}}
+  damping: {{hip: 2, knee: 4, ankle: 2}}
+  default_dof_pos: {{hip_pitch: -0.1, hip_roll: 0.0, hip_yaw: 0.0, knee: 0.3, ankle_pitch: -0.2,
+                    ankle_roll: 0.0}}
+policy:
+  model_path: motion.pt
+  control: {{decimation: 10, action_scale: 0.25}}
+  scales: {{ang_vel: 0.25, dof_vel: 0.05}}
+dof_names: [{", ".join(joints)}]
+observation:
+  ang_vel: policy.scales.ang_vel
+  gravity: 1.0
+  commands: [2.0, 2.0, 0.25]
+  dof_pos: 1.0
+  dof_vel: policy.scales.dof_vel
+  actions: 1.0
+  clock: {{order: sin_cos, period_s: 0.8}}
+''')
+    refs = np.load(FIXTURES / 'references.npz')
+    targets = {}
+    for name, path in (('shipped', shipped / 'policy.yaml'), ('nested', tmp_path / 'nested.yaml')):
+        policy = LearnedPolicy.from_yaml(path)
+        policy.reset(start_s=0.0)
+        targets[name] = np.stack([policy.act(float(t), SensorSample(
+            t=float(t), joint_names=joints, q=refs['g1s_q'][k], dq=refs['g1s_dq'][k],
+            imu_quat_xyzw=refs['g1s_quat_xyzw'][k], gyro_rad_s=refs['g1s_gyro'][k],
+            accel_m_s2=np.zeros(3)), refs['g1s_command'][k]) for k, t in enumerate(refs['g1s_t'])])
+    np.testing.assert_allclose(targets['nested'], targets['shipped'], rtol=0, atol=1e-6)
