@@ -60,7 +60,8 @@ def test_sigterm_ends_generate_cleanly_and_a_second_writer_is_refused(tmp_path):
     [said] = [line for line in lines(err) if line.startswith('fall-predictor generate:')]
     committed = sorted(p.stem for p in (out / 'index').glob('traj_*.json'))
     assert 1 <= len(committed) < TRAJECTORIES
-    assert said == (f'fall-predictor generate: stopped by SIGTERM: {len(committed)} runs committed '
+    runs = 'run' if len(committed) == 1 else 'runs'
+    assert said == (f'fall-predictor generate: stopped by SIGTERM: {len(committed)} {runs} committed '
                     f'by this run, {len(committed)} of {TRAJECTORIES} in {out}; running the same '
                     'command again continues from there')
     # The index counts only committed runs: each with its whole bag, cost record and manifest entry.

@@ -57,7 +57,8 @@ class WriterStopped(StopRequested):
                                                                       trajectories)
 
     def __str__(self) -> str:
-        return (f'stopped by {self.name}: {self.committed} runs committed by this run, '
+        runs = 'run' if self.committed == 1 else 'runs'
+        return (f'stopped by {self.name}: {self.committed} {runs} committed by this run, '
                 f'{self.finished} of {self.trajectories} in {self.out}; running the same command '
                 'again continues from there')
 
