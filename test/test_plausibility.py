@@ -245,3 +245,13 @@ def test_a_profiles_own_joint_limits_replace_the_urdfs(tmp_path):
     with pytest.raises(ProfileError, match=r"typo\.yaml: monitor\.joint_limits\.left_ankle_pitch_joint: "
                                            r"unknown keys \['uper_rad'\]"):
         load_profile(folder / 'typo.yaml')
+
+
+def test_joint_limits_naming_a_joint_the_urdf_lacks_or_out_of_order_are_said():
+    bounds = _g1_bounds()
+    with pytest.raises(ValueError, match=r"joint_limits names joint 'left_ankle_pich_joint', which the "
+                                         r"robot description lacks"):
+        bounds.with_limits({'left_ankle_pich_joint': {'upper_rad': 0.9}})
+    with pytest.raises(ValueError, match=r'joint_limits\.left_ankle_pitch_joint: lower_rad must be <= '
+                                         r'upper_rad'):
+        bounds.with_limits({'left_ankle_pitch_joint': {'lower_rad': 1.0}})   # above the URDF's upper
