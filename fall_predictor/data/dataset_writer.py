@@ -3,11 +3,11 @@
 commit.
 
 * :func:`writer_lock`: a lock file (:data:`LOCK_FILE`) in the dataset folder holds the writer's
-  host and pid. A second writer into the same folder is refused (:class:`DatasetLocked`, saying
-  who holds it); a lock left by a writer that died without removing it (SIGKILL, a power cut) is
-  taken over when its process (pid and start time) no longer runs on this host. A lock of another host (a shared disk)
-  cannot be checked from here: it is refused, the message saying which file to remove if that
-  writer is gone.
+  host, pid and start time. A second writer into the same folder is refused
+  (:class:`DatasetLocked`, saying who holds it); a lock left by a writer that died without
+  removing it (SIGKILL, a power cut) is taken over when its process (pid and start time) no
+  longer runs on this host. A lock of another host (a shared disk) cannot be checked from here:
+  it is refused, the message saying which file to remove if that writer is gone.
 * :func:`stop_on_signals`: SIGINT and SIGTERM raise :class:`StopRequested` in the writing process
   (its main thread), and inside :func:`commit_section` they wait for the section to end: a run's
   bag, cost record and index row are written together or not at all, and the index counts only

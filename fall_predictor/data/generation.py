@@ -472,9 +472,9 @@ def import_recordings(bags: Iterable[str | os.PathLike], out: str | os.PathLike,
     (out / 'bags').mkdir(parents=True)
     (out / 'index').mkdir()
     sources = [str(Path(b).resolve()) for b in bags]
-    atomic_write_text(out / 'dataset.json', json.dumps({'format': FORMAT, 'source': 'recordings',
-                                                        'bags': sources, 'robot': simulated_robot(robot)},
-                                                       indent=1))
+    manifest = {'format': FORMAT, 'source': 'recordings', 'bags': sources,
+                'robot': simulated_robot(robot)}
+    atomic_write_text(out / 'dataset.json', json.dumps(manifest, indent=1))
     rows, rejected = [], {}
     for source in sources:
         tid = trajectory_id(len(rows))

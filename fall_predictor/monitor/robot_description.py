@@ -52,13 +52,15 @@ def joint_limits_of(raw: object, where: str = 'monitor.joint_limits') -> dict[st
     out = {}
     for joint, fields in raw.items():
         if not isinstance(fields, dict) or set(fields) - set(JOINT_LIMIT_FIELDS):
-            unknown = sorted(set(fields) - set(JOINT_LIMIT_FIELDS)) if isinstance(fields, dict) else fields
+            unknown = (sorted(set(fields) - set(JOINT_LIMIT_FIELDS)) if isinstance(fields, dict)
+                       else fields)
             raise ValueError(f'{where}.{joint}: unknown keys {unknown} (known: '
                              f'{", ".join(JOINT_LIMIT_FIELDS)})')
         for key, value in fields.items():
             low = 1e-3 if key == 'velocity_rad_s' else -100.0
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not low <= value <= 1e3:
-                raise ValueError(f'{where}.{joint}.{key} must be a number in [{low:g}, 1000], got {value!r}')
+                raise ValueError(f'{where}.{joint}.{key} must be a number in [{low:g}, 1000], '
+                                 f'got {value!r}')
         if fields.get('lower_rad', -np.inf) > fields.get('upper_rad', np.inf):
             raise ValueError(f'{where}.{joint}: lower_rad must be <= upper_rad')
         out[str(joint)] = {key: float(value) for key, value in fields.items()}

@@ -15,9 +15,11 @@ recording's messages (in the order they were received), so that both give the sa
    estimator's measurement, or the fault that prevented it (in words); a measurement outside the
    physical bounds (:func:`~fall_predictor.monitor.plausibility.check_measurement`) is such a
    fault. A joint past its limits or rated speed but within the possible does not stop the
-   estimate: the estimate carries it in words (``flags``) and it is counted (``counts['flagged']``). Joint states split over several messages (legs and arms from different controllers)
-   drive only when they carry a joint of ``driving_joints`` (default: any joint of the
-   description), and only once per stamp: the rest are taken as the joints' newest values.
+   estimate: the estimate carries it in words (``flags``) and it is counted
+   (``counts['flagged']``). Joint states split over several messages (legs and arms from
+   different controllers) drive only when they carry a joint of ``driving_joints`` (default: any
+   joint of the description), and only once per stamp: the rest are taken as the joints' newest
+   values.
 
 A confirmed step of the driving stream's clock, back or forward (an NTP or PTP step on the robot, a
 simulator reset, a recording that loops, a sensor that paused for more than ``max_step_s``), starts

@@ -22,6 +22,7 @@ mapping, naming in every error the field as the team wrote it (``common.stiffnes
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any, Optional
 
 #: The maker's names of the package's fields (each its own field when the package's is absent).
@@ -128,7 +129,8 @@ class Fields:
         """An error naming ``field`` as the team wrote it (its section and own name)."""
         head, _, rest = field.partition('.')
         head, _, index = head.partition('[')
-        written = self.where.get(head, head) + ('[' + index if index else '') + ('.' + rest if rest else '')
+        written = (self.where.get(head, head) + ('[' + index if index else '')
+                   + ('.' + rest if rest else ''))
         return PolicyConfigError(f'{self.path}: {written}: {text}')
 
     def get(self, field: str, default: Any = ...) -> Any:

@@ -43,7 +43,6 @@ output and the joints.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Optional, Union
@@ -93,8 +92,8 @@ _KNOWN = {'policy_path', 'joint_names', 'simulation_dt', 'dt', 'control_decimati
           'kps', 'kds', 'default_angles', 'action_scale', 'action_offset', 'num_actions', 'num_obs',
           'num_single_obs', 'cmd_init', 'observation_layout', 'observation', 'frame_stack',
           'clip_observations', 'clip_actions', 'tau_limit', 'gait_period_s', 'cycle_time',
-          'num_observations', 'field_names', 'ignored_fields', 'motor_joint_names'} | _LAYOUT_FIELDS['unitree_rl_gym'] \
-    | _LAYOUT_FIELDS['humanoid_gym']
+          'num_observations', 'field_names', 'ignored_fields', 'motor_joint_names'} \
+    | _LAYOUT_FIELDS['unitree_rl_gym'] | _LAYOUT_FIELDS['humanoid_gym']
 #: Where the schema of a deploy config is told, for the errors that need it.
 SCHEMA_DOC = 'docs/method.md §13, "A deploy config of any layout"'
 
