@@ -264,7 +264,8 @@ def _terms(f: _Fields, layout: str) -> tuple[ObservationTerm, ...]:
     foreign = {k for k in foreign if not _ignored(f.where.get(k, k), f.ignored)}
     if foreign:
         raise f.error(sorted(foreign)[0], f'not used by the observation layout {layout} (remove '
-                                          f'it, or choose the layout it belongs to)')
+                                          f'it, list it under ignored_fields, or choose the layout '
+                                          f'it belongs to)')
     if layout == 'unitree_rl_gym':
         scale = {k: _scale(f, k, f.get(k)) for k in sorted(_LAYOUT_FIELDS[layout])}
         return (ObservationTerm('base_ang_vel', scale['ang_vel_scale']),
@@ -474,9 +475,10 @@ def _references(f: _Fields, items: Any) -> list[str]:
 
 
 def _ignored(dotted: str, ignored: list[str]) -> bool:
-    """Whether a field written at ``dotted`` is, or lies in a section, listed in ignored_fields."""
-    return any(dotted == i or dotted.startswith(i + '.') or dotted.rsplit('.', 1)[-1] == i
-               for i in ignored)
+    """Whether a field written at ``dotted`` is listed in ``ignored`` (ignored_fields and the
+    fields the observation reads), lies in a section listed, or holds a value listed."""
+    return any(dotted == i or dotted.startswith(i + '.') or i.startswith(dotted + '.')
+               or dotted.rsplit('.', 1)[-1] == i for i in ignored)
 
 
 def load_policy_config(path: Union[str, Path], check_network: bool = True) -> PolicyConfig:
