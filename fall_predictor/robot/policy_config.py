@@ -87,7 +87,7 @@ _LAYOUT_FIELDS = {'unitree_rl_gym': {'ang_vel_scale', 'dof_pos_scale', 'dof_vel_
 _IGNORED = {'xml_path', 'simulation_duration', 'sim_duration', 'mujoco_model_path', 'control_dt',
             'msg_type', 'imu_type', 'lowcmd_topic', 'lowstate_topic', 'leg_joint2motor_idx',
             'arm_waist_joint2motor_idx', 'arm_waist_kps', 'arm_waist_kds', 'arm_waist_target',
-            'max_cmd'}
+            'max_cmd', 'joint2motor_idx'}
 _KNOWN = {'policy_path', 'joint_names', 'simulation_dt', 'dt', 'control_decimation', 'decimation',
           'kps', 'kds', 'default_angles', 'action_scale', 'action_offset', 'num_actions', 'num_obs',
           'num_single_obs', 'cmd_init', 'observation_layout', 'observation', 'frame_stack',
