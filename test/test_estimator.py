@@ -238,3 +238,42 @@ def test_continuous_joints_and_joints_in_any_order(readings):
         if a is not None:
             np.testing.assert_allclose(a.com, b.com, atol=1e-9)
             np.testing.assert_allclose(a.lin_mom, b.lin_mom, atol=1e-9)
+
+
+def test_a_fall_dead_reckoned_below_the_ground_stops_there_and_stays_estimated(readings):
+    """From 0.5 s on no sole is loaded and the accelerometer reads free fall: integrated alone,
+    the CoM would sink g t^2 / 2 (4.9 m in 1 s) through the ground; the ground stops it, and every
+    estimate stays one a humanoid can be in (a fallen one), none refused."""
+    from fall_predictor.monitor.plausibility import check_measurement
+    falling = [replace(s, left_wrench=np.zeros(6), right_wrench=np.zeros(6), accel_m_s2=np.zeros(3))
+               if s.t >= 0.5 else s for s in readings]
+    est = asimo_estimator().run(falling)
+    after = [m for s, m in zip(falling, est) if s.t >= 0.5]
+    assert len(after) > 500 and all(m is not None for m in after)
+    for m in after:
+        check_measurement(m)
+    heights = np.array([m.com[2] for m in after])
+    assert heights.min() >= 0.0 and heights[-1] < 0.001       # stopped on the ground, not below
+    assert np.all(np.isnan([m.cop[0] for m in after]))         # no sole loaded: no CoP
+
+
+def test_a_sole_cop_computed_off_the_sole_is_kept_on_it(readings):
+    """A light load with a large torque (a leg's effort-derived wrench as it slips or falls): its
+    CoP computed -ty / fz lies 2 m ahead of the sole; the CoP of unilateral contact forces lies
+    under the sole, and the estimate keeps it there (not a CoP 2 m from the CoM)."""
+    sole = rm.PROFILE.feet['l']
+    half_diagonal = np.hypot(sole.sole_length_m / 2, sole.sole_width_m / 2)
+    k = next(i for i, s in enumerate(readings) if s.t >= 0.4)
+    light = [replace(s, left_wrench=np.array([0.0, 0.0, 15.0, 0.0, -30.0, 0.0]),
+                     right_wrench=np.zeros(6), wrench_frames=('', '')) if i >= k else s
+             for i, s in enumerate(readings[:k + 50])]
+    est = asimo_estimator().run(light)
+    for m in est[k:]:
+        assert m is not None
+        off = np.hypot(*(m.cop[:2] - m.left_foot[:2]))
+        assert off <= half_diagonal + 1e-9, off
+    # Where the torque puts it: the sole's front edge (x ahead in the sole frame).
+    m = est[-1]
+    heading = m.left_foot[2]
+    ahead = (m.cop[:2] - m.left_foot[:2]) @ np.array([np.cos(heading), np.sin(heading)])
+    assert ahead == pytest.approx(sole.sole_length_m / 2, abs=0.02)

@@ -130,3 +130,75 @@ def test_wrong_sizes_are_said():
         builder.build(0.0, (0, 0, 0, 1), (0, 0, 0), np.zeros(3), np.zeros(2), (0, 0, 0), np.zeros(2))
     with pytest.raises(ValueError, match='not a rotation'):
         builder.build(0.0, (0, 0, 0, 0), (0, 0, 0), np.zeros(2), np.zeros(2), (0, 0, 0), np.zeros(2))
+
+
+MAKERS = Path(__file__).resolve().parent / 'fixtures' / 'policies' / 'makers'
+
+
+def _readings(steps: int, standing: range, seed: int):
+    """Per policy step: time [s], the attitude (its matrix and quaternion), gyro, q, dq, command
+    (zero over ``standing``), last action."""
+    rng = np.random.default_rng(seed)
+    for k in range(steps):
+        roll, pitch, yaw = rng.uniform(-0.3, 0.3, 3)
+        matrix = rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)
+        command = np.zeros(3) if k in standing else rng.uniform(-0.5, 0.5, 3)
+        yield (0.02 * k, matrix, (roll, pitch, yaw), from_matrix(matrix), rng.normal(0, 1, 3),
+               rng.normal(0, 0.3, 12), rng.normal(0, 60, 12), command, rng.normal(0, 2, 12))
+
+
+def test_a_booster_style_nested_config_with_a_cos_sin_clock_term_by_term():
+    """common: / policy: sections and the maker's names; the observation as its deploy script
+    makes it: gravity, gyro, command, (cos, sin) of the phase (zero, the phase held, while told
+    to stand), q - default, dq x 0.1, last action; computed here from the formulas."""
+    config = read_policy_config(MAKERS / 'booster_style_t1.yaml')
+    assert config.kp[:6] == (200.0, 200.0, 200.0, 200.0, 50.0, 50.0) and config.clip_actions == 1.0
+    assert config.default_angles_rad[3] == 0.4 and config.tau_limit_nm[5] == 15.0
+    assert (config.physics_dt_s, config.decimation, config.obs_size) == (0.002, 10, 47)
+    builder = ObservationBuilder(config)
+    default = np.array(config.default_angles_rad)
+    walked_s = 0.0                      # the clock's own time: it stops while standing
+    for k, (t, matrix, _, quat, gyro, q, dq, command, last) in enumerate(
+            _readings(40, range(12, 25), seed=11)):
+        obs = builder.build(t, quat, gyro, q, dq, command, last)
+        standing = not np.any(command)
+        if k and not standing:
+            walked_s += 0.02
+        phase = 2 * math.pi * 1.5 * walked_s
+        clock = [0.0, 0.0] if standing else [math.cos(phase), math.sin(phase)]
+        want = np.concatenate([matrix.T @ [0.0, 0.0, -1.0], gyro, command, clock, q - default,
+                               dq * 0.1, last])
+        np.testing.assert_allclose(obs, want, rtol=1e-6, atol=1e-6, err_msg=f'step {k}')
+    # Standing to walking: the clock goes on from where it stopped, not from the wall clock.
+    assert walked_s == pytest.approx(0.02 * (40 - 1 - 13))
+
+
+def test_a_legged_gym_style_config_with_sections_parts_of_names_and_a_restarting_clock():
+    """Gains by part of the joint name, default angles by joint, a field under the team's name,
+    three stacked frames; a (sin, cos) clock a quarter cycle ahead that restarts at 0 while the
+    command is below 0.05; per-term clips; computed here from the formulas."""
+    config = read_policy_config(MAKERS / 'legged_gym_style.yaml')
+    assert config.kp == (150.0, 150.0, 100.0, 200.0, 40.0, 40.0) * 2
+    assert config.kd == (4.0, 4.0, 4.0, 5.0, 2.0, 2.0) * 2
+    assert config.policy_path.name == 'tiny_mlp.pt' and config.single_obs_size == 47
+    assert (config.frame_stack, config.period_s, config.clip_observations) == (3, 0.02, 18.0)
+    builder = ObservationBuilder(config)
+    default = np.array(config.default_angles_rad)
+    frames, walked_s = [np.zeros(47)] * 3, 0.0
+    for k, (t, _, euler, quat, gyro, q, dq, command, last) in enumerate(
+            _readings(30, range(8, 15), seed=12)):
+        command = command * (0.05 if k == 20 else 1.0)          # a small command walks on
+        obs = builder.build(t, quat, gyro, q, dq, command, last)
+        standing = np.linalg.norm(command) <= 0.05
+        walked_s = 0.0 if standing else walked_s + (0.02 if k else 0.0)
+        phase = 2 * math.pi * ((walked_s / 0.7 + 0.25) % 1.0)
+        frame = np.concatenate([[math.sin(phase), math.cos(phase)], command * [2.0, 2.0, 0.25],
+                                q - default, np.clip(dq * 0.05, -5, 5), np.clip(last, -3, 3),
+                                gyro * 0.25, euler])
+        frames = frames[1:] + [np.clip(frame, -18, 18)]
+        np.testing.assert_allclose(obs, np.concatenate(frames), rtol=1e-6, atol=1e-6,
+                                   err_msg=f'step {k}')
+    builder.reset()                                               # a new run: the clock restarts
+    obs = builder.build(5.0, (0.0, 0.0, 0.0, 1.0), np.zeros(3), default, np.zeros(12), (0.3, 0, 0),
+                        np.zeros(12))
+    assert obs[-47:-45] == pytest.approx([1.0, 0.0], abs=1e-7)   # a quarter cycle: sin 1, cos 0

@@ -176,3 +176,82 @@ def test_joint_states_and_pushes_have_bounds_too():
     assert PushEvent(1.0, np.array([500.0, 0.0, 0.0])).force[0] == 500.0
     with pytest.raises(WireFormatError, match='push force beyond'):
         PushEvent(1.0, np.array([1e6, 0.0, 0.0]))
+
+
+def _g1_bounds():
+    """The shipped G1 (12 joints) description's joint bounds, from its URDF."""
+    from fall_predictor.profiles import load_profile
+    profile = load_profile('g1_12dof')
+    return profile.sensor_layout().description(profile.urdf_xml()).joint_bounds
+
+
+def test_a_joint_past_its_urdf_limit_by_a_realistic_margin_is_flagged_not_refused():
+    """The G1 under its policy takes its left ankle pitch to 0.78 rad against a URDF limit of
+    0.524 rad as it hits the ground (MuJoCo), and measured speeds beyond the rated 37 rad/s:
+    flagged, kept."""
+    bounds = _g1_bounds()
+    i = bounds.names.index('left_ankle_pitch_joint')
+    assert bounds.upper[i] == pytest.approx(0.5236, abs=1e-4)
+    q, dq = np.zeros(len(bounds.names)), np.zeros(len(bounds.names))
+    q[i] = bounds.upper[i] + 0.26
+    assert bounds.violations(q, dq) == []
+    [flag] = bounds.exceedances(q, dq)
+    assert flag.startswith('joint left_ankle_pitch_joint at 0.7836 rad, outside its limits')
+    q[i], dq[i] = 0.0, 1.3 * bounds.velocity[i]          # 48 rad/s on a 37 rad/s motor
+    assert bounds.violations(q, dq) == [] and 'moving at 48.1 rad/s' in bounds.exceedances(q, dq)[0]
+    dq[i] = 0.9 * bounds.velocity[i]
+    assert bounds.exceedances(q, dq) == []                # within: nothing to say
+
+
+@pytest.mark.parametrize('position_rad, speed_rad_s, words', [
+    (0.524 + 0.6, 0.0, 'impossible: joint left_ankle_pitch_joint at 1.124 rad'),   # degrees? order?
+    (30.0, 0.0, 'impossible: joint left_ankle_pitch_joint at 30 rad'),        # 30 "rad": degrees
+    (math.nan, 0.0, 'impossible: joint left_ankle_pitch_joint at nan rad'),
+    (0.0, 6 * 37.0, 'impossible: joint left_ankle_pitch_joint moving at 222 rad/s'),
+    (0.0, math.inf, 'impossible: joint left_ankle_pitch_joint moving at inf rad/s'),
+])
+def test_an_impossible_joint_reading_is_refused(position_rad, speed_rad_s, words):
+    bounds = _g1_bounds()
+    i = bounds.names.index('left_ankle_pitch_joint')
+    q, dq = np.zeros(len(bounds.names)), np.zeros(len(bounds.names))
+    q[i], dq[i] = position_rad, speed_rad_s
+    [why] = bounds.violations(q, dq)
+    assert why.startswith(words), why
+
+
+def test_a_profiles_own_joint_limits_replace_the_urdfs(tmp_path):
+    """``monitor.joint_limits`` in a profile: the limits the monitor judges the encoders by."""
+    import shutil
+
+    from fall_predictor.profiles import ProfileError, load_profile
+    from fall_predictor.profiles.profile import profile_path
+    folder = tmp_path / 'g1_12dof'
+    shutil.copytree(profile_path('g1_12dof').parent, folder)
+    text = (folder / 'profile.yaml').read_text()
+    assert '\nmonitor:\n' in text
+    limits = ('\nmonitor:\n  joint_limits:\n    left_ankle_pitch_joint: {upper_rad: 0.9, '
+              'velocity_rad_s: 50.0}\n')
+    (folder / 'profile.yaml').write_text(text.replace('\nmonitor:\n', limits, 1))
+    profile = load_profile(folder / 'profile.yaml')
+    bounds = profile.sensor_layout().description(profile.urdf_xml()).joint_bounds
+    i = bounds.names.index('left_ankle_pitch_joint')
+    assert (bounds.lower[i], bounds.upper[i], bounds.velocity[i]) == pytest.approx((-0.8727, 0.9, 50.0),
+                                                                                  abs=1e-4)
+    q, dq = np.zeros(len(bounds.names)), np.zeros(len(bounds.names))
+    q[i] = 0.78
+    assert bounds.exceedances(q, dq) == []                # within the robot's own limit
+    (folder / 'typo.yaml').write_text(text.replace('\nmonitor:\n', limits.replace(
+        'upper_rad', 'uper_rad'), 1))
+    with pytest.raises(ProfileError, match=r"typo\.yaml: monitor\.joint_limits\.left_ankle_pitch_joint: "
+                                           r"unknown keys \['uper_rad'\]"):
+        load_profile(folder / 'typo.yaml')
+
+
+def test_joint_limits_naming_a_joint_the_urdf_lacks_or_out_of_order_are_said():
+    bounds = _g1_bounds()
+    with pytest.raises(ValueError, match=r"joint_limits names joint 'left_ankle_pich_joint', which the "
+                                         r"robot description lacks"):
+        bounds.with_limits({'left_ankle_pich_joint': {'upper_rad': 0.9}})
+    with pytest.raises(ValueError, match=r'joint_limits\.left_ankle_pitch_joint: lower_rad must be <= '
+                                         r'upper_rad'):
+        bounds.with_limits({'left_ankle_pitch_joint': {'lower_rad': 1.0}})   # above the URDF's upper

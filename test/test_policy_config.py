@@ -165,7 +165,8 @@ def test_an_explicit_observation_list(tmp_path):
 @pytest.mark.parametrize('edit, field, words', [
     (lambda t: t.replace('joint_names: [j1, j2, j3, j4]', ''), 'joint_names', 'missing'),
     (lambda t: t.replace('kds: [1, 1, 2, 2]', 'kds: [1, 1, 2]'), 'kds', 'list of 4 numbers'),
-    (lambda t: t + 'kp: 3\n', 'kp', 'unknown field'),
+    (lambda t: t + 'kp_gain: 3\n', 'kp_gain', 'unknown field'),
+    (lambda t: t + 'kp: 3\n', 'kp', 'disagrees with kps 50'),       # a maker's name of kps
     (lambda t: t + 'num_actions: 5\n', 'num_actions', "joint_names names 4 joints"),
     (lambda t: t.replace('tiny_mlp.pt', 'nowhere.pt'), 'policy_path', "'nowhere.pt' is not a file"),
     (lambda t: t + 'decimation: 5\n', 'control_decimation', 'disagrees with decimation 5'),

@@ -181,3 +181,37 @@ def test_joint_velocities_are_optional(robot, samples, run):
                     for e in estimates])
     assert len(estimates) >= len(samples) - 5
     assert np.median(lin) <= 0.6 and np.percentile(lin, 99) <= 3.0
+
+
+@pytest.mark.parametrize('past_rad, refused', [(0.25, False), (0.8, True)])
+def test_an_ankle_past_its_limit_is_flagged_and_estimated_unless_impossible(robot, samples, past_rad,
+                                                                           refused):
+    """From 0.2 s to 0.3 s the left ankle roll reads past its URDF limit (0.6 rad): by 0.25 rad, as
+    a slipping foot turns it past the stop, the estimates go on, each flagged and counted; by
+    0.8 rad (a broken joint, a reading in another unit) the samples are refused, saying why."""
+    i = rm.JOINT_NAMES.index('l_ankle_roll')
+    assert robot.joint_bounds.upper[robot.joint_bounds.names.index('l_ankle_roll')] == 0.6
+    window = (0.2, 0.3)
+
+    def past(s):
+        if not window[0] <= s.t < window[1]:
+            return s
+        q = np.array(s.q, dtype=float)
+        q[i] = 0.6 + past_rad
+        return replace(s, q=q)
+    p = pipeline(robot)
+    estimates = feed(p, driver_messages([past(s) for s in samples[:500]]))
+    inside = [e for e in estimates if window[0] <= e.t < window[1]]
+    outside = [e for e in estimates if e.t >= window[1] + 0.01]
+    assert len(inside) == 100 and outside and all(not e.flags for e in outside)
+    if refused:
+        assert all(e.measurement is None for e in inside)
+        assert all(e.fault.startswith(f'impossible: joint l_ankle_roll at {0.6 + past_rad:.4g} rad, '
+                                      'outside its limits [-0.6, 0.6] rad by more than 0.5 rad')
+                   for e in inside), inside[0].fault
+        assert p.counts['flagged'] == 0
+    else:
+        assert all(e.measurement is not None and not e.fault for e in inside)
+        assert all(e.flags == 'joint l_ankle_roll at 0.85 rad, outside its limits [-0.6, 0.6] rad '
+                   'by more than 0.05 rad' for e in inside), inside[0].flags
+        assert p.counts['flagged'] == 100 and p.last_flags == inside[-1].flags

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 from typing import Optional
@@ -51,6 +52,7 @@ def generation_config(args):
 
 def cmd_generate(args) -> int:
     from fall_predictor.data.dataset import DatasetError, read_manifest
+    from fall_predictor.data.dataset_writer import WriterStopped
     from fall_predictor.data.generation import generate_dataset
 
     from fall_predictor.profiles import ProfileError
@@ -64,6 +66,9 @@ def cmd_generate(args) -> int:
                                 progress=not args.json, scheduler=args.scheduler)
     except (DatasetError, RuntimeError) as error:
         return _fail('generate', error)
+    except WriterStopped as stop:
+        print(f'fall-predictor generate: {stop}', file=sys.stderr)
+        return 128 + stop.signum            # the shell's convention for a process a signal ended
     wall = time.perf_counter() - start
     rows = [r for r in rows if int(r.trajectory_id.split('_')[1]) < args.trajectories]
     fallen = sum(r.fallen for r in rows)
@@ -138,7 +143,7 @@ def cmd_import_bags(args) -> int:
             return _fail('import-bags', '--push-times is for a robot\'s own recordings; these '
                                         'recorder_node bags carry their pushes')
         else:
-            report = import_recordings(args.bags, args.out)
+            report = import_recordings(args.bags, args.out, args.robot)
     except (DatasetError, OSError, ProfileError) as error:
         return _fail('import-bags', error)
     pushes = read_manifest(args.out).get('push_times')

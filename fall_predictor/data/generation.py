@@ -28,6 +28,8 @@ from fall_predictor.data.bag_writer import BagWriter
 from fall_predictor.data.bagio import BagError, read_trajectory
 from fall_predictor.data.dataset import (FORMAT, DatasetError, IndexRow, read_index, trajectory_id,
                                          write_index_csv)
+from fall_predictor.data.dataset_writer import (StopRequested, WriterStopped, commit_section,
+                                                stop_on_signals, writer_lock)
 from fall_predictor.data.generation_cost import (COSTS_DIR, GENERATION_COST_KEY,
                                                  record_generation_cost, trajectory_cost)
 from fall_predictor.data.outcomes import height_drop_time, unsettled_at_horizon
@@ -372,36 +374,53 @@ def generate_dataset(out: str | os.PathLike, trajectories: int, seed: int, jobs:
     processes the trajectories were simulated. ``dataset.json`` records the CPU time and the
     machines that simulated them (:func:`generation_cost`).
     """
-    from joblib import delayed
-
     out = Path(out)
     config = config or GenerationConfig(seed=seed)
     if config.seed != seed:
         raise ValueError('seed and config.seed differ')
-    _open_dataset(out, config)
+    out.mkdir(parents=True, exist_ok=True)
+    with writer_lock(out, 'generate'), stop_on_signals():
+        _open_dataset(out, config)
+        return _generate_locked(out, trajectories, config, jobs, progress, scheduler)
+
+
+def _generate_locked(out: Path, trajectories: int, config: GenerationConfig, jobs: int,
+                     progress: bool, scheduler: Optional[str]) -> list[IndexRow]:
+    """:func:`generate_dataset` holding the dataset's writer lock: a stop (SIGINT, SIGTERM) ends
+    between two commits, as :class:`~fall_predictor.data.dataset_writer.WriterStopped` saying how
+    far it got."""
+    from joblib import delayed
+
     pending = [i for i in range(trajectories) if not _finished(out, i)]
     started, wall0 = time.time(), time.perf_counter()
     bar = progress_bar(trajectories, trajectories - len(pending), disable=not progress)
-    cpu_s = 0.0
+    cpu_s, committed = 0.0, 0
     try:
         if pending:
             with compute_backend(scheduler):
                 results = compute_parallel(jobs, return_as='generator_unordered')(
                     delayed(simulate_one)(config, i) for i in pending)
                 for simulated in results:
-                    commit(out, simulated)
+                    with commit_section():
+                        commit(out, simulated)
+                        committed += 1
                     cpu_s += simulated.cost['cpu_s']
                     bar.set_postfix_str(f'CPU {cpu_s:.0f} s', refresh=False)
                     bar.update(1)
+    except StopRequested as stop:
+        raise WriterStopped(stop.signum, out, committed,
+                                trajectories - len(pending) + committed, trajectories) from None
     finally:
         bar.close()
         run = {'started_utc': time.strftime('%Y-%m-%dT%H:%M:%SZ', time.gmtime(started)),
-               'wall_s': round(time.perf_counter() - wall0, 3), 'simulated_trajectories': len(pending),
+               'wall_s': round(time.perf_counter() - wall0, 3), 'simulated_trajectories': committed,
                'jobs': jobs, 'scheduler': scheduler, 'client': machine()}
-        record_generation_cost(out, run)
+        with commit_section():
+            record_generation_cost(out, run)
     rows = read_index(out)
     write_index_csv(out, rows)
     return rows
+
 
 
 # -- recordings ---------------------------------------------------------------------------------
@@ -411,7 +430,9 @@ class ImportReport:
     rejected: dict[str, str]         #: bag path -> why it cannot be a training trajectory
 
 
-def _recorded_row(bag: Path, tid: str) -> IndexRow:
+def _recorded_row(bag: Path, tid: str, fallen_height_m: float) -> IndexRow:
+    """The index row of a recorder_node bag (the simulator's or the live estimator's state on
+    the measurement topic): fallen below ``fallen_height_m``, the recorded robot's profile's."""
     from fall_predictor.data.bagio import iter_messages
     from fall_predictor.data.outcomes import first_fallen_time
     from fall_predictor.contract.topics import CONTROLLER_MODE
@@ -427,7 +448,7 @@ def _recorded_row(bag: Path, tid: str) -> IndexRow:
     ms = recorded.measurements
     t = np.array([m.t for m in ms])
     z = np.array([m.com[2] for m in ms])
-    t_fallen = first_fallen_time(t, z, np.array([m.non_foot_contact for m in ms]))
+    t_fallen = first_fallen_time(t, z, np.array([m.non_foot_contact for m in ms]), fallen_height_m)
     push = recorded.pushes[0]
     at_push = ms[int(np.searchsorted(t, push.t))]
     angle = np.degrees(np.arctan2(push.force[1], push.force[0]) - at_push.heading)
@@ -438,24 +459,29 @@ def _recorded_row(bag: Path, tid: str) -> IndexRow:
                     t_reflex=None, t_start=float(t[0]), t_end=float(t[-1]), samples=len(ms))
 
 
-def import_recordings(bags: Iterable[str | os.PathLike], out: str | os.PathLike) -> ImportReport:
-    """Make a dataset directory from live recordings (e.g. ``recorder_node`` bags), so that
-    ``train``, ``evaluate`` and ``sweep`` can use them. Bags are copied; the push height above
-    the CoM is not recorded and is NaN in the index. Bags that cannot serve as training
-    trajectories are reported in ``rejected`` with the reason, not imported."""
+def import_recordings(bags: Iterable[str | os.PathLike], out: str | os.PathLike,
+                      robot: str = DEFAULT_ROBOT) -> ImportReport:
+    """Make a dataset directory from live recordings (e.g. ``recorder_node`` bags) of robot
+    ``robot`` (a profile's name or path: its fallen CoM height labels the falls, its name and
+    mass go into the manifest), so that ``train``, ``evaluate`` and ``sweep`` can use them. Bags
+    are copied; the push height above the CoM is not recorded and is NaN in the index. Bags that
+    cannot serve as training trajectories are reported in ``rejected`` with the reason, not
+    imported."""
+    fallen_height_m = load_profile(robot).fallen_com_height_m
     out = Path(out)
     if out.exists():
         raise DatasetError(f'{out}: exists; import into a new directory')
     (out / 'bags').mkdir(parents=True)
     (out / 'index').mkdir()
     sources = [str(Path(b).resolve()) for b in bags]
-    atomic_write_text(out / 'dataset.json', json.dumps({'format': FORMAT, 'source': 'recordings',
-                                                        'bags': sources, 'robot': simulated_robot()}, indent=1))
+    manifest = {'format': FORMAT, 'source': 'recordings', 'bags': sources,
+                'robot': simulated_robot(robot)}
+    atomic_write_text(out / 'dataset.json', json.dumps(manifest, indent=1))
     rows, rejected = [], {}
     for source in sources:
         tid = trajectory_id(len(rows))
         try:
-            row = _recorded_row(Path(source), tid)
+            row = _recorded_row(Path(source), tid, fallen_height_m)
         except (DatasetError, BagError) as exc:
             rejected[source] = str(exc)
             continue

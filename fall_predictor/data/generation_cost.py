@@ -54,6 +54,8 @@ def record_generation_cost(out: Path, run: dict[str, Any]) -> dict[str, Any]:
     returns the new ``generation`` entry."""
     records = []
     for path in sorted((out / COSTS_DIR).glob('traj_*.json')):
+        if not (out / 'index' / path.name).exists():
+            continue                       # a run killed before its index row: not committed
         try:
             records.append(json.loads(path.read_text()))
         except (OSError, json.JSONDecodeError):

@@ -23,14 +23,19 @@ the sole frames) and one synchronised sample of joint encoders, IMU and foot for
   the IMU point by minus the contact's velocity relative to it. With no loaded sole it integrates
   the IMU alone. A sole whose kinematic velocity is more than ``slip_velocity_m_s`` from the IMU
   prediction is taken as slipping: left out and re-anchored (if all slip for
-  ``max_slip_s``, the closest is used). The base follows from the point by kinematics;
+  ``max_slip_s``, the closest is used). The ground holds the robot up: integrated alone through
+  a fall, the position never takes the CoM below the ground (it stops there, its downward
+  velocity with it), so the estimate of a fallen robot stays a fallen robot's. The base follows
+  from the point by kinematics;
 * **CoM and centroidal momentum**: ``pinocchio.computeCentroidalMomentum`` (linear momentum,
   angular momentum about the CoM);
 * **contacts and CoP**: a sole with normal force above ``contact_force_n`` is loaded (a foot without
   a force sensor, one of ``effort_feet``: its wrench from the leg's joint efforts, or with no
   efforts from statics); each foot's wrench is taken in its sensor's frame (the sample's
   ``wrench_frames``; empty: the sole frame) and carried to the sole frame
-  (:mod:`~fall_predictor.monitor.foot_wrenches`), where the CoP is (-ty / fz, tx / fz); the
+  (:mod:`~fall_predictor.monitor.foot_wrenches`), where the CoP is (-ty / fz, tx / fz), kept on
+  the sole (a sole's CoP lies under it: one computed off it, from a light load's torque noise or
+  the effort-derived wrench of a slipping, falling leg, is moved to the sole's nearest edge); the
   whole-body CoP is the force-weighted mean. The contacts handed to the feature code are the
   sole's corners that lie within ``tilt_tolerance_m`` of its lowest corner, with the normal force
   split between them so that their weighted mean is the sole's CoP
@@ -58,6 +63,7 @@ import pinocchio as pin
 
 from fall_predictor.monitor import rotations
 from fall_predictor.monitor.foot_wrenches import FootWrenches, all_finite
+from fall_predictor.monitor.plausibility import COM_HEIGHT_RANGE_M
 from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2, Measurement
 from fall_predictor.monitor.robot_description import SIDES, DescriptionError, RobotDescription
 from fall_predictor.monitor.sensor_records import SensorSample
@@ -339,6 +345,8 @@ class StateEstimator:
             self.p = (px + vx * dt, py + vy * dt, pz + vz * dt)
         if loaded:
             self._correct(kin, loaded, touch, point_rel, point_vel, first_fix, dt)
+        if self._have_fix:
+            self._stop_at_ground(kin)
         self.t = s.t
         if not self._have_fix:
             self.last_issue = 'no loaded sole yet: the base position is unknown'
@@ -396,6 +404,17 @@ class StateEstimator:
             self.p = _towards(self.p, p_meas, 1.0 - math.exp(-dt / cfg.position_time_constant_s))
             self.v = _towards(self.v, v_meas, 1.0 - math.exp(-dt / cfg.velocity_time_constant_s))
 
+    def _stop_at_ground(self, kin: _Kinematics) -> None:
+        """A CoM below the ground is where the ground stopped it: dead reckoning with no sole on
+        the ground (a fall's impact) overshoots."""
+        (px, py, pz), iz = self.p, kin.imu_pos[2]
+        com_z = kin.com[2] + (pz - iz)
+        if com_z < COM_HEIGHT_RANGE_M[0]:
+            # A micrometre above: the CoM is recomputed from the base and must not round below.
+            self.p = (px, py, pz + (COM_HEIGHT_RANGE_M[0] + 1e-6 - com_z))
+            vx, vy, vz = self.v
+            self.v = (vx, vy, max(vz, 0.0))
+
     def _measurement(self, t: float, kin: _Kinematics, loaded: dict, touch: dict) -> Measurement:
         (px, py, pz), (ix, iy, iz) = self.p, kin.imu_pos
         bx, by, bz = px - ix, py - iy, pz - iz          # the base origin in the world
@@ -410,7 +429,7 @@ class StateEstimator:
                 contacts[side] = _NO_CONTACT
                 continue
             _, _, fz, tx, ty, _ = loaded[side]
-            cx, cy = -ty / fz, tx / fz                  # the sole's CoP, sole frame
+            cx, cy = self.soles.on_sole(side, -ty / fz, tx / fz)     # the sole's CoP, sole frame
             contacts[side] = self.soles.contacts(side, touch[side], pose, (ox, oy), cx, cy, fz)
             cop_x += fz * (r00 * cx + r01 * cy + ox)
             cop_y += fz * (r10 * cx + r11 * cy + oy)

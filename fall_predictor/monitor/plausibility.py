@@ -34,14 +34,28 @@ The robot's raw sensors (the state estimator's input, :class:`SensorBounds`) are
 humanoid and its sensors can do:
 
 ========================  ===================================================================
-joint position            within the URDF's limits, +- 0.2 rad (continuous joints: any)
-joint velocity            at most 3 x the URDF's velocity limit (none given: 100 rad/s)
+joint position            finite, within the joint's limits +- 0.5 rad (continuous joints: any)
+joint velocity            finite, at most 5 x the joint's velocity limit (none given: 1e3 rad/s)
 joint effort              finite, at most 3 x the URDF's effort limit (none given: 1e4 N m)
 IMU angular velocity      norm <= 35 rad/s (2000 deg/s, the widest range of MEMS gyroscopes)
 IMU specific force        norm <= 300 m/s^2 (30 g: a torso's impact on the ground stays below)
 IMU orientation           a quaternion of norm 1 +- 0.1
 foot force / torque       norm <= 20 body weights [N]; torque norm <= 20 body weights x 0.5 m
 ========================  ===================================================================
+
+A joint's limits are the URDF's unless the robot profile's ``monitor.joint_limits`` states its own
+(a URDF's limits are often a controller's soft limits inside the hard stops). A joint reading
+between its limits and the bound above is **flagged, not refused**: a real robot's walking and
+falling take joints past their URDF limits (a slipping foot turns its ankle past the stop; the
+G1 under its policy reaches 0.26 rad past an ankle pitch limit as it hits the ground in MuJoCo,
+another maker's humanoid 0.20 rad past an ankle roll limit, and measured speeds beyond the
+rated ones at impacts), and the estimate of such a sample is as good as any. A sample is flagged
+(counted, its reason in the estimator's diagnostics) when a joint lies more than
+:data:`JOINT_FLAG_MARGIN_RAD` beyond its limits or moves faster than
+:data:`JOINT_FLAG_VELOCITY_FACTOR` x its velocity limit; it is refused only beyond the table's
+bounds: :data:`JOINT_LIMIT_MARGIN_RAD` (29 deg) past a hard stop takes a broken joint or a
+reading in the wrong unit or order, and :data:`JOINT_VELOCITY_LIMIT_FACTOR` x a motor's rated
+speed a broken encoder.
 
 Text from the wire is bounded too: a fault, a reason or a log line carries at most
 :data:`MAX_TEXT_CHARS` characters of it (:func:`bound_text`), a name (a joint, a frame) at most
@@ -92,11 +106,16 @@ MAX_ANGULAR_MOMENTUM_RATE_N_M = 2e5
 MAX_COM_SPEED_M_S = 20.0
 
 
-#: Raw sensor bounds (see the second table): joint position margin beyond the URDF limits [rad],
-#: joint velocity as a multiple of the URDF's limit and without one [rad/s], IMU, foot sensors.
-JOINT_LIMIT_MARGIN_RAD = 0.2
-JOINT_VELOCITY_LIMIT_FACTOR = 3.0
-MAX_JOINT_VELOCITY_RAD_S = 100.0
+#: Raw sensor bounds (see the second table): joint position margin beyond the joint's limits
+#: [rad], joint velocity as a multiple of its limit and without one [rad/s], IMU, foot sensors.
+JOINT_LIMIT_MARGIN_RAD = 0.5
+JOINT_VELOCITY_LIMIT_FACTOR = 5.0
+MAX_JOINT_VELOCITY_RAD_S = 1e3
+#: A joint past its limits by more than this [rad], or faster than this x its velocity limit,
+#: flags the sample (kept, counted, said in the diagnostics): encoder noise and a joint's give at
+#: its stop stay below 0.05 rad (3 deg); the motors' rated speed is the velocity limit.
+JOINT_FLAG_MARGIN_RAD = 0.05
+JOINT_FLAG_VELOCITY_FACTOR = 1.0
 JOINT_EFFORT_LIMIT_FACTOR = 3.0
 MAX_JOINT_EFFORT_N_M = 1e4
 MAX_IMU_ANGULAR_VELOCITY_RAD_S = 35.0
@@ -395,11 +414,13 @@ def check_wrench(wrench: Sequence[float], robot_weight_n: float) -> Optional[str
 
 @dataclass(frozen=True)
 class JointBounds:
-    """Per-joint bounds of the encoders, from the URDF (arrays in one joint order).
+    """Per-joint limits of the encoders (arrays in one joint order): the URDF's, or the robot
+    profile's where it states them (:meth:`with_limits`).
 
     ``lower``/``upper`` are the position limits [rad] (-inf/+inf for continuous joints), ``velocity``
-    the velocity limits [rad/s] and ``effort`` the effort limits [N m or N] (inf where the URDF
-    gives none; ``effort`` None: none for every joint).
+    the velocity limits [rad/s] and ``effort`` the effort limits [N m or N] (inf where none is
+    given; ``effort`` None: none for every joint). A reading past them is flagged
+    (:meth:`exceedances`), refused only when impossible (:meth:`violations`): the module docstring.
     """
 
     names: tuple[str, ...]
@@ -407,6 +428,25 @@ class JointBounds:
     upper: np.ndarray
     velocity: np.ndarray
     effort: Optional[np.ndarray] = None
+
+    def with_limits(self, limits: dict[str, dict[str, float]]) -> 'JointBounds':
+        """These bounds with a robot's own limits of some joints: per joint name, any of
+        ``lower_rad``, ``upper_rad``, ``velocity_rad_s``. ValueError names a joint these bounds
+        lack or limits out of order."""
+        index = {name: i for i, name in enumerate(self.names)}
+        lower, upper, velocity = self.lower.copy(), self.upper.copy(), self.velocity.copy()
+        for name, given in limits.items():
+            if name not in index:
+                raise ValueError(f'joint_limits names joint {name!r}, which the robot description '
+                                 f'lacks (it has {bound_names(self.names)})')
+            i = index[name]
+            lower[i] = given.get('lower_rad', lower[i])
+            upper[i] = given.get('upper_rad', upper[i])
+            velocity[i] = given.get('velocity_rad_s', velocity[i])
+            if not lower[i] <= upper[i] or not velocity[i] > 0.0:
+                raise ValueError(f'joint_limits.{name}: lower_rad must be <= upper_rad and '
+                                 f'velocity_rad_s > 0, got {lower[i]}, {upper[i]}, {velocity[i]}')
+        return JointBounds(self.names, lower, upper, velocity, self.effort)
 
     @functools.cached_property
     def max_effort(self) -> np.ndarray:
@@ -416,17 +456,32 @@ class JointBounds:
         return np.where(np.isfinite(self.effort), JOINT_EFFORT_LIMIT_FACTOR * self.effort,
                         MAX_JOINT_EFFORT_N_M)
 
+    def _tier(self, margin_rad: float, factor: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(lowest, highest position [rad], highest speed [rad/s]) of one tier, per joint."""
+        v_max = np.where(np.isfinite(self.velocity), factor * self.velocity, MAX_JOINT_VELOCITY_RAD_S)
+        return self.lower - margin_rad, self.upper + margin_rad, v_max
+
     @functools.cached_property
     def _limits(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(lowest, highest position [rad], highest speed [rad/s]) accepted per joint."""
-        v_max = np.where(np.isfinite(self.velocity), JOINT_VELOCITY_LIMIT_FACTOR * self.velocity,
-                         MAX_JOINT_VELOCITY_RAD_S)
-        return self.lower - JOINT_LIMIT_MARGIN_RAD, self.upper + JOINT_LIMIT_MARGIN_RAD, v_max
+        """The bounds of the possible (:meth:`violations`)."""
+        return self._tier(JOINT_LIMIT_MARGIN_RAD, JOINT_VELOCITY_LIMIT_FACTOR)
+
+    @functools.cached_property
+    def _flag_limits(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The limits past which a reading is flagged (:meth:`exceedances`)."""
+        return self._tier(JOINT_FLAG_MARGIN_RAD, JOINT_FLAG_VELOCITY_FACTOR)
 
     def violations(self, q: np.ndarray, dq: np.ndarray) -> list[str]:
-        """Each joint whose position or velocity is impossible, in words (empty: all plausible)."""
-        low, high, v_max = self._limits
-        # Comparisons with NaN are False (no floating-point warning): NaN counts as bad.
+        """Each joint whose position or velocity is impossible, in words (empty: all possible)."""
+        return self._outside(self._limits, q, dq, 'impossible: ')
+
+    def exceedances(self, q: np.ndarray, dq: np.ndarray) -> list[str]:
+        """Each joint past its limits or speed but within the possible, in words (empty: none)."""
+        return self._outside(self._flag_limits, q, dq, '')
+
+    def _outside(self, tier: tuple, q: np.ndarray, dq: np.ndarray, prefix: str) -> list[str]:
+        low, high, v_max = tier
+        # Comparisons with NaN are False (no floating-point warning): NaN counts as outside.
         bad_q = ~((q >= low) & (q <= high))
         bad_v = ~(np.abs(dq) <= v_max)
         bad = bad_q | bad_v
@@ -436,8 +491,10 @@ class JointBounds:
         for i in np.flatnonzero(bad):
             name = self.names[i]
             if bad_q[i]:
-                out.append(f'joint {name} at {q[i]:.4g} rad, outside its limits '
-                           f'[{self.lower[i]:.3g}, {self.upper[i]:.3g}] rad')
+                out.append(f'{prefix}joint {name} at {q[i]:.4g} rad, outside its limits '
+                           f'[{self.lower[i]:.3g}, {self.upper[i]:.3g}] rad by more than '
+                           f'{high[i] - self.upper[i]:.3g} rad')
             else:
-                out.append(f'joint {name} moving at {dq[i]:.4g} rad/s, beyond {v_max[i]:.3g} rad/s')
+                out.append(f'{prefix}joint {name} moving at {dq[i]:.4g} rad/s, beyond '
+                           f'{v_max[i]:.3g} rad/s')
         return out

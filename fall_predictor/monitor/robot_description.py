@@ -9,8 +9,8 @@ be used and :meth:`RobotDescription.frame_id` says so.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Sequence
+from dataclasses import dataclass, field
+from typing import Optional, Sequence
 
 import numpy as np
 import pinocchio as pin
@@ -31,10 +31,40 @@ class SensorLayout:
     soles: dict[str, SoleGeometry]
     imu_frame: str
     force_sensors: tuple[str, ...] = SIDES
+    #: Per joint, limits in place of the URDF's (``lower_rad``, ``upper_rad``, ``velocity_rad_s``).
+    joint_limits: dict = field(default_factory=dict)
 
     def description(self, urdf_xml: str) -> 'RobotDescription':
-        """The robot description of ``urdf_xml`` with these soles."""
-        return RobotDescription(urdf_xml, self.soles)
+        """The robot description of ``urdf_xml`` with these soles and joint limits."""
+        return RobotDescription(urdf_xml, self.soles, self.joint_limits)
+
+
+#: The fields of one joint of a robot profile's ``monitor.joint_limits``.
+JOINT_LIMIT_FIELDS = ('lower_rad', 'upper_rad', 'velocity_rad_s')
+
+
+def joint_limits_of(raw: object, where: str = 'monitor.joint_limits') -> dict[str, dict[str, float]]:
+    """A profile's ``monitor.joint_limits``: per joint, its own position limits [rad] and rated
+    speed [rad/s] in place of the URDF's (monitor/plausibility.py: past them a sample is flagged,
+    not refused). ValueError names the entry that is wrong."""
+    if not isinstance(raw, dict):
+        raise ValueError(f'{where} must be a mapping of joint names, got {raw!r}')
+    out = {}
+    for joint, fields in raw.items():
+        if not isinstance(fields, dict) or set(fields) - set(JOINT_LIMIT_FIELDS):
+            unknown = (sorted(set(fields) - set(JOINT_LIMIT_FIELDS)) if isinstance(fields, dict)
+                       else fields)
+            raise ValueError(f'{where}.{joint}: unknown keys {unknown} (known: '
+                             f'{", ".join(JOINT_LIMIT_FIELDS)})')
+        for key, value in fields.items():
+            low = 1e-3 if key == 'velocity_rad_s' else -100.0
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not low <= value <= 1e3:
+                raise ValueError(f'{where}.{joint}.{key} must be a number in [{low:g}, 1000], '
+                                 f'got {value!r}')
+        if fields.get('lower_rad', -np.inf) > fields.get('upper_rad', np.inf):
+            raise ValueError(f'{where}.{joint}: lower_rad must be <= upper_rad')
+        out[str(joint)] = {key: float(value) for key, value in fields.items()}
+    return out
 
 
 class DescriptionError(ValueError):
@@ -49,7 +79,8 @@ class RobotDescription:
     kinematic tree and the inertias are read).
     """
 
-    def __init__(self, urdf_xml: str, soles: dict[str, SoleGeometry]) -> None:
+    def __init__(self, urdf_xml: str, soles: dict[str, SoleGeometry],
+                 joint_limits: Optional[dict] = None) -> None:
         try:
             self.model = pin.buildModelFromXML(urdf_xml, pin.JointModelFreeFlyer())
         except Exception as exc:  # Pinocchio raises its own types on malformed XML
@@ -85,6 +116,11 @@ class RobotDescription:
         self.continuous = np.array(continuous, dtype=bool)
         self.joint_bounds = JointBounds(self.joint_names, np.array(lower), np.array(upper),
                                         np.array(velocity), np.array(effort))
+        if joint_limits:
+            try:
+                self.joint_bounds = self.joint_bounds.with_limits(joint_limits)
+            except ValueError as error:
+                raise DescriptionError(str(error)) from None
         self._frame_cache: dict[str, int] = {}
         self._neutral = pin.neutral(self.model)
         self._any_continuous = bool(self.continuous.any())

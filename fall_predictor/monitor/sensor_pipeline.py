@@ -14,9 +14,12 @@ recording's messages (in the order they were received), so that both give the sa
    synchronised sample at that stamp (readings interpolated where they bracket it) and the state
    estimator's measurement, or the fault that prevented it (in words); a measurement outside the
    physical bounds (:func:`~fall_predictor.monitor.plausibility.check_measurement`) is such a
-   fault. Joint states split over several messages (legs and arms from different controllers)
-   drive only when they carry a joint of ``driving_joints`` (default: any joint of the
-   description), and only once per stamp: the rest are taken as the joints' newest values.
+   fault. A joint past its limits or rated speed but within the possible does not stop the
+   estimate: the estimate carries it in words (``flags``) and it is counted
+   (``counts['flagged']``). Joint states split over several messages (legs and arms from
+   different controllers) drive only when they carry a joint of ``driving_joints`` (default: any
+   joint of the description), and only once per stamp: the rest are taken as the joints' newest
+   values.
 
 A confirmed step of the driving stream's clock, back or forward (an NTP or PTP step on the robot, a
 simulator reset, a recording that loops, a sensor that paused for more than ``max_step_s``), starts
@@ -60,6 +63,9 @@ class Estimate:
     new_run: bool = False               #: this stamp started a new run (a confirmed clock step)
     #: With ``new_run``: the step [s] from the previous accepted stamp (negative: back).
     clock_step_s: float = 0.0
+    #: With a measurement: what is unusual but possible in its sample, in words (a joint past
+    #: its limit or rated speed: kept, counted, said in the diagnostics); '' when nothing is.
+    flags: str = ''
 
 
 @dataclass(frozen=True)
@@ -99,7 +105,10 @@ class SensorPipeline:
         self.sync = SensorSync(robot.joint_names, force_sensors, weight_n, config.sync,
                                robot.joint_bounds, topics, config.timeline, effort_joints)
         self.timeline = StampTimeline(config.timeline)
-        self.counts = {'estimates': 0, 'measurements': 0, 'faults': 0, 'joint_messages_unused': 0}
+        self.counts = {'estimates': 0, 'measurements': 0, 'faults': 0, 'joint_messages_unused': 0,
+                       'flagged': 0}
+        #: The flags of the latest flagged estimate ('' before any).
+        self.last_flags = ''
         self._drivers = frozenset(config.driving_joints or robot.joint_names)
         self._known = frozenset(robot.joint_names)
         self._topics = self.sync.topics
@@ -267,6 +276,11 @@ class SensorPipeline:
             self.counts['faults'] += 1
             return Estimate(stamp_ns, t, None, '; '.join(faults), new_run, step_s)
         self.counts['measurements'] += 1
+        flags = self.sync.joints.flags()
+        if flags:
+            self.counts['flagged'] += 1
+            self.last_flags = '; '.join(flags)
+            return Estimate(stamp_ns, t, measurement, '', new_run, step_s, self.last_flags)
         return Estimate(stamp_ns, t, measurement, '', new_run, step_s)
 
 

@@ -197,6 +197,7 @@ class JointTable:
         self.oldest_stamp_ns = 0               #: the stamp of the joint longest without news
         self.newest_stamp_ns = 0               #: the newest stamp of any joint
         self.all_received = n == 0             #: every joint has been received
+        self._flags: list[str] = []            #: the last judged sample's flags (:meth:`flags`)
         self._maps: dict[tuple[str, ...], tuple] = {}
 
     def _map(self, names: tuple[str, ...]) -> tuple:
@@ -350,9 +351,18 @@ class JointTable:
             for i in np.flatnonzero(stuck):
                 out.append(f'joint {self.names[i]} stuck at {self.q[i]:.4g} rad for {frozen_s[i]:.2f} s '
                            f'while reporting {self.dq[i]:.3g} rad/s')
+        self._flags = []
         if self.bounds is not None and not out:
-            out.extend(self.bounds.violations(self.q, self.dq))
+            # The impossible lies beyond the flagged: one test per sample while nothing is past.
+            self._flags = self.bounds.exceedances(self.q, self.dq)
+            if self._flags:
+                out.extend(self.bounds.violations(self.q, self.dq))
         return out
+
+    def flags(self) -> list[str]:
+        """Of the sample :meth:`faults` last judged usable: its joints past their limits or speed
+        but possible, in words (kept and flagged: :mod:`~fall_predictor.monitor.plausibility`)."""
+        return self._flags
 
 
 def _joint_list(what: str, names: list[str]) -> str:

@@ -82,6 +82,8 @@ class SoleContacts:
         self._corners = {side: sole.corners() for side, sole in soles.items()}
         self._corner_xy = {side: [tuple(c[:2]) for c in corners.tolist()]
                            for side, corners in self._corners.items()}
+        #: Per side: the sole's rectangle, x low, y low, x high, y high (sole frame).
+        self._sole_bounds = {side: _bounds(xy) for side, xy in self._corner_xy.items()}
         #: Per side, per ``GroundPart.key``: the part (at most 14 of them).
         self._parts: dict[str, dict[tuple[bool, ...], GroundPart]] = {side: {} for side in soles}
 
@@ -102,6 +104,15 @@ class SoleContacts:
                 key, (float(centre[0]), float(centre[1])), corners, corner_xy, _bounds(corner_xy),
                 all(key))
         return part
+
+    def on_sole(self, side: str, cop_x: float, cop_y: float) -> tuple[float, float]:
+        """A CoP (sole frame) kept on sole ``side``: a point off the sole moved to its nearest
+        point of the sole's rectangle (the CoP of a sole's unilateral contact forces lies under
+        it); a point on the sole as it is."""
+        lo_x, lo_y, hi_x, hi_y = self._sole_bounds[side]
+        if lo_x <= cop_x <= hi_x and lo_y <= cop_y <= hi_y:
+            return cop_x, cop_y
+        return min(hi_x, max(lo_x, cop_x)), min(hi_y, max(lo_y, cop_y))
 
     def contacts(self, side: str, part: GroundPart, rows: Rows, origin: tuple[float, float],
                  cop_x: float, cop_y: float, fz: float) -> np.ndarray:

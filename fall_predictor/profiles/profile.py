@@ -46,7 +46,7 @@ import yaml
 
 from fall_predictor.monitor.lowstate import LowStateProfile, parse_unitree_hg
 from fall_predictor.monitor.records import SoleGeometry
-from fall_predictor.monitor.robot_description import SIDES, SensorLayout
+from fall_predictor.monitor.robot_description import SIDES, SensorLayout, joint_limits_of
 
 PROFILES_DIR = Path(__file__).resolve().parent
 PROFILE_FILE = 'profile.yaml'
@@ -224,6 +224,9 @@ class RobotProfile:
     default_controller: str = C_BAL
     #: How a Unitree humanoid's ``lowstate`` names its motors (monitor/lowstate.py), or None.
     unitree_hg: Optional[LowStateProfile] = None
+    #: ``monitor.joint_limits``: per joint, the limits the monitor judges its encoders by in
+    #: place of the URDF's (``lower_rad``, ``upper_rad``, ``velocity_rad_s``; any of them).
+    joint_limits: dict[str, dict[str, float]] = field(default_factory=dict)
 
     # -- controllers -------------------------------------------------------------------------
     @property
@@ -263,7 +266,8 @@ class RobotProfile:
     def sensor_layout(self) -> SensorLayout:
         """Soles, IMU frame and the feet with a force/torque sensor."""
         return SensorLayout({side: self.feet[side].sole() for side in SIDES}, self.imu_frame,
-                            tuple(side for side in SIDES if self.feet[side].force_torque_frame))
+                            tuple(side for side in SIDES if self.feet[side].force_torque_frame),
+                            self.joint_limits)
 
     def urdf_xml(self) -> str:
         """The robot description's text (``/robot_description``)."""
@@ -433,6 +437,10 @@ def _parse(path: Path, raw: Any) -> RobotProfile:
     monitor = r.child('monitor')
     fallen = monitor.number('fallen_com_height_m', 0.05, 3.0)
     guard = monitor.number('guard_com_height_m', fallen, 3.0)
+    try:
+        joint_limits = joint_limits_of(monitor.get('joint_limits', {}))
+    except ValueError as error:
+        raise ProfileError(f'{path}: {error}') from None
     controller = {}
     for part, fields in r.get('controller', {}).items():
         if part not in ('gait', 'reflex', 'stabilizer') or not isinstance(fields, dict):
@@ -479,4 +487,4 @@ def _parse(path: Path, raw: Any) -> RobotProfile:
         controller=controller,
         posture=posture, model=r.text('model', 'default_model.json'), simulator=simulator,
         mjcf_path=mjcf, controllers=controllers, default_controller=default_controller,
-        unitree_hg=unitree_hg)
+        unitree_hg=unitree_hg, joint_limits=joint_limits)

@@ -14,7 +14,14 @@ computed as those projects' deploy scripts compute it:
 * ``command``: (vx [m/s], vy [m/s], yaw rate [rad/s]) x scale;
 * ``joint_pos``: (q - default angles) x scale (or q x scale: ``relative_to_default: false``);
 * ``joint_vel``: dq x scale; ``last_action``: the previous action (the network's output) x scale;
-* ``gait_phase_sin_cos``: sin and cos of 2 pi t / period, t the gait clock's time [s].
+* ``gait_phase_sin_cos``: sin and cos of 2 pi t / period, t the gait clock's time [s];
+* ``gait_clock``: the same two values in its ``order`` (sin, cos or cos, sin) of the phase
+  t / period + ``offset`` (a fraction of a cycle); ``gait_phase``: that phase itself, in [0, 1).
+  At a command whose norm is at most ``standing_below`` the clock runs on (``run``), its values
+  are zero with the phase held (``zero``), the phase is held (``hold``), or back at 0 and restarts
+  from there (``reset``); a held phase goes on from where it stopped.
+
+A term with ``clip`` is clipped to [low, high] after its scale.
 
 The frame is clipped to +-``clip_observations`` when set, and the last ``frame_stack`` frames are
 stacked oldest first (zeros before the first, as humanoid-gym's history starts).
@@ -62,12 +69,19 @@ class ObservationBuilder:
         self._stack = np.zeros((config.frame_stack, size), np.float32)
         self._clip = config.clip_observations
         self._terms: list[tuple[str, np.ndarray, np.ndarray, object]] = []
+        self._clips: list[tuple[np.ndarray, float, float]] = []
+        self._clocks: list[_Clock] = []
         start = 0
         for term in config.observation:
             end = start + term.size(n)
             scale = np.broadcast_to(np.asarray(term.scale, dtype=np.float64), (end - start,)).copy()
             extra: object = term.relative_to_default if term.name == 'joint_pos' else term.period_s
+            if term.name in ('gait_clock', 'gait_phase'):
+                extra = _Clock(term)
+                self._clocks.append(extra)
             self._terms.append((term.name, self._frame[start:end], scale, extra))
+            if term.clip is not None:
+                self._clips.append((self._frame[start:end], *term.clip))
             start = end
 
     @property
@@ -76,8 +90,10 @@ class ObservationBuilder:
         return int(self._stack.size)
 
     def reset(self) -> None:
-        """Forget the stacked history (zeros)."""
+        """Forget the stacked history (zeros) and restart the gait clocks."""
         self._stack[:] = 0.0
+        for clock in self._clocks:
+            clock.reset()
 
     def build(self, t_s: float, imu_quat_xyzw: Sequence[float], gyro_rad_s: Sequence[float],
               q: np.ndarray, dq: np.ndarray, command: Sequence[float], last_action: np.ndarray) -> np.ndarray:
@@ -110,10 +126,15 @@ class ObservationBuilder:
                 np.multiply(dq, scale, out=view)
             elif name == 'last_action':
                 np.multiply(last_action, scale, out=view)
-            else:                                       # gait_phase_sin_cos
+            elif name == 'gait_phase_sin_cos':
                 angle = 2.0 * math.pi * (t_s % extra) / extra
                 view[0] = math.sin(angle) * scale[0]
                 view[1] = math.cos(angle) * scale[1]
+            else:                                       # gait_clock, gait_phase
+                extra.write(view, t_s, command)
+                view *= scale
+        for view, low, high in self._clips:
+            np.clip(view, low, high, out=view)
         frame = self._frame
         if self._clip is not None:
             np.clip(frame, -self._clip, self._clip, out=frame)
@@ -122,6 +143,40 @@ class ObservationBuilder:
             stack[:-1] = stack[1:]
         stack[-1] = frame
         return stack.reshape(-1).copy()
+
+
+class _Clock:
+    """A gait clock term's phase through standing and walking (module docstring)."""
+
+    def __init__(self, term) -> None:
+        self.term = term
+        self.reset()
+
+    def reset(self) -> None:
+        self._last_t: float | None = None
+        self._clock_s = 0.0                 #: the clock's own time [s]: t, less what was held
+
+    def write(self, view: np.ndarray, t_s: float, command: Sequence[float]) -> None:
+        term = self.term
+        step = 0.0 if self._last_t is None else t_s - self._last_t
+        self._last_t = t_s
+        standing = (term.when_standing != 'run'
+                    and math.hypot(*(float(c) for c in command)) <= term.standing_below)
+        if not standing:
+            self._clock_s += step
+        elif term.when_standing == 'reset':
+            self._clock_s = 0.0
+        clock_s = t_s if term.when_standing == 'run' else self._clock_s
+        phase = (clock_s % term.period_s / term.period_s + term.offset) % 1.0
+        if term.name == 'gait_phase':
+            view[0] = 0.0 if standing and term.when_standing == 'zero' else phase
+            return
+        if standing and term.when_standing == 'zero':
+            view[:] = 0.0
+            return
+        angle = 2.0 * math.pi * phase
+        first, second = math.sin(angle), math.cos(angle)
+        view[0], view[1] = (first, second) if term.order == 'sin_cos' else (second, first)
 
 
 def _unit(quat_xyzw: Sequence[float]) -> tuple[float, float, float, float]:

@@ -17,8 +17,18 @@ how the observation is made. :func:`load_policy_config` reads such a file as it 
   sin and cos of the phase, command x (lin_vel, lin_vel, ang_vel), (q - default) x dof_pos,
   dq x dof_vel, last action, body angular velocity x ang_vel, base Euler angles x quat; the last
   ``frame_stack`` frames stacked oldest first;
-* **an explicit ``observation:`` list** of terms, each ``- NAME: SCALE`` or ``- NAME: {scale:
-  ..., relative_to_default: ..., period_s: ...}`` (terms: :data:`TERM_SIZES`).
+* **an explicit ``observation:`` list** of terms in the network's order, each ``- NAME: SCALE`` or
+  ``- NAME: {scale: ..., clip: ..., ...}`` (terms: :data:`TERM_SIZES`, under their own or a
+  maker's name: :data:`TERM_ALIASES`; options: :data:`TERM_OPTIONS`): any other policy's
+  observation. A gait clock is ``gait_clock`` (``order: cos_sin`` or ``sin_cos``, ``period_s`` or
+  ``frequency_hz``, ``offset`` as a fraction of a cycle, ``when_standing``: ``run``, ``zero``,
+  ``hold`` or ``reset`` below ``standing_below`` of the command's norm) or ``gait_phase`` (the
+  phase itself, in [0, 1)).
+
+A maker's file is read in its own shape (:mod:`~fall_predictor.robot.deploy_fields`): fields in
+sections (``common:``, ``policy:``), under the maker's names (``stiffness``, ``default_qpos``, or
+any name mapped by ``field_names``), gains and angles per joint as mappings. The schema, with
+examples, is in docs/method.md §13 ("A deploy config of any layout").
 
 Added by this package: ``joint_names`` (required: the MJCF/URDF joint of each action, in the
 policy's order), ``observation_layout`` (default: unitree_rl_gym when its scale fields are there,
@@ -34,20 +44,22 @@ output and the joints.
 from __future__ import annotations
 
 import functools
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Optional, Union
 
 import yaml
 
+from fall_predictor.robot.deploy_fields import (Fields as _Fields, PolicyConfigError, flatten,
+                                                number as _number, numbers as _numbers,
+                                                scale as _scale)
 from fall_predictor.robot.networks import load_network
+from fall_predictor.robot.observation_terms import (CLOCK_TERMS, TERM_SIZES, ObservationTerm,
+                                                   explicit_terms, gait_period)
 
-#: Observation terms -> their size (None: one per joint).
-TERM_SIZES: dict[str, Optional[int]] = {
-    'base_ang_vel': 3, 'projected_gravity': 3, 'base_euler_xyz': 3, 'command': 3,
-    'joint_pos': None, 'joint_vel': None, 'last_action': None, 'gait_phase_sin_cos': 2,
-}
+__all__ = ['PolicyConfig', 'PolicyConfigError', 'ObservationTerm', 'load_policy_config',
+           'read_policy_config']
+
 LAYOUTS = ('unitree_rl_gym', 'humanoid_gym')
 ACTION_OFFSETS = ('default_angles', 'zero')
 #: Unitree's deploy_mujoco.py: the gait period it hard-codes [s].
@@ -59,33 +71,15 @@ _LAYOUT_FIELDS = {'unitree_rl_gym': {'ang_vel_scale', 'dof_pos_scale', 'dof_vel_
 _IGNORED = {'xml_path', 'simulation_duration', 'sim_duration', 'mujoco_model_path', 'control_dt',
             'msg_type', 'imu_type', 'lowcmd_topic', 'lowstate_topic', 'leg_joint2motor_idx',
             'arm_waist_joint2motor_idx', 'arm_waist_kps', 'arm_waist_kds', 'arm_waist_target',
-            'max_cmd'}
+            'max_cmd', 'joint2motor_idx'}
 _KNOWN = {'policy_path', 'joint_names', 'simulation_dt', 'dt', 'control_decimation', 'decimation',
           'kps', 'kds', 'default_angles', 'action_scale', 'action_offset', 'num_actions', 'num_obs',
           'num_single_obs', 'cmd_init', 'observation_layout', 'observation', 'frame_stack',
           'clip_observations', 'clip_actions', 'tau_limit', 'gait_period_s', 'cycle_time',
-          'num_observations'} | _LAYOUT_FIELDS['unitree_rl_gym'] | _LAYOUT_FIELDS['humanoid_gym']
-
-
-class PolicyConfigError(ValueError):
-    """A policy config is missing, malformed or does not fit its network; the message names the
-    file and the field."""
-
-
-@dataclass(frozen=True)
-class ObservationTerm:
-    """One term of the observation: its name (:data:`TERM_SIZES`), scale (one number, or one per
-    element), whether joint positions are taken relative to the default angles, and the gait
-    period [s] of a phase term."""
-
-    name: str
-    scale: tuple[float, ...] = (1.0,)
-    relative_to_default: bool = True
-    period_s: Optional[float] = None
-
-    def size(self, num_joints: int) -> int:
-        n = TERM_SIZES[self.name]
-        return num_joints if n is None else n
+          'num_observations', 'field_names', 'ignored_fields', 'motor_joint_names'} \
+    | _LAYOUT_FIELDS['unitree_rl_gym'] | _LAYOUT_FIELDS['humanoid_gym']
+#: Where the schema of a deploy config is told, for the errors that need it.
+SCHEMA_DOC = 'docs/method.md §13, "A deploy config of any layout"'
 
 
 @dataclass(frozen=True)
@@ -131,8 +125,8 @@ class PolicyConfig:
             if len(term.scale) not in (1, term.size(n)):
                 raise PolicyConfigError(f'{where}: observation term {term.name} needs 1 or '
                                         f'{term.size(n)} scales, got {len(term.scale)}')
-            if term.name == 'gait_phase_sin_cos' and not (term.period_s or 0) > 0:
-                raise PolicyConfigError(f'{where}: observation term gait_phase_sin_cos needs a '
+            if term.name in CLOCK_TERMS and not (term.period_s or 0) > 0:
+                raise PolicyConfigError(f'{where}: observation term {term.name} needs a '
                                         f'period > 0 [s] (gait_period_s or cycle_time)')
 
     @property
@@ -147,7 +141,7 @@ class PolicyConfig:
     @property
     def gait_period_s(self) -> Optional[float]:
         """The period of the policy's gait clock [s] (its phase observation), or None."""
-        return next((t.period_s for t in self.observation if t.name == 'gait_phase_sin_cos'), None)
+        return next((t.period_s for t in self.observation if t.name in CLOCK_TERMS), None)
 
     @property
     def single_obs_size(self) -> int:
@@ -175,61 +169,6 @@ class PolicyConfig:
 
 # -- reading -------------------------------------------------------------------------------------
 
-class _Fields:
-    """Typed access to the YAML mapping, naming the file and field in every error."""
-
-    def __init__(self, path: Path, raw: dict) -> None:
-        self.path, self.raw = path, raw
-
-    def error(self, field: str, text: str) -> PolicyConfigError:
-        return PolicyConfigError(f'{self.path}: {field}: {text}')
-
-    def get(self, field: str, default: Any = ...) -> Any:
-        if field not in self.raw or self.raw[field] is None and default is not ...:
-            if default is ...:
-                raise self.error(field, 'missing (required)')
-            return default
-        return self.raw[field]
-
-    def either(self, first: str, second: str, default: Any = ...) -> Any:
-        """The value of ``first`` or its synonym ``second`` (both given: they must agree)."""
-        if first in self.raw and second in self.raw and self.raw[first] != self.raw[second]:
-            raise self.error(first, f'{self.raw[first]!r} disagrees with {second} {self.raw[second]!r}')
-        if first in self.raw:
-            return self.raw[first]
-        if second in self.raw:
-            return self.raw[second]
-        if default is ...:
-            raise self.error(first, f'missing (required; humanoid-gym calls it {second})')
-        return default
-
-
-def _number(f: _Fields, field: str, value: Any, low: float = -math.inf, positive: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-            or value < low or (positive and value <= 0):
-        bound = '> 0' if positive else (f'>= {low:g}' if low > -math.inf else 'finite')
-        raise f.error(field, f'must be a number {bound}, got {value!r}')
-    return float(value)
-
-
-def _numbers(f: _Fields, field: str, value: Any, n: int, broadcast: bool = True,
-             positive: bool = False) -> tuple[float, ...]:
-    """``n`` numbers from a list of ``n`` (or one number, when ``broadcast``)."""
-    if broadcast and isinstance(value, (int, float)) and not isinstance(value, bool):
-        return (_number(f, field, value, positive=positive),) * n
-    if not isinstance(value, (list, tuple)) or len(value) != n:
-        raise f.error(field, f'must be a list of {n} numbers{" or one number" if broadcast else ""}, '
-                             f'got {value!r}')
-    return tuple(_number(f, field, v, positive=positive) for v in value)
-
-
-def _scale(f: _Fields, field: str, value: Any) -> tuple[float, ...]:
-    values = [value] if not isinstance(value, (list, tuple)) else list(value)
-    if not values:
-        raise f.error(field, 'an empty scale')
-    return tuple(_number(f, field, v) for v in values)
-
-
 def _policy_path(f: _Fields) -> Path:
     text = f.get('policy_path')
     if not isinstance(text, str) or not text:
@@ -248,13 +187,7 @@ def _default_angles(f: _Fields, joints: tuple[str, ...], required: bool) -> tupl
     value = f.get('default_angles', ... if required else None)
     if value is None:
         return (0.0,) * len(joints)
-    if isinstance(value, dict):
-        if set(value) != set(joints):
-            raise f.error('default_angles', f'a mapping must name exactly the joint_names; missing '
-                                            f'{sorted(set(joints) - set(value))}, extra '
-                                            f'{sorted(set(value) - set(joints))}')
-        return tuple(_number(f, 'default_angles', value[j]) for j in joints)
-    return _numbers(f, 'default_angles', value, len(joints), broadcast=False)
+    return _numbers(f, 'default_angles', value, len(joints), broadcast=False, joints=joints)
 
 
 def _layout(f: _Fields) -> str:
@@ -269,24 +202,23 @@ def _layout(f: _Fields) -> str:
         elif 'obs_scales' in f.raw:
             layout = 'humanoid_gym'
         else:
-            raise f.error('observation_layout', f'missing: name one of {LAYOUTS} or give an '
-                                                f'observation list')
+            raise f.error('observation_layout', f'missing: name one of {LAYOUTS} or, for a config '
+                                                f'of another layout, describe the network\'s input '
+                                                f'as an observation: list of terms in its order '
+                                                f'({SCHEMA_DOC})')
     if layout not in LAYOUTS:
         raise f.error('observation_layout', f'must be one of {LAYOUTS}, got {layout!r}')
     return layout
 
 
-def _gait_period(f: _Fields, default: Optional[float]) -> Optional[float]:
-    value = f.either('gait_period_s', 'cycle_time', default)
-    return None if value is None else _number(f, 'gait_period_s', value, positive=True)
-
-
 def _terms(f: _Fields, layout: str) -> tuple[ObservationTerm, ...]:
     foreign = set(f.raw) & (_LAYOUT_FIELDS['unitree_rl_gym'] | _LAYOUT_FIELDS['humanoid_gym'])
     foreign -= _LAYOUT_FIELDS.get(layout, set())
+    foreign = {k for k in foreign if not _ignored(f.where.get(k, k), f.ignored)}
     if foreign:
         raise f.error(sorted(foreign)[0], f'not used by the observation layout {layout} (remove '
-                                          f'it, or choose the layout it belongs to)')
+                                          f'it, list it under ignored_fields, or choose the layout '
+                                          f'it belongs to)')
     if layout == 'unitree_rl_gym':
         scale = {k: _scale(f, k, f.get(k)) for k in sorted(_LAYOUT_FIELDS[layout])}
         return (ObservationTerm('base_ang_vel', scale['ang_vel_scale']),
@@ -295,7 +227,7 @@ def _terms(f: _Fields, layout: str) -> tuple[ObservationTerm, ...]:
                 ObservationTerm('joint_pos', scale['dof_pos_scale']),
                 ObservationTerm('joint_vel', scale['dof_vel_scale']),
                 ObservationTerm('last_action'),
-                ObservationTerm('gait_phase_sin_cos', period_s=_gait_period(f, UNITREE_GAIT_PERIOD_S)))
+                ObservationTerm('gait_phase_sin_cos', period_s=gait_period(f, UNITREE_GAIT_PERIOD_S)))
     if layout == 'humanoid_gym':
         scales = f.get('obs_scales')
         if not isinstance(scales, dict):
@@ -309,45 +241,14 @@ def _terms(f: _Fields, layout: str) -> tuple[ObservationTerm, ...]:
             if key not in scales and default is ...:
                 raise f.error(f'obs_scales.{key}', 'missing (required)')
             return _number(f, f'obs_scales.{key}', scales.get(key, default))
-        return (ObservationTerm('gait_phase_sin_cos', period_s=_gait_period(f, None)),
+        return (ObservationTerm('gait_phase_sin_cos', period_s=gait_period(f, None)),
                 ObservationTerm('command', (s('lin_vel'), s('lin_vel'), s('ang_vel'))),
                 ObservationTerm('joint_pos', (s('dof_pos'),)),
                 ObservationTerm('joint_vel', (s('dof_vel'),)),
                 ObservationTerm('last_action'),
                 ObservationTerm('base_ang_vel', (s('ang_vel'),)),
                 ObservationTerm('base_euler_xyz', (s('quat', 1.0),)))
-    return _explicit_terms(f)
-
-
-def _explicit_terms(f: _Fields) -> tuple[ObservationTerm, ...]:
-    items = f.get('observation')
-    if not isinstance(items, list) or not items:
-        raise f.error('observation', 'must be a non-empty list of terms (- NAME: SCALE)')
-    terms = []
-    for k, item in enumerate(items):
-        field = f'observation[{k}]'
-        if not isinstance(item, dict) or len(item) != 1:
-            raise f.error(field, f'each term is a mapping with one key, the term name, got {item!r}')
-        (name, value), = item.items()
-        if name not in TERM_SIZES:
-            raise f.error(field, f'unknown term {name!r} (known: {", ".join(TERM_SIZES)})')
-        options = value if isinstance(value, dict) else {'scale': 1.0 if value is None else value}
-        unknown = set(options) - {'scale', 'relative_to_default', 'period_s'}
-        if unknown:
-            raise f.error(field, f'unknown options {sorted(unknown)} (scale, relative_to_default, period_s)')
-        relative = options.get('relative_to_default', True)
-        if not isinstance(relative, bool):
-            raise f.error(field, f'relative_to_default must be true or false, got {relative!r}')
-        period = options.get('period_s')
-        if name == 'gait_phase_sin_cos' and period is None:
-            period = _gait_period(f, None)
-            if period is None:
-                raise f.error(field, 'gait_phase_sin_cos needs a period: period_s here, or '
-                                     'gait_period_s (cycle_time)')
-        terms.append(ObservationTerm(name, _scale(f, f'{field}.scale', options.get('scale', 1.0)),
-                                     relative, None if period is None
-                                     else _number(f, f'{field}.period_s', period, positive=True)))
-    return tuple(terms)
+    return explicit_terms(f)
 
 
 def _optional_positive(f: _Fields, field: str) -> Optional[float]:
@@ -366,16 +267,32 @@ def read_policy_config(path: Union[str, Path]) -> PolicyConfig:
         raise PolicyConfigError(f'{path}: not valid YAML: {exc}') from exc
     if not isinstance(raw, dict):
         raise PolicyConfigError(f'{path}: the file must be a mapping of fields')
-    f = _Fields(path, raw)
-    unknown = sorted(set(raw) - _KNOWN - _IGNORED)
+    flat, where = flatten(path, raw)
+    f = _Fields(path, flat, where, raw)
+    ignored = f.get('ignored_fields', [])
+    if not isinstance(ignored, list) or not all(isinstance(i, str) for i in ignored):
+        raise f.error('ignored_fields', f'must be a list of field or section names, got {ignored!r}')
+    # The team's fields a term takes its scale, clip or clock from are read, not unknown.
+    f.ignored = ignored + _references(f, flat.get('observation'))
+    unknown = sorted(k for k in set(flat) - _KNOWN - _IGNORED if not _ignored(where[k], f.ignored))
     if unknown:
-        raise f.error(unknown[0], f'unknown field (known: {", ".join(sorted(_KNOWN))})')
+        raise f.error(unknown[0], f'unknown field (known: {", ".join(sorted(_KNOWN))}; a field of '
+                                  f'your own under another name: field_names: {{{where[unknown[0]]}: '
+                                  f'KNOWN}}; one this package does not use: ignored_fields: '
+                                  f'[{where[unknown[0]]}]; {SCHEMA_DOC})')
     joints = f.get('joint_names')
     if not isinstance(joints, list) or not joints or not all(isinstance(j, str) and j for j in joints):
         raise f.error('joint_names', f'must be the list of the joint of each action, in the '
                                      f'policy\'s order (the MJCF/URDF joint names), got {joints!r}')
     joints = tuple(joints)
     n = len(joints)
+    motors = f.get('motor_joint_names', None)
+    if motors is not None:
+        names = motors if isinstance(motors, list) and all(isinstance(m, str) for m in motors) else []
+        if not names or len(set(names)) != len(names) or set(joints) - set(names):
+            raise f.error('motor_joint_names', f'must list each motor once, every joint_names entry '
+                                               f'among them; missing {sorted(set(joints) - set(names))}')
+        f.motor_order = (motors, [motors.index(j) for j in joints])
     num_actions = f.get('num_actions', n)
     if num_actions != n:
         raise f.error('num_actions', f'{num_actions!r}, but joint_names names {n} joints')
@@ -394,14 +311,15 @@ def read_policy_config(path: Union[str, Path]) -> PolicyConfig:
         source=path, policy_path=_policy_path(f), joint_names=joints,
         physics_dt_s=_number(f, 'simulation_dt', f.either('simulation_dt', 'dt'), positive=True),
         decimation=decimation,
-        kp=_numbers(f, 'kps', f.get('kps'), n),
-        kd=_numbers(f, 'kds', f.get('kds'), n),
+        kp=_numbers(f, 'kps', f.get('kps'), n, joints=joints),
+        kd=_numbers(f, 'kds', f.get('kds'), n, joints=joints),
         default_angles_rad=_default_angles(f, joints, layout == 'unitree_rl_gym'),
-        action_scale=_numbers(f, 'action_scale', f.get('action_scale'), n),
+        action_scale=_numbers(f, 'action_scale', f.get('action_scale'), n, joints=joints),
         observation=_terms(f, layout), observation_layout=layout, action_offset=offset,
         frame_stack=frame_stack, clip_observations=_optional_positive(f, 'clip_observations'),
         clip_actions=_optional_positive(f, 'clip_actions'),
-        tau_limit_nm=None if tau is None else _numbers(f, 'tau_limit', tau, n, positive=True),
+        tau_limit_nm=None if tau is None else _numbers(f, 'tau_limit', tau, n, positive=True,
+                                                       joints=joints),
         command_init=_numbers(f, 'cmd_init', f.get('cmd_init', [0.0, 0.0, 0.0]), 3, broadcast=False))
     if any(k < 0 for k in config.kp + config.kd):
         raise f.error('kps', 'gains must be >= 0')
@@ -414,6 +332,30 @@ def read_policy_config(path: Union[str, Path]) -> PolicyConfig:
         raise f.error('num_observations', f'{total!r}, but {config.single_obs_size} values per frame '
                                           f'x frame_stack {frame_stack} make {config.obs_size}')
     return config
+
+
+def _references(f: _Fields, items: Any) -> list[str]:
+    """The fields of the file an observation list's options name (``scale: policy.dof_vel``),
+    each checked to hold a number."""
+    out = []
+    if isinstance(items, dict):
+        items = [{name: value} for name, value in items.items()]
+    for k, item in enumerate(items if isinstance(items, list) else []):
+        for value in item.values() if isinstance(item, dict) else []:
+            options = value if isinstance(value, dict) else {'scale': value}
+            for key, v in options.items():
+                names = [x for x in (v if isinstance(v, list) else [v]) if isinstance(x, str)]
+                if key not in ('order', 'when_standing') and names:
+                    f.value_at(f'observation[{k}].{key}', names)
+                    out += names
+    return out
+
+
+def _ignored(dotted: str, ignored: list[str]) -> bool:
+    """Whether a field written at ``dotted`` is listed in ``ignored`` (ignored_fields and the
+    fields the observation reads), lies in a section listed, or holds a value listed."""
+    return any(dotted == i or dotted.startswith(i + '.') or i.startswith(dotted + '.')
+               or dotted.rsplit('.', 1)[-1] == i for i in ignored)
 
 
 def load_policy_config(path: Union[str, Path], check_network: bool = True) -> PolicyConfig:

@@ -350,6 +350,9 @@ class StateEstimatorNode(MonitorLifecycleNode):
             period = pipeline.timeline.period_s
             values.update(pipeline.timeline.counters())
             values.update(pipeline.sync.counts)
+            # Samples kept but past a joint's limit or rated speed (monitor/plausibility.py).
+            values['flagged'] = pipeline.counts['flagged']
+            values['last_flag'] = pipeline.last_flags
             values['driving_rate_hz'] = None if not period else round(1.0 / period, 1)
             values['joints_never_received'] = ' '.join(pipeline.sync.joints.never_received())
         if self._converter is not None:
