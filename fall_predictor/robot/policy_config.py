@@ -18,9 +18,9 @@ how the observation is made. :func:`load_policy_config` reads such a file as it 
   dq x dof_vel, last action, body angular velocity x ang_vel, base Euler angles x quat; the last
   ``frame_stack`` frames stacked oldest first;
 * **an explicit ``observation:`` list** of terms in the network's order, each ``- NAME: SCALE`` or
-  ``- NAME: {scale: ..., clip: ..., ...}`` (terms: :data:`TERM_SIZES`, under their own or a
-  maker's name: :data:`TERM_ALIASES`; options: :data:`TERM_OPTIONS`): any other policy's
-  observation. A gait clock is ``gait_clock`` (``order: cos_sin`` or ``sin_cos``, ``period_s`` or
+  ``- NAME: {scale: ..., clip: ..., ...}`` (robot/observation_terms.py: the terms
+  ``TERM_SIZES``, under their own or a maker's name ``TERM_ALIASES``; the options
+  ``TERM_OPTIONS``): any other policy's observation. A gait clock is ``gait_clock`` (``order: cos_sin`` or ``sin_cos``, ``period_s`` or
   ``frequency_hz``, ``offset`` as a fraction of a cycle, ``when_standing``: ``run``, ``zero``,
   ``hold`` or ``reset`` below ``standing_below`` of the command's norm) or ``gait_phase`` (the
   phase itself, in [0, 1)).
