@@ -13,7 +13,7 @@ The reasons are tallied by their first words. Writes one JSON object (also print
 
 Usage::
 
-    python benchmarks/bench_refused_samples.py --data /tmp/g1pol40 \
+    python benchmarks/bench_refused_samples.py --data data/g1pol40 \
         --out docs/estimation/refused_samples_g1_12dof.json
 """
 from __future__ import annotations
