@@ -22,7 +22,8 @@ def emit(args, payload: dict, lines: list[str]) -> None:
 
 def fail(command: str, error: Exception | str) -> int:
     """A dataset, model file or setting that cannot be used: one clear line, exit code 2."""
-    print(f'fall-predictor {command}: error: {error}', file=sys.stderr)
+    from fall_predictor.errors import one_line
+    print(f'fall-predictor {command}: error: {one_line(error)}', file=sys.stderr)
     return 2
 
 

@@ -15,6 +15,7 @@ from typing import Sequence
 import numpy as np
 import pinocchio as pin
 
+from fall_predictor.errors import TeamFileError
 from fall_predictor.monitor import rotations
 
 from fall_predictor.monitor.plausibility import JointBounds
@@ -37,7 +38,7 @@ class SensorLayout:
         return RobotDescription(urdf_xml, self.soles)
 
 
-class DescriptionError(ValueError):
+class DescriptionError(TeamFileError):
     """The robot description cannot serve the estimator; the message says why."""
 
 

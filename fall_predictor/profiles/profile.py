@@ -44,6 +44,7 @@ from typing import Any, Optional, Union
 
 import yaml
 
+from fall_predictor.errors import TeamFileError
 from fall_predictor.monitor.records import SoleGeometry
 from fall_predictor.monitor.robot_description import SIDES, SensorLayout
 
@@ -144,7 +145,19 @@ def _pair(value: Any, where: str) -> tuple[float, float]:
     return float(value[0]), float(value[1])
 
 
-class ProfileError(ValueError):
+#: The keys a profile file may hold (profiles/checks.py names any other with the nearest of these).
+PROFILE_KEYS = frozenset({
+    'name', 'description', 'urdf', 'sim_urdf', 'mjcf', 'simulator', 'total_mass_kg', 'imu_frame',
+    'feet', 'monitor', 'joint_groups', 'servo_gains', 'controller', 'posture', 'push_force_n',
+    'gait_variety', 'sim_ground', 'model', 'controllers', 'default_controller'})
+#: The keys of ``feet.<side>``.
+FOOT_KEYS = frozenset({'foot_link', 'sole_frame', 'sole_length_m', 'sole_width_m',
+                       'sole_origin_in_foot_m', 'force_torque_frame', 'sole_rpy_in_foot'})
+#: The keys of ``monitor``.
+MONITOR_KEYS = frozenset({'fallen_com_height_m', 'guard_com_height_m'})
+
+
+class ProfileError(TeamFileError):
     """A robot profile is missing or malformed; the message names the file and the key."""
 
 

@@ -40,6 +40,7 @@ from typing import Any, Optional, Union
 
 import yaml
 
+from fall_predictor.errors import TeamFileError
 from fall_predictor.robot.networks import load_network
 
 #: Observation terms -> their size (None: one per joint).
@@ -66,7 +67,7 @@ _KNOWN = {'policy_path', 'joint_names', 'simulation_dt', 'dt', 'control_decimati
           'num_observations'} | _LAYOUT_FIELDS['unitree_rl_gym'] | _LAYOUT_FIELDS['humanoid_gym']
 
 
-class PolicyConfigError(ValueError):
+class PolicyConfigError(TeamFileError):
     """A policy config is missing, malformed or does not fit its network; the message names the
     file and the field."""
 

@@ -1,0 +1,323 @@
+"""``fall-predictor check``'s checks that need the simulator: the MJCF against the URDF, and the
+robot standing and walking under each of its controllers; and all of them put together.
+
+Static (:func:`static_checks`, a second or so): the profile and URDF (profiles/checks.py), the
+MJCF (it loads; its joints are the URDF's; its total mass within 1 % of the URDF's; its CoM at the
+default posture within 1 cm of the URDF's; its joint ranges ordered), each learned controller's
+deploy config and network (robot/checks.py), and C_bal's servo table when C_bal drives the robot.
+``generate``, ``calibrate``, ``simulate``, ``render`` and the nodes run it first
+(:func:`require_static_checks`) and refuse a robot that fails it.
+
+Dynamic (:func:`dynamic_checks`, seconds per controller): without any push, a learned policy
+stands 5 s at a zero command and walks 5 s forward and 5 s turning (inside its profile's command
+range); C_bal walks its gait 5 s. Each run must not fall, and a walk must go roughly where it is
+commanded (distance and heading after its first second); a failure names the likely causes.
+"""
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from typing import Any, Optional, Sequence
+
+import numpy as np
+
+from fall_predictor.errors import TeamFileError
+from fall_predictor.profiles.checks import (Check, failed, first_failure, nearest, passed,
+                                            profile_checks, urdf_checks)
+from fall_predictor.profiles.profile import C_BAL, RobotProfile
+
+#: The MJCF's CoM may be this far from the URDF's at the default posture [m].
+COM_TOLERANCE_M = 0.01
+#: The MJCF's mass may be this far from the URDF's [fraction].
+MASS_TOLERANCE = 0.01
+#: Each dynamic run [s], and the part of it a walk's distance and heading are measured over.
+RUN_S = 5.0
+MEASURE_FROM_S = 1.0
+#: A walk's distance along the command must be within these fractions of commanded x time.
+WALK_DISTANCE_FRACTION = (0.4, 1.6)
+#: Heading change allowed when not turning [deg]; a turn's change must be within these fractions.
+STRAIGHT_HEADING_DEG = 30.0
+TURN_FRACTION = (0.4, 1.6)
+#: How far a standing robot may drift [m].
+STAND_DRIFT_M = 0.5
+
+POLICY_CAUSES = ('the left/right (or any) joint order of joint_names', 'default_angles in degrees',
+                 'the sign of action_scale', 'the gait clock (gait_period_s; sin/cos order)',
+                 'kps/kds', 'the IMU frame (the policy reads the base\'s)')
+C_BAL_CAUSES = ('servo_gains', 'the URDF\'s masses and limits', 'the controller section (gait)')
+
+
+class StaticCheckFailed(TeamFileError):
+    """A robot's files fail ``fall-predictor check --static``: the first failure, in one line."""
+
+
+# -- static -------------------------------------------------------------------------------------
+
+def static_checks(robot: Any, controller: Optional[str] = None) -> tuple[list[Check], Optional[RobotProfile]]:
+    """Every static check of ``robot`` (a profile name or path) for ``controller`` (None: each
+    controller the robot has: its learned ones, and C_bal when it is the default or the profile
+    has its servo table), and the profile (None when it does not load)."""
+    from fall_predictor.robot.checks import policy_checks
+
+    checks, profile = profile_checks(robot)
+    if profile is None:
+        return checks, None
+    names = controllers_to_check(profile, controller)
+    unknown = [n for n in names if n != C_BAL and n not in profile.controllers]
+    if unknown:
+        checks.append(failed('controller', f'robot {profile.name!r} has no controller {unknown[0]!r}'
+                             + nearest(unknown[0], profile.controller_names),
+                             f'choose one of {", ".join(profile.controller_names)}', profile.source,
+                             'controllers'))
+        return checks, profile
+    posture = standing_posture(profile, names)
+    checks += urdf_checks(profile, posture)
+    if first_failure(checks) is not None:
+        return checks, profile
+    limits = urdf_joint_limits(profile)
+    if profile.mjcf_path is not None:
+        checks += mjcf_checks(profile, posture, limits)
+    for name in names:
+        if name == C_BAL:
+            checks.append(c_bal_check(profile))
+        else:
+            checks += policy_checks(profile, profile.controllers[name], limits)
+    return checks, profile
+
+
+def controllers_to_check(profile: RobotProfile, controller: Optional[str]) -> list[str]:
+    if controller is not None:
+        return [controller]
+    names = list(profile.controllers)
+    if profile.default_controller == C_BAL or profile.servo_gains:
+        names.insert(0, C_BAL)
+    return names
+
+
+def standing_posture(profile: RobotProfile, controllers: Sequence[str]) -> dict[str, float]:
+    """The joint angles the robot stands at: the first learned controller's default angles (those
+    it starts from), else the profile's posture (legs straight)."""
+    from fall_predictor.robot.policy_config import PolicyConfigError, read_policy_config
+
+    posture = dict(profile.posture)
+    for name in controllers:
+        if name != C_BAL and name in profile.controllers:
+            try:
+                config = read_policy_config(profile.controllers[name].policy_path)
+            except PolicyConfigError:
+                break                        # its own check says why
+            if all(abs(a) <= math.pi for a in config.default_angles_rad):
+                posture.update(zip(config.joint_names, config.default_angles_rad))
+            break
+    return posture
+
+
+def urdf_joint_limits(profile: RobotProfile) -> dict[str, tuple[float, float]]:
+    """The URDF's movable joints: name -> (lower, upper) [rad or m] (continuous: +-inf)."""
+    limits = {}
+    for joint in ET.parse(profile.urdf_path).getroot().iter('joint'):
+        kind = joint.get('type')
+        if kind not in ('revolute', 'continuous', 'prismatic'):
+            continue
+        limit = joint.find('limit')
+        if kind == 'continuous' or limit is None:
+            limits[joint.get('name')] = (-math.inf, math.inf)
+        else:
+            limits[joint.get('name')] = (float(limit.get('lower', 0)), float(limit.get('upper', 0)))
+    return limits
+
+
+def c_bal_check(profile: RobotProfile) -> Check:
+    """C_bal drives every joint through the profile's servo table: an entry for each."""
+    from fall_predictor.profiles import ProfileError
+    missing = []
+    for joint in profile.joint_names:
+        try:
+            profile.gains_for(joint)
+        except ProfileError:
+            missing.append(joint)
+    if missing:
+        return failed('c_bal: servo gains', f'no servo_gains entry for {", ".join(missing[:3])}'
+                      + (' ...' if len(missing) > 3 else ''), 'give C_bal a servo table (copy '
+                      'g1/profile.yaml\'s servo_gains), or run the robot under its learned policy '
+                      '(--controller)', profile.source, 'servo_gains')
+    return passed('c_bal: servo gains', f'an entry for each of the {len(profile.joint_names)} joints')
+
+
+def mjcf_checks(profile: RobotProfile, posture: dict[str, float],
+                urdf_limits: dict[str, tuple[float, float]]) -> list[Check]:
+    """The MJCF loads and agrees with the URDF (module docstring)."""
+    from fall_predictor.sim.mujoco_model import load_model
+    import mujoco
+
+    path = profile.mjcf_path
+    try:
+        model = load_model(profile)
+    except (ValueError, OSError) as error:
+        text = str(error).replace(f'{path}: ', '', 1)
+        return [failed('MJCF loads', text, 'fix the MJCF (or the file it names: meshes, '
+                       'includes)', path, 'mjcf')]
+    checks = [passed('MJCF loads', f'{path.name}: {model.nbody - 1} bodies, {model.njnt} joints')]
+    hinge = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+    joints = {model.joint(j).name: j for j in range(model.njnt) if int(model.jnt_type[j]) in hinge}
+    only_mjcf = sorted(set(joints) - set(urdf_limits))
+    only_urdf = sorted(set(urdf_limits) - set(joints))
+    if only_mjcf or only_urdf:
+        name = (only_mjcf or only_urdf)[0]
+        checks.append(failed('MJCF joints', f'joints only in the MJCF: {only_mjcf}, only in the '
+                             f'URDF: {only_urdf}' + nearest(name, urdf_limits if only_mjcf else joints),
+                             'give the MJCF the URDF\'s joint names', path, name))
+        return checks
+    inverted = [n for n, j in joints.items()
+                if model.jnt_limited[j] and not model.jnt_range[j][0] < model.jnt_range[j][1]]
+    if inverted:
+        checks.append(failed('MJCF joints', f'range not ordered for {", ".join(inverted)}',
+                             'write range="lower upper" with lower < upper', path, inverted[0]))
+    else:
+        checks.append(passed('MJCF joints', f'the URDF\'s {len(joints)} joints, ranges ordered'))
+    checks += _mjcf_mass_and_com(profile, model, joints, posture)
+    return checks
+
+
+def _mjcf_mass_and_com(profile: RobotProfile, model, joints: dict[str, int],
+                       posture: dict[str, float]) -> list[Check]:
+    import mujoco
+
+    from fall_predictor.profiles.checks import standing_geometry
+
+    description = profile.sensor_layout().description(profile.urdf_xml())
+    root = _robot_root(model)
+    bodies = [b for b in range(1, model.nbody) if _under(model, b, root)]
+    mjcf_mass = float(sum(model.body_mass[b] for b in bodies))
+    urdf_mass = description.total_mass_kg
+    path = profile.mjcf_path
+    if abs(mjcf_mass - urdf_mass) > MASS_TOLERANCE * urdf_mass:
+        return [failed('MJCF mass', f'the MJCF\'s bodies weigh {mjcf_mass:.3f} kg, the URDF\'s '
+                       f'links {urdf_mass:.3f} kg', 'make the two models the same robot (the '
+                       '<inertial mass> of each body)', path, 'mass')]
+    data = mujoco.MjData(model)
+    for name, j in joints.items():
+        data.qpos[model.jnt_qposadr[j]] = posture.get(name, 0.0)
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_comPos(model, data)
+    com_mjcf = data.subtree_com[root]
+    rotation = data.xmat[root].reshape(3, 3)
+    com_mjcf_in_root = rotation.T @ (com_mjcf - data.xpos[root])
+    com_urdf, _ = standing_geometry(description, posture)
+    gap = float(np.linalg.norm(com_mjcf_in_root - com_urdf))
+    checks = [passed('MJCF mass', f'{mjcf_mass:.3f} kg, the URDF\'s {urdf_mass:.3f} kg within '
+                     f'{MASS_TOLERANCE:.0%}')]
+    if gap > COM_TOLERANCE_M:
+        checks.append(failed('MJCF CoM', f'at the default posture the MJCF\'s CoM is '
+                             f'{gap * 1000:.0f} mm from the URDF\'s (in the base frame)',
+                             'make the two models the same robot (body positions and inertials)',
+                             path, 'inertial'))
+    else:
+        checks.append(passed('MJCF CoM', f'{gap * 1000:.1f} mm from the URDF\'s at the default posture'))
+    return checks
+
+
+def _robot_root(model) -> int:
+    """The robot's root body: the first child of the world with a joint (its floating base)."""
+    for body in range(1, model.nbody):
+        if model.body_parentid[body] == 0 and model.body_jntnum[body] > 0:
+            return body
+    return 1
+
+
+def _under(model, body: int, root: int) -> bool:
+    while body > 0:
+        if body == root:
+            return True
+        body = model.body_parentid[body]
+    return False
+
+
+def require_static_checks(robot: Any, controller: Optional[str] = None) -> RobotProfile:
+    """The profile of ``robot``, once its static checks pass; else :class:`StaticCheckFailed`
+    with the first failure in one line (and how many more, and the command that lists them)."""
+    checks, profile = static_checks(robot, controller)
+    failures = [c for c in checks if not c.ok and not c.warning]
+    if failures or profile is None:
+        first = failures[0]
+        more = f' ({len(failures) - 1} more)' if len(failures) > 1 else ''
+        raise StaticCheckFailed(f'{first.line()}{more} [fall-predictor check --robot {robot} '
+                                'lists every check]')
+    return profile
+
+
+# -- dynamic ------------------------------------------------------------------------------------
+
+def dynamic_checks(profile: RobotProfile, controller: str, simulator: Optional[str] = None) -> list[Check]:
+    """Runs without a push under ``controller`` (module docstring)."""
+    if controller == C_BAL:
+        return [_run_check(profile, controller, simulator, None, 'walks its gait')]
+    policy = profile.controllers[controller]
+    ranges = policy.command
+    commands = [((0.0, 0.0, 0.0), 'stands')]
+    vx = min(0.5, ranges.vx_m_s[1])
+    if vx >= 0.1:
+        commands.append(((vx, 0.0, 0.0), f'walks forward at {vx:g} m/s'))
+    yaw = min(0.5, ranges.yaw_rate_rad_s[1])
+    if yaw >= 0.1:
+        commands.append(((0.0, 0.0, yaw), f'turns at {yaw:g} rad/s'))
+    return [_run_check(profile, controller, simulator, command, what) for command, what in commands]
+
+
+def _run_check(profile: RobotProfile, controller: str, simulator: Optional[str],
+               command: Optional[tuple[float, float, float]], what: str) -> Check:
+    from fall_predictor.robot.control import make_controller
+    from fall_predictor.sim.policy_runs import physics_dt_s
+    from fall_predictor.sim.trajectory import run_trajectory
+    from fall_predictor.sim.world import make_world
+
+    policy = profile.controller_profile(controller)
+    world = make_world(profile, simulator, physics_dt_s(policy))
+    try:
+        walker = make_controller(profile, controller, command, dt_s=world.dt_s,
+                                 walk_duration_s=RUN_S + 5.0)
+        result = run_trajectory(None, RUN_S, simulator=world, controller=walker)
+    finally:
+        world.close()
+    name = f'{controller}: {what}'
+    causes = C_BAL_CAUSES if policy is None else POLICY_CAUSES
+    where = profile.source if policy is None else policy.policy_path
+    fix = 'check ' + '; '.join(causes)
+    if result.fallen:
+        return failed(name, f'fell at {result.t_fallen:.2f} s with no push', fix, where, None)
+    m = result.measurements
+    start = next(x for x in m if x.t >= MEASURE_FROM_S - 1e-9)
+    end = m[-1]
+    heading0 = start.heading
+    d = np.asarray(end.com[:2]) - np.asarray(start.com[:2])
+    forward = d[0] * math.cos(heading0) + d[1] * math.sin(heading0)
+    lateral = -d[0] * math.sin(heading0) + d[1] * math.cos(heading0)
+    turned = math.degrees(math.remainder(end.heading - heading0, 2 * math.pi))
+    seconds = end.t - start.t
+    found = (f'{forward:+.2f} m forward, {lateral:+.2f} m to the left, turned {turned:+.0f} deg '
+             f'in {seconds:.0f} s')
+    problems = []
+    if command is None:                                      # C_bal's own gait
+        if abs(turned) > STRAIGHT_HEADING_DEG:
+            problems.append('its heading drifts')
+        if forward < -0.05:
+            problems.append('it walks backwards')
+    else:
+        vx, vy, yaw = command
+        if abs(vx) < 1e-9 and abs(yaw) < 1e-9:               # standing
+            if math.hypot(forward, lateral) > STAND_DRIFT_M:
+                problems.append('it drifts at a zero command')
+        elif vx > 0:
+            low, high = (f * vx * seconds for f in WALK_DISTANCE_FRACTION)
+            if not low <= forward <= high:
+                problems.append(f'commanded {vx * seconds:.2f} m forward')
+        if abs(yaw) < 1e-9 and abs(turned) > STRAIGHT_HEADING_DEG:
+            problems.append('commanded no turn')
+        elif abs(yaw) > 1e-9:
+            wanted = math.degrees(yaw * seconds)
+            ratio = turned / wanted
+            if not TURN_FRACTION[0] <= ratio <= TURN_FRACTION[1]:
+                problems.append(f'commanded {wanted:+.0f} deg')
+    if problems:
+        return failed(name, f'{found}: ' + ', '.join(problems), fix, where, None)
+    return passed(name, found + ', never fell')
