@@ -20,9 +20,16 @@ def emit(args, payload: dict, lines: list[str]) -> None:
         sys.stdout = None
 
 
+#: Set by ``--debug`` (cli/main.py): :func:`fail` raises the error instead of its one line.
+DEBUG = False
+
+
 def fail(command: str, error: Exception | str) -> int:
-    """A dataset, model file or setting that cannot be used: one clear line, exit code 2."""
+    """A dataset, model file or setting that cannot be used: one clear line, exit code 2 (with
+    ``--debug``, the error itself, traceback and all)."""
     from fall_predictor.errors import one_line
+    if DEBUG and isinstance(error, BaseException):
+        raise error
     print(f'fall-predictor {command}: error: {one_line(error)}', file=sys.stderr)
     return 2
 
@@ -62,6 +69,14 @@ def controller_of(args) -> tuple[str, str]:
     controller = getattr(args, 'controller', None) or profile.default_controller
     profile.controller_profile(controller)
     return controller, getattr(args, 'simulator', None) or profile.simulator
+
+
+def checked_profile(robot, controller: str | None = None):
+    """The profile of ``robot`` once the static part of ``fall-predictor check`` passes for
+    ``controller`` (sim/checks.py); else ``StaticCheckFailed`` (a TeamFileError: one line naming
+    the file, the field and what to do)."""
+    from fall_predictor.sim.checks import require_static_checks
+    return require_static_checks(robot, controller)
 
 
 def add_scheduler_argument(parser: argparse.ArgumentParser, what: str) -> None:

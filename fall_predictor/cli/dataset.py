@@ -25,13 +25,13 @@ def generation_config(args):
     """The ``GenerationConfig`` of ``generate``'s arguments: another robot's push range, and no gait
     draws for a robot whose controller only stands or whose profile says so (``gait_variety``)."""
     from fall_predictor.data.generation import GenerationConfig
-    from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
+    from fall_predictor.profiles import DEFAULT_ROBOT
     from fall_predictor.sim.pushes import PushDistribution
 
     from fall_predictor.profiles.profile import C_BAL
 
-    profile = load_profile(args.robot)
     controller, simulator = argtypes.controller_of(args)
+    profile = argtypes.checked_profile(args.robot, controller)
     standing = bool(profile.controller.get('gait', {}).get('standing', False))
     extra = {} if args.robot == DEFAULT_ROBOT else {
         'robot': args.robot, 'push_distribution': PushDistribution.for_robot(profile)}
@@ -129,6 +129,8 @@ def cmd_import_bags(args) -> int:
     from fall_predictor.profiles import ProfileError
 
     try:
+        if args.urdf is not None:                   # a broken URDF said now, not per recording
+            _check_urdf(args.urdf)
         push_times = read_push_times(args.push_times) if args.push_times is not None else None
         if all(is_robot_recording(bag) for bag in args.bags):       # a robot's own topics
             urdf = args.urdf.read_text() if args.urdf is not None else None
@@ -141,6 +143,11 @@ def cmd_import_bags(args) -> int:
             report = import_recordings(args.bags, args.out)
     except (DatasetError, OSError, ProfileError) as error:
         return _fail('import-bags', error)
+    if not report.rows and report.rejected:
+        bag, why = next(iter(report.rejected.items()))
+        more = f' ({len(report.rejected) - 1} more rejected)' if len(report.rejected) > 1 else ''
+        return _fail('import-bags', f'no recording imported: {why}{more}; give rosbag2 '
+                                    'directories (each with its metadata.yaml)')
     pushes = read_manifest(args.out).get('push_times')
     no_push = [r.trajectory_id for r in report.rows if r.push_source == PUSH_UNKNOWN]
     payload = {'out': str(args.out), 'imported': len(report.rows),
@@ -159,6 +166,22 @@ def cmd_import_bags(args) -> int:
     lines += [f'REJECTED {bag}: {why}' for bag, why in report.rejected.items()]
     _emit(args, payload, lines)
     return 0 if report.rows else 1
+
+
+def _check_urdf(path: Path) -> None:
+    """ProfileError-like one line (TeamFileError) unless ``path`` is a URDF that parses."""
+    import xml.etree.ElementTree as ET
+
+    from fall_predictor.errors import TeamFileError
+    try:
+        text = path.read_text()
+        root = ET.fromstring(text) if text.strip() else None
+    except (ET.ParseError, OSError, UnicodeDecodeError) as error:
+        raise TeamFileError(f'not a readable URDF: {error}', file=path, field='--urdf',
+                            fix='give the robot\'s URDF (an intact XML file)') from None
+    if root is None or root.tag != 'robot':
+        raise TeamFileError('not a URDF (no <robot> element)', file=path, field='--urdf',
+                            fix='give the robot\'s URDF')
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -46,6 +46,8 @@ def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = DEBUG_FLAG in argv
     argv = [a for a in argv if a != DEBUG_FLAG]
+    from fall_predictor.cli import args as argtypes
+    argtypes.DEBUG = debug
     parser = build_parser()
     args = parser.parse_args(argv)
     args.argv = argv                                    # recorded by sweep
@@ -61,7 +63,8 @@ def main(argv: list[str] | None = None) -> int:
         except Exception as error:              # noqa: BLE001 - one line, whatever it is
             if debug:
                 raise
-            return _one_line_error(args.command, error)
+            # the sub-command's name (args.command may be an option of the same name)
+            return _one_line_error(next(a for a in argv if not a.startswith('-')), error)
 
 
 def _one_line_error(command: str, error: Exception) -> int:

@@ -14,7 +14,7 @@ from fall_predictor.cli.args import emit as _emit, fail as _fail
 
 def cmd_simulate(args) -> int:
     from fall_predictor.monitor.records import PushSpec
-    from fall_predictor.profiles import ProfileError, load_profile
+    from fall_predictor.profiles import ProfileError
     from fall_predictor.robot.control import make_controller
     from fall_predictor.sim.policy_runs import commanded_pushes, physics_dt_s
     from fall_predictor.sim.pushes import PushDistribution, robot_gait
@@ -23,7 +23,7 @@ def cmd_simulate(args) -> int:
 
     try:
         controller_name, simulator = argtypes.controller_of(args)
-        profile = load_profile(args.robot)
+        profile = argtypes.checked_profile(args.robot, controller_name)
         policy = profile.controller_profile(controller_name)
     except ProfileError as error:
         return _fail('simulate', error)
@@ -81,6 +81,16 @@ def cmd_simulate(args) -> int:
     lines.append('reflex: ' + ('none' if result.t_reflex is None else f'fired at {result.t_reflex:.3f} s'))
     lines.append(f'outcome: FALLEN at {result.t_fallen:.3f} s' if result.fallen else 'outcome: balanced')
     _emit(args, payload, lines)
+    if result.fallen and push is None:
+        # No push fells a working robot: its files are wrong (check says which), or the
+        # commanded walk is beyond it.
+        print(f'warning: {profile.name} fell at {result.t_fallen:.2f} s under {controller.name} with '
+              f'no push: run `fall-predictor check --robot {args.robot}` (likely: '
+              + ('the joint order of joint_names, default_angles in degrees, the sign of '
+                 f'action_scale, the gait clock, in {policy.policy_path}' if policy is not None else
+                 f'servo_gains or the controller section of {profile.source}')
+              + (f', or the command {list(controller.velocity_command)} is beyond the policy'
+                 if policy is not None else '') + ')', file=sys.stderr)
     return 0
 
 
@@ -94,7 +104,7 @@ def cmd_render(args) -> int:
     import matplotlib.pyplot as plt
 
     from fall_predictor.monitor.records import PushSpec
-    from fall_predictor.profiles import ProfileError, load_profile
+    from fall_predictor.profiles import ProfileError
     from fall_predictor.robot.control import make_controller
     from fall_predictor.sim.policy_runs import physics_dt_s
     from fall_predictor.sim.trajectory import run_trajectory
@@ -102,10 +112,13 @@ def cmd_render(args) -> int:
 
     try:
         controller_name, simulator = argtypes.controller_of(args)
-        profile = load_profile(args.robot)
+        profile = argtypes.checked_profile(args.robot, controller_name)
         policy = profile.controller_profile(controller_name)
     except ProfileError as error:
         return _fail('render', error)
+    if simulator == 'mujoco':
+        from fall_predictor.sim.gl_backend import choose_mujoco_gl
+        choose_mujoco_gl()
     world = make_world(profile, simulator, physics_dt_s(policy))
     controller = make_controller(profile, controller_name, args.command, dt_s=world.dt_s,
                                  walk_duration_s=args.onset + args.after + 5.0)

@@ -40,9 +40,13 @@ def policy_checks(profile: RobotProfile, policy: PolicyControllerProfile,
     try:
         config = read_policy_config(policy.policy_path)
     except PolicyConfigError as error:
-        return [failed(label + 'deploy config', _without(str(error), policy.policy_path),
+        field = _field(str(error), policy.policy_path)
+        found = _without(str(error), policy.policy_path)
+        if field and found.startswith(f'{field}: '):
+            found = found[len(field) + 2:]
+        return [failed(label + 'deploy config', found,
                        'fix that field (robot/policy_config.py documents each)',
-                       policy.policy_path, _field(str(error), policy.policy_path))]
+                       policy.policy_path, field)]
     checks = [passed(label + 'deploy config', f'{config.observation_layout} observation of '
                      f'{config.obs_size}, {config.num_actions} joints at {1 / config.period_s:g} Hz')]
     unknown = [j for j in config.joint_names if j not in joint_limits]
@@ -55,7 +59,7 @@ def policy_checks(profile: RobotProfile, policy: PolicyControllerProfile,
     try:
         network = load_network(config.policy_path)
     except (ValueError, OSError, EOFError) as error:
-        return checks + [failed(label + 'network', _without(str(error), config.policy_path),
+        return checks + [failed(label + 'network', _without(str(error), str(config.policy_path)),
                                 'export the policy again (TorchScript .pt or ONNX)',
                                 config.policy_path, 'policy_path')]
     try:
@@ -125,9 +129,10 @@ def _still_actions(config, network, label: str) -> Check:
     default = np.asarray(config.default_angles_rad)
     largest = 0.0
     try:
-        for k in range(STILL_STEPS):
-            targets = policy.act(k * config.period_s, sample, config.command_init)
-            largest = max(largest, float(np.max(np.abs(targets - default))))
+        with np.errstate(all='ignore'):     # overflowing weights: said below, not as warnings
+            for k in range(STILL_STEPS):
+                targets = policy.act(k * config.period_s, sample, config.command_init)
+                largest = max(largest, float(np.max(np.abs(targets - default))))
     except NonFiniteActions as error:
         return failed(label + 'actions at rest', error.problem, error.fix or '',
                       config.policy_path, 'policy_path')

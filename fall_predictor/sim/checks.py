@@ -24,7 +24,7 @@ import numpy as np
 from fall_predictor.errors import TeamFileError
 from fall_predictor.profiles.checks import (Check, failed, first_failure, nearest, passed,
                                             profile_checks, urdf_checks)
-from fall_predictor.profiles.profile import C_BAL, RobotProfile
+from fall_predictor.profiles.profile import C_BAL, ProfileError, RobotProfile
 
 #: The MJCF's CoM may be this far from the URDF's at the default posture [m].
 COM_TOLERANCE_M = 0.01
@@ -47,7 +47,7 @@ POLICY_CAUSES = ('the left/right (or any) joint order of joint_names', 'default_
 C_BAL_CAUSES = ('servo_gains', 'the URDF\'s masses and limits', 'the controller section (gait)')
 
 
-class StaticCheckFailed(TeamFileError):
+class StaticCheckFailed(ProfileError):
     """A robot's files fail ``fall-predictor check --static``: the first failure, in one line."""
 
 
@@ -150,14 +150,15 @@ def mjcf_checks(profile: RobotProfile, posture: dict[str, float],
     from fall_predictor.sim.mujoco_model import load_model
     import mujoco
 
-    path = profile.mjcf_path
+    path = mjcf_files(profile.mjcf_path)
     try:
         model = load_model(profile)
     except (ValueError, OSError) as error:
-        text = str(error).replace(f'{path}: ', '', 1)
+        text = getattr(error, 'problem', None) or str(error)
         return [failed('MJCF loads', text, 'fix the MJCF (or the file it names: meshes, '
                        'includes)', path, 'mjcf')]
-    checks = [passed('MJCF loads', f'{path.name}: {model.nbody - 1} bodies, {model.njnt} joints')]
+    checks = [passed('MJCF loads', f'{profile.mjcf_path.name}: {model.nbody - 1} bodies, '
+                     f'{model.njnt} joints')]
     hinge = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
     joints = {model.joint(j).name: j for j in range(model.njnt) if int(model.jnt_type[j]) in hinge}
     only_mjcf = sorted(set(joints) - set(urdf_limits))
@@ -168,8 +169,9 @@ def mjcf_checks(profile: RobotProfile, posture: dict[str, float],
                              f'URDF: {only_urdf}' + nearest(name, urdf_limits if only_mjcf else joints),
                              'give the MJCF the URDF\'s joint names', path, name))
         return checks
-    inverted = [n for n, j in joints.items()
-                if model.jnt_limited[j] and not model.jnt_range[j][0] < model.jnt_range[j][1]]
+    # MuJoCo silently leaves a joint whose range is inverted unlimited ('auto' limits).
+    inverted = [n for n, j in joints.items() if model.jnt_range[j][0] > model.jnt_range[j][1]
+                or (model.jnt_limited[j] and model.jnt_range[j][0] == model.jnt_range[j][1])]
     if inverted:
         checks.append(failed('MJCF joints', f'range not ordered for {", ".join(inverted)}',
                              'write range="lower upper" with lower < upper', path, inverted[0]))
@@ -190,7 +192,7 @@ def _mjcf_mass_and_com(profile: RobotProfile, model, joints: dict[str, int],
     bodies = [b for b in range(1, model.nbody) if _under(model, b, root)]
     mjcf_mass = float(sum(model.body_mass[b] for b in bodies))
     urdf_mass = description.total_mass_kg
-    path = profile.mjcf_path
+    path = mjcf_files(profile.mjcf_path)
     if abs(mjcf_mass - urdf_mass) > MASS_TOLERANCE * urdf_mass:
         return [failed('MJCF mass', f'the MJCF\'s bodies weigh {mjcf_mass:.3f} kg, the URDF\'s '
                        f'links {urdf_mass:.3f} kg', 'make the two models the same robot (the '
@@ -215,6 +217,16 @@ def _mjcf_mass_and_com(profile: RobotProfile, model, joints: dict[str, int],
     else:
         checks.append(passed('MJCF CoM', f'{gap * 1000:.1f} mm from the URDF\'s at the default posture'))
     return checks
+
+
+def mjcf_files(path) -> str:
+    """The MJCF file and those it includes (a scene including its robot's file): where the
+    robot's bodies and joints are."""
+    try:
+        included = [e.get('file') for e in ET.parse(path).getroot().iter('include') if e.get('file')]
+    except (ET.ParseError, OSError):
+        included = []
+    return f'{path} (and {", ".join(included)}, which it includes)' if included else str(path)
 
 
 def _robot_root(model) -> int:
