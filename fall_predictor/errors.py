@@ -35,6 +35,19 @@ class TeamFileError(ValueError):
         super().__init__(text)
 
 
+#: ``--debug`` on the command line: the places that say an error in one line raise it instead.
+_DEBUG = {'on': False}
+
+
+def set_debug(on: bool) -> None:
+    """Keep tracebacks (``--debug``): :func:`debug` tells the one-line printers."""
+    _DEBUG['on'] = bool(on)
+
+
+def debug() -> bool:
+    return _DEBUG['on']
+
+
 def one_line(error: Union[BaseException, str]) -> str:
     """``error``'s message on one line (a YAML or XML parser's multi-line message joined), with
     its type named when the message alone would not say what it is."""

@@ -20,15 +20,11 @@ def emit(args, payload: dict, lines: list[str]) -> None:
         sys.stdout = None
 
 
-#: Set by ``--debug`` (cli/main.py): :func:`fail` raises the error instead of its one line.
-DEBUG = False
-
-
 def fail(command: str, error: Exception | str) -> int:
     """A dataset, model file or setting that cannot be used: one clear line, exit code 2 (with
     ``--debug``, the error itself, traceback and all)."""
-    from fall_predictor.errors import one_line
-    if DEBUG and isinstance(error, BaseException):
+    from fall_predictor.errors import debug, one_line
+    if debug() and isinstance(error, BaseException):
         raise error
     print(f'fall-predictor {command}: error: {one_line(error)}', file=sys.stderr)
     return 2

@@ -46,8 +46,8 @@ def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = DEBUG_FLAG in argv
     argv = [a for a in argv if a != DEBUG_FLAG]
-    from fall_predictor.cli import args as argtypes
-    argtypes.DEBUG = debug
+    from fall_predictor.errors import set_debug
+    set_debug(debug)
     parser = build_parser()
     args = parser.parse_args(argv)
     args.argv = argv                                    # recorded by sweep
