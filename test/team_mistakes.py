@@ -226,6 +226,12 @@ MISTAKES: tuple[Mistake, ...] = (
     Mistake('mjcf_joint_renamed', 'g1_12dof', replace(G1_12_MJCF, 'joint name="left_knee_joint"',
                                                       'joint name="left_knee"'),
             SIM, G1_12_MJCF, 'left_knee'),
+    Mistake('mjcf_foot_body_renamed', 'g1_12dof', replace(G1_12_MJCF, 'body name="left_ankle_roll_link"',
+                                                          'body name="left_foot"'),
+            SIM, 'profile.yaml', 'feet.l.foot_link'),
+    Mistake('mjcf_imu_body_renamed', 'g1_12dof', replace(G1_12_MJCF, '<body name="pelvis"',
+                                                         '<body name="base_link"'),
+            SIM, 'profile.yaml', 'imu_frame'),
     # -- the deploy config ----------------------------------------------------------------------
     Mistake('policy_missing_kps', 'g1_12dof', edit_yaml(POLICY, lambda d: d.pop('kps')), SIM,
             'policy.yaml', 'kps'),
@@ -245,6 +251,8 @@ MISTAKES: tuple[Mistake, ...] = (
             SIM2, 'policy.yaml', 'action_scale'),
     # Sizes, names and values all plausible: only a run shows it (simulate warns, check fails).
     Mistake('policy_sides_swapped', 'g1_12dof', edit_yaml(POLICY, _swap_policy_sides), SIM2,
+            'policy.yaml', 'joint_names', exit_code=0),
+    Mistake('policy_sides_swapped_generate', 'g1_12dof', edit_yaml(POLICY, _swap_policy_sides), GEN,
             'policy.yaml', 'joint_names', exit_code=0),
     Mistake('check_sides_swapped', 'g1_12dof', edit_yaml(POLICY, _swap_policy_sides),
             ('check', '--robot', '{robot}', '--controller', 'unitree_rl_gym'), 'policy.yaml',

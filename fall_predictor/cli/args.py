@@ -75,6 +75,16 @@ def checked_profile(robot, controller: str | None = None):
     return require_static_checks(robot, controller)
 
 
+def unpushed_fall_causes(profile, controller: str) -> str:
+    """Where to look when ``profile``'s robot falls under ``controller`` with no push: the likely
+    causes in its files (``fall-predictor check`` runs it and says more)."""
+    policy = profile.controller_profile(controller)
+    if policy is None:
+        return f'servo_gains or the controller section of {profile.source}'
+    return ('the joint order of joint_names, default_angles in degrees, the sign of action_scale, '
+            f'the gait clock (gait_period_s), in {policy.policy_path}')
+
+
 def add_scheduler_argument(parser: argparse.ArgumentParser, what: str) -> None:
     """``--scheduler ADDRESS``: run ``what`` on a Dask cluster instead of local processes."""
     parser.add_argument('--scheduler', default=None, metavar='ADDRESS',

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 from typing import Optional
@@ -79,6 +80,8 @@ def cmd_generate(args) -> int:
                'machines': cost.get('machines', {}),
                'recorded_past_horizon': {r.trajectory_id: {'fallen': r.fallen, 'after_push_end_s': round(
                    r.t_end - r.t_force_end, 3)} for r in went_on}}
+    before_push = [r for r in rows if r.fallen and r.t_fallen is not None and r.t_fallen < r.t_push]
+    payload['fell_before_push'] = len(before_push)
     machines = ', '.join(f'{host} ({m["cores"]} cores, {m["trajectories"]} traj)'
                          for host, m in payload['machines'].items())
     _emit(args, payload, [f'{len(rows)} trajectories in {args.out} ({fallen} fallen, '
@@ -87,6 +90,16 @@ def cmd_generate(args) -> int:
                           f'simulated s) on {machines}' if payload['cpu_s'] is not None else 'CPU: not recorded',
                           f'{len(went_on)} still moving at the {config.horizon_after_push_s:g} s horizon, '
                           f'recorded until they settled or fell ({sum(r.fallen for r in went_on)} fell)'])
+    if before_push:
+        # A robot that falls before any push has its files wrong (or walks beyond itself): the
+        # dataset's falls are not those of pushes.
+        from fall_predictor.profiles import load_profile
+        profile = load_profile(args.robot)
+        controller = argtypes.controller_of(args)[0]
+        print(f'warning: {len(before_push)} of {len(rows)} runs fell before their push (first at '
+              f'{min(r.t_fallen for r in before_push):.2f} s): run `fall-predictor check --robot '
+              f'{args.robot}` (likely: {argtypes.unpushed_fall_causes(profile, controller)})',
+              file=sys.stderr)
     return 0
 
 

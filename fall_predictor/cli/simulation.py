@@ -86,10 +86,8 @@ def cmd_simulate(args) -> int:
         # commanded walk is beyond it.
         print(f'warning: {profile.name} fell at {result.t_fallen:.2f} s under {controller.name} with '
               f'no push: run `fall-predictor check --robot {args.robot}` (likely: '
-              + ('the joint order of joint_names, default_angles in degrees, the sign of '
-                 f'action_scale, the gait clock, in {policy.policy_path}' if policy is not None else
-                 f'servo_gains or the controller section of {profile.source}')
-              + (f', or the command {list(controller.velocity_command)} is beyond the policy'
+              + argtypes.unpushed_fall_causes(profile, controller_name)
+              + (f'; or the command {list(controller.velocity_command)} is beyond the policy'
                  if policy is not None else '') + ')', file=sys.stderr)
     return 0
 

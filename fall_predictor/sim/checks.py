@@ -155,8 +155,8 @@ def mjcf_checks(profile: RobotProfile, posture: dict[str, float],
         model = load_model(profile)
     except (ValueError, OSError) as error:
         text = getattr(error, 'problem', None) or str(error)
-        return [failed('MJCF loads', text, 'fix the MJCF (or the file it names: meshes, '
-                       'includes)', path, 'mjcf')]
+        return [failed('MJCF loads', _missing_asset(profile.mjcf_path, text) or text,
+                       'fix the MJCF (or the file it names: meshes, includes)', path, 'mjcf')]
     checks = [passed('MJCF loads', f'{profile.mjcf_path.name}: {model.nbody - 1} bodies, '
                      f'{model.njnt} joints')]
     hinge = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
@@ -177,8 +177,36 @@ def mjcf_checks(profile: RobotProfile, posture: dict[str, float],
                              'write range="lower upper" with lower < upper', path, inverted[0]))
     else:
         checks.append(passed('MJCF joints', f'the URDF\'s {len(joints)} joints, ranges ordered'))
-    checks += _mjcf_mass_and_com(profile, model, joints, posture)
+    frames = _mjcf_frames(profile, model, path)
+    checks.append(frames)
+    if frames.ok:
+        checks += _mjcf_mass_and_com(profile, model, joints, posture)
     return checks
+
+
+def _mjcf_frames(profile: RobotProfile, model, path: str) -> Check:
+    """What the MuJoCo world finds in the MJCF: a free base, a ground, each foot link as a body,
+    the IMU frame (a body, a site, or fixed in the URDF to a body)."""
+    import mujoco
+
+    from fall_predictor.sim.mujoco_model import FloatingBase, fixed_frame_in_body, robot_geoms
+
+    for side, foot in profile.feet.items():
+        if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, foot.foot_link) < 0:
+            return failed('MJCF frames', f'foot link {foot.foot_link!r} is not a body of the MJCF',
+                          'name the foot\'s body (the MJCF\'s and the URDF\'s link names agree)',
+                          profile.source, f'feet.{side}.foot_link')
+    try:
+        fixed_frame_in_body(model, profile, profile.imu_frame)
+    except ValueError as error:
+        return failed('MJCF frames', getattr(error, 'problem', str(error)), 'name a body or site '
+                      'of the MJCF, or a URDF link fixed to one', profile.source, 'imu_frame')
+    try:
+        robot_geoms(model, FloatingBase(model, profile.source).body)
+    except ValueError as error:
+        return failed('MJCF frames', str(error).replace(f'{profile.source}: ', ''),
+                      'give the robot a free base and the scene a ground', path, 'worldbody')
+    return passed('MJCF frames', 'a free base, a ground, both feet and the IMU found')
 
 
 def _mjcf_mass_and_com(profile: RobotProfile, model, joints: dict[str, int],
@@ -217,6 +245,30 @@ def _mjcf_mass_and_com(profile: RobotProfile, model, joints: dict[str, int],
     else:
         checks.append(passed('MJCF CoM', f'{gap * 1000:.1f} mm from the URDF\'s at the default posture'))
     return checks
+
+
+def _missing_asset(path, message: str) -> Optional[str]:
+    """MuJoCo's "Error opening file" said as the asset missing from the folder the MJCF names
+    (MuJoCo's own message names a path without its meshdir when the file is absent)."""
+    import re
+    from pathlib import Path
+
+    found = re.search(r"Error opening file '([^']+)'", message)
+    if found is None:
+        return None
+    name = Path(found.group(1)).name
+    folders = []
+    files = [Path(path)]
+    for file in files:
+        try:
+            root = ET.parse(file).getroot()
+        except (ET.ParseError, OSError):
+            continue
+        files += [file.parent / e.get('file') for e in root.iter('include') if e.get('file')]
+        folders += [(file.parent / e.get(key)) for e in root.iter('compiler')
+                    for key in ('meshdir', 'assetdir') if e.get(key)]
+    where = ', '.join(f'{f}/' for f in dict.fromkeys(folders)) or f'{Path(path).parent}/'
+    return f'asset {name!r} is not in {where} (MuJoCo: {message})'
 
 
 def mjcf_files(path) -> str:

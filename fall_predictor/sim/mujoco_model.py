@@ -129,8 +129,10 @@ def fixed_frame_in_body(model: mujoco.MjModel, profile: RobotProfile, frame: str
         body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, link)
         if body >= 0:
             return body, position, rotation
-    raise ValueError(f'{profile.source}: frame {frame!r} is neither a body nor a site of the '
-                     'MuJoCo model, nor fixed in the URDF to a link the model has')
+    raise ProfileError(f'frame {frame!r} is neither a body nor a site of the MuJoCo model, nor '
+                       'fixed in the URDF to a link the model has', file=profile.source,
+                       field='imu_frame' if frame == profile.imu_frame else None,
+                       fix='name a body or site of the MJCF, or a URDF link fixed to one')
 
 
 class FloatingBase:
