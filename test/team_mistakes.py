@@ -212,6 +212,9 @@ MISTAKES: tuple[Mistake, ...] = (
     Mistake('urdf_joint_renamed', 'g1_12dof', replace(G1_12_URDF, 'joint name="left_knee_joint"',
                                                       'joint name="left_knee"'),
             SIM, G1_12_URDF, 'left_knee'),
+    Mistake('urdf_mesh_missing', 'g1', replace(
+        'g1_29dof_rev_1_0.urdf', 'package://example-robot-data/robots/g1_description/meshes/pelvis.STL',
+        'meshes/pelvis.STL'), SIM, 'g1_29dof_rev_1_0.urdf', 'pelvis.STL'),
     Mistake('asimo_urdf_truncated', 'asimo_like', truncate('asimo_like.urdf', 0.3), SIM,
             'asimo_like.urdf', 'XML|line'),
     # -- the MJCF -------------------------------------------------------------------------------

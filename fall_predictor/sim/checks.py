@@ -77,6 +77,8 @@ def static_checks(robot: Any, controller: Optional[str] = None) -> tuple[list[Ch
     limits = urdf_joint_limits(profile)
     if profile.mjcf_path is not None:
         checks += mjcf_checks(profile, posture, limits)
+    else:                                   # the simulator loads the URDF, meshes and all
+        checks.append(urdf_mesh_check(profile))
     for name in names:
         if name == C_BAL:
             checks.append(c_bal_check(profile))
@@ -125,6 +127,23 @@ def urdf_joint_limits(profile: RobotProfile) -> dict[str, tuple[float, float]]:
         else:
             limits[joint.get('name')] = (float(limit.get('lower', 0)), float(limit.get('upper', 0)))
     return limits
+
+
+def urdf_mesh_check(profile: RobotProfile) -> Check:
+    """Every mesh file the simulator's URDF names is there (PyBullet refuses the URDF otherwise)."""
+    from fall_predictor.sim.urdf_loading import MissingPackageError, missing_mesh_files
+
+    path = profile.sim_urdf_path
+    try:
+        missing = missing_mesh_files(path)
+    except MissingPackageError as error:
+        return failed('URDF meshes', str(error), 'install it', path, 'mesh')
+    if missing:
+        return failed('URDF meshes', f'mesh file {missing[0]!r} not found'
+                      + (f' (and {len(missing) - 1} more)' if len(missing) > 1 else ''),
+                      'put the meshes where the URDF names them (relative to its folder)', path,
+                      'mesh')
+    return passed('URDF meshes', f'{path.name}: every mesh file found')
 
 
 def c_bal_check(profile: RobotProfile) -> Check:
@@ -268,7 +287,7 @@ def _missing_asset(path, message: str) -> Optional[str]:
         folders += [(file.parent / e.get(key)) for e in root.iter('compiler')
                     for key in ('meshdir', 'assetdir') if e.get(key)]
     where = ', '.join(f'{f}/' for f in dict.fromkeys(folders)) or f'{Path(path).parent}/'
-    return f'asset {name!r} is not in {where} (MuJoCo: {message})'
+    return f'asset {name!r} is not in {where} (MuJoCo looked for {found.group(1)})'
 
 
 def mjcf_files(path) -> str:
