@@ -41,9 +41,12 @@ def cmd_check(args) -> int:
         if not c.ok or c.warning:
             where = ': '.join(str(p) for p in (c.file, c.field) if p)
             lines.append(f'      fix: {c.fix}' + (f' [{where}]' if where else ''))
-    lines.append(f'{len(checks) - len(failures)} of {len(checks)} checks passed in {wall:.1f} s '
-                 f'(static {static_s:.2f} s)' + ('' if dynamic or args.static else
-                                                 '; the runs wait for the static checks'))
+    warnings = sum(c.warning for c in checks)
+    lines.append(f'{sum(c.ok for c in checks)} of {len(checks)} checks passed'
+                 + (f', {warnings} warning(s)' if warnings else '')
+                 + (f' in {static_s:.2f} s' if args.static else
+                    f' in {wall:.1f} s (static {static_s:.2f} s)')
+                 + ('' if dynamic or args.static else '; the runs wait for the static checks'))
     emit(args, payload, lines)
     return 1 if failures else 0
 
