@@ -27,7 +27,9 @@ def profile_for(robot: str) -> RobotProfile:
             _CHECKED.add(profile.source)
         return profile
     except ProfileError as exc:
-        raise NodeStartupError(f'robot profile: {one_line(exc)}') from exc
+        error = NodeStartupError(f'robot profile: {one_line(exc)}')
+        error.team_file = True              # exit 2 (ros/runner.py): a mistake in a team's file
+        raise error from exc
 
 
 def fallen_config_for(robot: str) -> FallenConfig:
