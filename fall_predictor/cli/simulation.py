@@ -81,11 +81,11 @@ def cmd_simulate(args) -> int:
     lines.append('reflex: ' + ('none' if result.t_reflex is None else f'fired at {result.t_reflex:.3f} s'))
     lines.append(f'outcome: FALLEN at {result.t_fallen:.3f} s' if result.fallen else 'outcome: balanced')
     _emit(args, payload, lines)
-    if result.fallen and push is None:
+    if result.fallen and (push is None or result.t_fallen < push.t_push):
         # No push fells a working robot: its files are wrong (check says which), or the
         # commanded walk is beyond it.
         print(f'warning: {profile.name} fell at {result.t_fallen:.2f} s under {controller.name} with '
-              f'no push: run `fall-predictor check --robot {args.robot}` (likely: '
+              f'no push{"" if push is None else " (before its push)"}: run `fall-predictor check --robot {args.robot}` (likely: '
               + argtypes.unpushed_fall_causes(profile, controller_name)
               + (f'; or the command {list(controller.velocity_command)} is beyond the policy'
                  if policy is not None else '') + ')', file=sys.stderr)
@@ -110,13 +110,13 @@ def cmd_render(args) -> int:
 
     try:
         controller_name, simulator = argtypes.controller_of(args)
+        if simulator == 'mujoco':           # before MuJoCo is imported (the checks load it)
+            from fall_predictor.sim.gl_backend import choose_mujoco_gl
+            choose_mujoco_gl()
         profile = argtypes.checked_profile(args.robot, controller_name)
         policy = profile.controller_profile(controller_name)
     except ProfileError as error:
         return _fail('render', error)
-    if simulator == 'mujoco':
-        from fall_predictor.sim.gl_backend import choose_mujoco_gl
-        choose_mujoco_gl()
     world = make_world(profile, simulator, physics_dt_s(policy))
     controller = make_controller(profile, controller_name, args.command, dt_s=world.dt_s,
                                  walk_duration_s=args.onset + args.after + 5.0)
