@@ -57,9 +57,11 @@ def _edit(path: Path, change) -> None:
 
 def test_an_unknown_key_is_named_with_the_nearest_known_one() -> None:
     found = unknown_keys(Path('p.yaml'), {'name': 'x', 'total_mas_kg': 3,
-                                          'feet': {'l': {'sole_lenght_m': 0.2}}})
+                                          'feet': {'l': {'sole_lenght_m': 0.2}},
+                                          'controllers': {'rl': {'polcy': 'p.yaml'}}})
     assert found == ["total_mas_kg (did you mean 'total_mass_kg'?)",
-                     "feet.l.sole_lenght_m (did you mean 'sole_length_m'?)"]
+                     "feet.l.sole_lenght_m (did you mean 'sole_length_m'?)",
+                     "controllers.rl.polcy (did you mean 'policy'?)"]
     assert nearest('zzz', ['urdf']) == ''
 
 

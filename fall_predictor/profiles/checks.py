@@ -23,8 +23,20 @@ from typing import Any, Iterable, Optional, Sequence
 
 import yaml
 
-from fall_predictor.profiles.profile import (FOOT_KEYS, MONITOR_KEYS, PROFILE_KEYS, ProfileError,
-                                             RobotProfile, load_profile, profile_path)
+from fall_predictor.profiles.profile import (CONTROLLER_KEYS, ProfileError, RobotProfile,
+                                             load_profile, profile_path)
+
+#: The keys a profile file may hold: those profile.py's _parse reads (any other is named, with
+#: the nearest of these).
+PROFILE_KEYS = frozenset({
+    'name', 'description', 'urdf', 'sim_urdf', 'mjcf', 'simulator', 'total_mass_kg', 'imu_frame',
+    'feet', 'monitor', 'joint_groups', 'servo_gains', 'controller', 'posture', 'push_force_n',
+    'gait_variety', 'sim_ground', 'model', 'controllers', 'default_controller'})
+#: The keys of ``feet.<side>``.
+FOOT_KEYS = frozenset({'foot_link', 'sole_frame', 'sole_length_m', 'sole_width_m',
+                       'sole_origin_in_foot_m', 'force_torque_frame', 'sole_rpy_in_foot'})
+#: The keys of ``monitor``.
+MONITOR_KEYS = frozenset({'fallen_com_height_m', 'guard_com_height_m'})
 
 #: How far the profile's total mass may be from the URDF's links' (a fraction).
 MASS_TOLERANCE = 0.01
@@ -74,8 +86,8 @@ def nearest(name: str, known: Iterable[str]) -> str:
 # -- the profile file ---------------------------------------------------------------------------
 
 def unknown_keys(path: Path, raw: Any) -> list[Check]:
-    """Keys the profile's reader does not know, at the top level, in ``feet.<side>`` and in
-    ``monitor``: each named with the nearest known key (a misspelt key is otherwise silently
+    """Keys the profile's reader does not know, at the top level, in ``feet.<side>``, ``monitor``
+    and ``controllers.<name>``: each named with the nearest known key (a misspelt key is otherwise silently
     its default)."""
     found = []
     if not isinstance(raw, dict):
@@ -86,6 +98,9 @@ def unknown_keys(path: Path, raw: Any) -> list[Check]:
             places.append((f'feet.{side}.', foot, FOOT_KEYS))
     if isinstance(raw.get('monitor'), dict):
         places.append(('monitor.', raw['monitor'], MONITOR_KEYS))
+    if isinstance(raw.get('controllers'), dict):
+        places += [(f'controllers.{name}.', fields, CONTROLLER_KEYS)
+                   for name, fields in raw['controllers'].items() if isinstance(fields, dict)]
     for prefix, mapping, known in places:
         for key in mapping:
             if key not in known:

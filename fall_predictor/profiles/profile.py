@@ -90,6 +90,10 @@ class PolicyControllerProfile:
     model: Optional[str] = None
 
 
+#: The keys of ``controllers.<name>``.
+CONTROLLER_KEYS = frozenset({'policy', 'push_force_n', 'command', 'settle_s', 'model'})
+
+
 def parse_controllers(path: Path, raw: Any) -> dict[str, PolicyControllerProfile]:
     """The ``controllers`` mapping of profile ``path`` (ValueError naming the key when wrong)."""
     if raw is None:
@@ -104,7 +108,7 @@ def parse_controllers(path: Path, raw: Any) -> dict[str, PolicyControllerProfile
                              '(its settings are the profile\'s controller section)')
         if not isinstance(fields, dict):
             raise ValueError(f'{path}: {where} must be a mapping')
-        unknown = sorted(set(fields) - {'policy', 'push_force_n', 'command', 'settle_s', 'model'})
+        unknown = sorted(set(fields) - CONTROLLER_KEYS)
         if unknown:
             raise ValueError(f'{path}: {where}: unknown keys {unknown}')
         policy = fields.get('policy')
@@ -143,18 +147,6 @@ def _pair(value: Any, where: str) -> tuple[float, float]:
                        and math.isfinite(v) for v in value) or value[0] > value[1]):
         raise ValueError(f'{where} must be [low, high] (numbers, low <= high), got {value!r}')
     return float(value[0]), float(value[1])
-
-
-#: The keys a profile file may hold (profiles/checks.py names any other with the nearest of these).
-PROFILE_KEYS = frozenset({
-    'name', 'description', 'urdf', 'sim_urdf', 'mjcf', 'simulator', 'total_mass_kg', 'imu_frame',
-    'feet', 'monitor', 'joint_groups', 'servo_gains', 'controller', 'posture', 'push_force_n',
-    'gait_variety', 'sim_ground', 'model', 'controllers', 'default_controller'})
-#: The keys of ``feet.<side>``.
-FOOT_KEYS = frozenset({'foot_link', 'sole_frame', 'sole_length_m', 'sole_width_m',
-                       'sole_origin_in_foot_m', 'force_torque_frame', 'sole_rpy_in_foot'})
-#: The keys of ``monitor``.
-MONITOR_KEYS = frozenset({'fallen_com_height_m', 'guard_com_height_m'})
 
 
 class ProfileError(TeamFileError):

@@ -1,4 +1,4 @@
-"""What a team's deploy config and network can get wrong, found before any simulation.
+"""What a team's deploy config and network can get wrong, found before any simulation (method §13).
 
 For each learned controller a profile names (``controllers.<name>.policy``): the deploy config
 reads (robot/policy_config.py); its joints are the URDF's; the network loads and its sizes fit

@@ -1,5 +1,5 @@
-"""``fall-predictor check``'s checks that need the simulator: the MJCF against the URDF, and the
-robot standing and walking under each of its controllers; and all of them put together.
+"""``fall-predictor check``'s checks that need the simulator (method §13): the MJCF against the
+URDF, and the robot standing and walking under each of its controllers; and all of them together.
 
 Static (:func:`static_checks`, a second or so): the profile and URDF (profiles/checks.py), the
 MJCF (it loads; its joints are the URDF's; its total mass within 1 % of the URDF's; its CoM at the
