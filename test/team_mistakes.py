@@ -257,6 +257,13 @@ MISTAKES: tuple[Mistake, ...] = (
             'policy.yaml', 'joint_names', exit_code=0),
     Mistake('policy_sides_swapped_generate', 'g1_12dof', edit_yaml(POLICY, _swap_policy_sides), GEN,
             'policy.yaml', 'joint_names', exit_code=0),
+    # The gait clock at half its period: the robot walks, not as commanded.
+    Mistake('policy_gait_clock_simulate', 'g1_12dof', edit_yaml(POLICY, lambda d: d.update(gait_period_s=0.4)),
+            ('simulate', '--robot', '{robot}', '--duration', '5', '--command', '0.5', '0', '0'),
+            'policy.yaml', 'gait_period_s', exit_code=0),
+    Mistake('check_gait_clock', 'g1_12dof', edit_yaml(POLICY, lambda d: d.update(gait_period_s=0.4)),
+            ('check', '--robot', '{robot}', '--controller', 'unitree_rl_gym'), 'policy.yaml',
+            'gait_period_s', exit_code=1, slow=True),
     Mistake('check_sides_swapped', 'g1_12dof', edit_yaml(POLICY, _swap_policy_sides),
             ('check', '--robot', '{robot}', '--controller', 'unitree_rl_gym'), 'policy.yaml',
             'joint_names', exit_code=1, slow=True),

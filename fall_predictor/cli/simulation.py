@@ -89,7 +89,31 @@ def cmd_simulate(args) -> int:
               + argtypes.unpushed_fall_causes(profile, controller_name)
               + (f'; or the command {list(controller.velocity_command)} is beyond the policy'
                  if policy is not None else '') + ')', file=sys.stderr)
+    elif policy is not None:
+        _warn_if_off_command(args, profile, controller, result, push)
     return 0
+
+
+#: simulate says when a learned policy does not walk as commanded, over at least this much walk
+#: before any push [s] (from its first second on: sim/checks.py).
+TRACKING_WINDOW_S = 3.0
+
+
+def _warn_if_off_command(args, profile, controller, result, push) -> None:
+    """One warning line when the walk before any push is not the commanded one (sim/checks.py's
+    measure): a policy that walks, but not as told, is a mistake in its files as often as a fall."""
+    from fall_predictor.sim.checks import MEASURE_FROM_S, command_problems
+
+    until = result.measurements[-1].t if push is None else push.t_push
+    if until - MEASURE_FROM_S < TRACKING_WINDOW_S:
+        return
+    found, problems = command_problems(result.measurements, controller.velocity_command, until)
+    if problems:
+        print(f'warning: {profile.name} under {controller.name} at the command '
+              f'{list(controller.velocity_command)}: {found}: {", ".join(problems)}: run '
+              f'`fall-predictor check --robot {args.robot}` (likely: '
+              f'{argtypes.unpushed_fall_causes(profile, controller.name)}; or the command is '
+              'beyond the policy)', file=sys.stderr)
 
 
 def cmd_render(args) -> int:
