@@ -326,13 +326,18 @@ def profile_path(robot: Union[str, Path]) -> Path:
     text = str(robot)
     if text.endswith(('.yaml', '.yml')) or '/' in text:
         path = Path(text).expanduser()
+        if path.is_dir() and (path / PROFILE_FILE).is_file():     # the profile's folder
+            path = path / PROFILE_FILE
         if not path.is_file():
             raise ProfileError(f'robot profile {text!r}: no such file')
         return path.resolve()
     path = PROFILES_DIR / text / PROFILE_FILE
     if not path.is_file():
-        raise ProfileError(f'unknown robot {text!r}: the shipped profiles are '
-                           f'{", ".join(available_profiles())}; or give the path to a profile file')
+        import difflib
+        near = difflib.get_close_matches(text, available_profiles(), n=1)
+        raise ProfileError(f'unknown robot {text!r}' + (f' (did you mean {near[0]!r}?)' if near else '')
+                           + f': the shipped profiles are {", ".join(available_profiles())}; or give '
+                           'the path to a profile file')
     return path
 
 
