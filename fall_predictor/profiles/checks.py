@@ -14,8 +14,12 @@ left) and the fallen and guard heights (method §4, §6) are below the standing 
 """
 from __future__ import annotations
 
+import contextlib
 import difflib
 import math
+import os
+import sys
+import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -79,7 +83,8 @@ def failed(name: str, found: str, fix: str, file: Any = None, field: Optional[st
 
 def nearest(name: str, known: Iterable[str]) -> str:
     """' (did you mean X?)' for the known name nearest ``name``, or ''."""
-    match = difflib.get_close_matches(str(name), list(known), n=1, cutoff=0.6)
+    match = difflib.get_close_matches(str(name), [k for k in known if isinstance(k, str)], n=1,
+                                      cutoff=0.6)
     return f' (did you mean {match[0]!r}?)' if match else ''
 
 
@@ -152,7 +157,10 @@ def _parse_urdf(path: Path) -> ET.Element:
     text = path.read_text()
     if not text.strip():
         raise ET.ParseError('the file is empty')
-    return ET.fromstring(text)
+    root = ET.fromstring(text)
+    if root.tag != 'robot':
+        raise ET.ParseError(f'its root element is <{root.tag}>, not <robot>')
+    return root
 
 
 def urdf_checks(profile: RobotProfile, posture: Optional[dict[str, float]] = None) -> list[Check]:
@@ -165,8 +173,11 @@ def urdf_checks(profile: RobotProfile, posture: Optional[dict[str, float]] = Non
         try:
             roots[key] = path, _parse_urdf(path)
         except (ET.ParseError, OSError, UnicodeDecodeError) as error:
-            checks.append(failed('URDF parses', f'not a valid URDF: {error}', 'fix the XML (a '
-                                 'truncated copy? an unclosed tag?)', path, None))
+            wrong_file = 'root element' in str(error)
+            checks.append(failed('URDF parses', f'not a valid URDF: {error}',
+                                 f'name the robot\'s URDF in {key} (an MJCF goes in mjcf)'
+                                 if wrong_file else 'fix the XML (a truncated copy? an unclosed '
+                                 'tag?)', path, key if wrong_file else None))
     if checks:
         return checks
     path, root = roots['urdf']
@@ -266,10 +277,15 @@ def _model_checks(profile: RobotProfile, posture: dict[str, float]) -> list[Chec
     """Through Pinocchio (the onboard model): mass, feet sides, heights at ``posture``."""
     from fall_predictor.monitor.robot_description import DescriptionError
 
-    try:
-        description = profile.sensor_layout().description(profile.urdf_xml())
-    except DescriptionError as error:
-        return [failed('URDF model', str(error), 'fix the URDF', profile.urdf_path, None)]
+    with _native_stderr() as said:          # urdfdom says why on fd 2: into the message
+        try:
+            description = profile.sensor_layout().description(profile.urdf_xml())
+        except DescriptionError as error:
+            description, failure = None, error
+    if description is None:
+        why = ' '.join(line.strip() for line in said() if line.strip())
+        return [failed('URDF model', str(failure) + (f' ({why})' if why else ''), 'fix the URDF',
+                       profile.urdf_path, None)]
     checks = []
     urdf_mass = description.total_mass_kg
     if abs(profile.total_mass_kg - urdf_mass) > MASS_TOLERANCE * urdf_mass:
@@ -306,6 +322,28 @@ def _model_checks(profile: RobotProfile, posture: dict[str, float]) -> list[Chec
         checks.append(passed('fall heights', f'fallen {fallen:g} m < guard {guard:g} m < standing '
                              f'CoM {height:.3f} m'))
     return checks
+
+
+@contextlib.contextmanager
+def _native_stderr():
+    """What native code writes on file descriptor 2 meanwhile, kept off the terminal: the
+    context gives a function returning its lines."""
+    lines: list[str] = []
+    sys.stderr.flush()
+    try:
+        saved = os.dup(2)
+    except OSError:
+        yield lambda: lines
+        return
+    with tempfile.TemporaryFile(mode='w+') as sink:
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield lambda: lines
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            lines.extend(sink.read().splitlines())
 
 
 def standing_geometry(description, posture: dict[str, float]) -> tuple[Any, dict[str, Any]]:
