@@ -215,6 +215,11 @@ MISTAKES: tuple[Mistake, ...] = (
     Mistake('urdf_mesh_missing', 'g1', replace(
         'g1_29dof_rev_1_0.urdf', 'package://example-robot-data/robots/g1_description/meshes/pelvis.STL',
         'meshes/pelvis.STL'), SIM, 'g1_29dof_rev_1_0.urdf', 'pelvis.STL'),
+    Mistake('urdf_duplicate_link', 'g1_12dof', replace(G1_12_URDF, '<link name="left_hip_roll_link">',
+                                                       '<link name="left_hip_pitch_link">'),
+            SIM, G1_12_URDF, 'not unique'),
+    Mistake('profile_urdf_is_the_mjcf', 'g1_12dof', edit_yaml('profile.yaml', lambda d: d.update(urdf=G1_12_MJCF)),
+            SIM, G1_12_MJCF, 'urdf'),
     Mistake('asimo_urdf_truncated', 'asimo_like', truncate('asimo_like.urdf', 0.3), SIM,
             'asimo_like.urdf', 'XML|line'),
     # -- the MJCF -------------------------------------------------------------------------------
@@ -274,11 +279,17 @@ MISTAKES: tuple[Mistake, ...] = (
             'policy_path'),
     Mistake('policy_not_yaml', 'g1_12dof', write(POLICY, b'kps: [100, 100\n joint_names: ]\n'), SIM,
             'policy.yaml', 'YAML'),
+    Mistake('policy_action_scale_x100', 'g1_12dof', edit_yaml(POLICY, lambda d: d.update(action_scale=25.0)),
+            SIM, 'policy.yaml', 'action_scale'),
     # -- the network ----------------------------------------------------------------------------
     Mistake('network_truncated', 'g1_12dof', truncate(NETWORK), SIM, 'motion.pt', 'policy_path'),
     Mistake('network_empty', 'g1_12dof', write(NETWORK, b''), SIM, 'motion.pt', 'policy_path'),
     Mistake('network_random_bytes', 'g1_12dof', write(NETWORK, bytes(np.random.default_rng(0).integers(
         0, 256, 4096, dtype=np.uint8))), SIM, 'motion.pt', 'policy_path'),
+    Mistake('network_onnx_garbage', 'g1_12dof', both(
+        write('controllers/unitree_rl_gym/motion.onnx', b'not a protobuf'),
+        edit_yaml(POLICY, lambda d: d.update(policy_path='motion.onnx'))), SIM, 'motion.onnx',
+            'policy_path'),
     Mistake('network_weights_1e30', 'g1_12dof', scale_weights(1e30), SIM, 'motion.pt',
             'policy_path|NaN|inf'),
     Mistake('network_weights_nan', 'g1_12dof', scale_weights(float('nan')), SIM, 'motion.pt',

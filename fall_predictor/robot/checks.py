@@ -23,6 +23,9 @@ STILL_STEPS = 50
 #: |action x action_scale| above this at the default posture, upright and still [rad]: a target
 #: this far from the default angles is no stance.
 MAX_STILL_TARGET_OFFSET_RAD = 1.5
+#: The network's own actions at rest beyond this: the network (or its input) is wrong, not the
+#: scale (Unitree's G1 policy: up to 1.4).
+MAX_STILL_ACTION = 20.0
 #: A default angle beyond this [rad] is no joint angle of a humanoid: degrees, most likely.
 DEGREES_LIKE_RAD = math.pi
 #: Default angles may sit this far outside the URDF's limits [rad] (rounding of published values).
@@ -127,22 +130,27 @@ def _still_actions(config, network, label: str) -> Check:
                           np.zeros(n), np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3),
                           np.array([0.0, 0.0, 9.81]))
     default = np.asarray(config.default_angles_rad)
-    largest = 0.0
+    largest = largest_action = 0.0
     try:
         with np.errstate(all='ignore'):     # overflowing weights: said below, not as warnings
             for k in range(STILL_STEPS):
                 targets = policy.act(k * config.period_s, sample, config.command_init)
                 largest = max(largest, float(np.max(np.abs(targets - default))))
+                largest_action = max(largest_action, float(np.max(np.abs(policy.last_action))))
     except NonFiniteActions as error:
         return failed(label + 'actions at rest', error.problem, error.fix or '',
                       config.policy_path, 'policy_path')
     finally:
         network.reset()
     if largest > MAX_STILL_TARGET_OFFSET_RAD:
-        return failed(label + 'actions at rest', f'standing still at the default posture the '
-                      f'targets move up to {largest:.2f} rad from the default angles',
-                      'check the network\'s weights, action_scale and the observation\'s scales',
-                      config.policy_path, 'policy_path')
+        found = (f'standing still at the default posture the targets move up to {largest:.2f} rad '
+                 f'from the default angles (actions up to {largest_action:.1f})')
+        if largest_action <= MAX_STILL_ACTION:          # ordinary actions, scaled too far
+            return failed(label + 'actions at rest', found, 'write the action_scale the policy '
+                          'was trained with (legged_gym: 0.25; radians per action unit)',
+                          config.source, 'action_scale')
+        return failed(label + 'actions at rest', found, 'check the network\'s weights and the '
+                      'observation\'s scales', config.policy_path, 'policy_path')
     return passed(label + 'actions at rest', f'finite, targets within {largest:.2f} rad of the '
                   f'default posture over {STILL_STEPS} steps')
 
