@@ -161,3 +161,15 @@ def test_render_keeps_a_users_gl_choice_and_tries_egl_then_osmesa(monkeypatch) -
     monkeypatch.delenv('MUJOCO_GL')
     with pytest.raises(gl_backend.NoOffscreenGL, match='libosmesa6'):
         gl_backend.choose_mujoco_gl(probe=lambda name: False)
+
+
+def test_every_failure_is_listed_not_only_the_first(tmp_path) -> None:
+    """Mistakes in the profile, the URDF and the deploy config at once: a row for each."""
+    profile = _copy(tmp_path, 'g1_12dof')
+    _edit(profile, lambda d: d['monitor'].update(guard_com_height_m=0.9))
+    urdf = profile.parent / 'g1_12dof.urdf'
+    urdf.write_text(urdf.read_text().replace('<mass value="0.608"/>', '<mass value="-0.608"/>', 1))
+    _edit(profile.parent / 'controllers' / 'unitree_rl_gym' / 'policy.yaml', lambda d: d.update(kds=0))
+    checks, _ = static_checks(profile)
+    failed = {c.name for c in checks if not c.ok}
+    assert {'fall heights', 'URDF masses', 'unitree_rl_gym: PD gains'} <= failed, failed

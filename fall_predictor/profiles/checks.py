@@ -194,10 +194,10 @@ def urdf_checks(profile: RobotProfile, posture: Optional[dict[str, float]] = Non
     links = {link.get('name') for link in root.iter('link')}
     joints = {j.get('name') for j in root.iter('joint')}
     checks.append(_joint_groups(profile, set(_movable(root))))
-    checks.append(_frames(profile, links, joints))
-    if not all(c.ok for c in checks):
-        return checks
-    checks += _model_checks(profile, posture or {})
+    frames = _frames(profile, links, joints)
+    checks.append(frames)
+    if frames.ok:                           # the model needs the feet's links
+        checks += _model_checks(profile, posture or {})
     return checks
 
 
@@ -360,6 +360,3 @@ def standing_geometry(description, posture: dict[str, float]) -> tuple[Any, dict
              for side, frame in description.sole_ids.items()}
     return np.asarray(com).copy(), soles
 
-
-def first_failure(checks: Sequence[Check]) -> Optional[Check]:
-    return next((c for c in checks if not c.ok and not c.warning), None)

@@ -3,7 +3,7 @@ URDF, and the robot standing and walking under each of its controllers; and all 
 
 Static (:func:`static_checks`, a second or so): the profile and URDF (profiles/checks.py), the
 MJCF (it loads; its joints are the URDF's; its total mass within 1 % of the URDF's; its CoM at the
-default posture within 1 cm of the URDF's; its joint ranges ordered), each learned controller's
+default posture within 2 cm of the URDF's; its joint ranges ordered; feet, IMU, base, ground), each learned controller's
 deploy config and network (robot/checks.py), and C_bal's servo table when C_bal drives the robot.
 ``generate``, ``calibrate``, ``simulate``, ``render`` and the nodes run it first
 (:func:`require_static_checks`) and refuse a robot that fails it.
@@ -21,9 +21,8 @@ from typing import Any, Optional, Sequence
 
 import numpy as np
 
-from fall_predictor.errors import TeamFileError
-from fall_predictor.profiles.checks import (Check, failed, first_failure, nearest, passed,
-                                            profile_checks, urdf_checks)
+from fall_predictor.profiles.checks import (Check, failed, nearest, passed, profile_checks,
+                                            urdf_checks)
 from fall_predictor.profiles.profile import C_BAL, ProfileError, RobotProfile
 
 #: The MJCF's CoM may be this far from the URDF's at the default posture [m]: the monitor
@@ -52,6 +51,10 @@ POLICY_CAUSES = ('the left/right (or any) joint order of joint_names', 'default_
 C_BAL_CAUSES = ('servo_gains', 'the URDF\'s masses and limits', 'the controller section (gait)')
 
 
+#: Checks whose failure leaves nothing further to check (the URDF unread, its frames unknown).
+BLOCKING = ('profile loads', 'URDF parses', 'URDF model', 'profile frames')
+
+
 class StaticCheckFailed(ProfileError):
     """A robot's files fail ``fall-predictor check --static``: the first failure, in one line."""
 
@@ -78,8 +81,8 @@ def static_checks(robot: Any, controller: Optional[str] = None,
         return checks, profile
     posture = standing_posture(profile, names)
     checks += urdf_checks(profile, posture)
-    if first_failure(checks) is not None:
-        return checks, profile
+    if any(not c.ok for c in checks if c.name in BLOCKING):
+        return checks, profile              # nothing further can be read
     limits = urdf_joint_limits(profile)
     if profile.mjcf_path is not None:
         checks += mjcf_checks(profile, posture, limits)
