@@ -93,6 +93,9 @@ def static_checks(robot: Any, controller: Optional[str] = None,
             checks.append(c_bal_check(profile))
         else:
             checks += policy_checks(profile, profile.controllers[name], limits)
+            order = actuator_order_check(profile, name)
+            if order is not None:
+                checks.append(order)
     return checks, profile
 
 
@@ -134,11 +137,55 @@ def urdf_joint_limits(profile: RobotProfile) -> dict[str, tuple[float, float]]:
         if kind not in ('revolute', 'continuous', 'prismatic'):
             continue
         limit = joint.find('limit')
-        if kind == 'continuous' or limit is None:
-            limits[joint.get('name')] = (-math.inf, math.inf)
-        else:
-            limits[joint.get('name')] = (float(limit.get('lower', 0)), float(limit.get('upper', 0)))
+        try:
+            bounds = (float(limit.get('lower', 0)), float(limit.get('upper', 0)))
+        except (AttributeError, ValueError):            # none, or not numbers (a failed check)
+            bounds = (-math.inf, math.inf)
+        limits[joint.get('name')] = (-math.inf, math.inf) if kind == 'continuous' else bounds
     return limits
+
+
+def mjcf_actuator_joints(path) -> list[str]:
+    """The joints of the MJCF's actuators, in their order (the order of ``ctrl``), the files it
+    includes read too."""
+    from pathlib import Path
+    files, joints = [Path(path)], []
+    for file in files:
+        try:
+            root = ET.parse(file).getroot()
+        except (ET.ParseError, OSError):
+            continue
+        for element in root.iter():
+            if element.tag == 'include' and element.get('file'):
+                files.append(file.parent / element.get('file'))
+        for actuators in root.iter('actuator'):
+            joints += [a.get('joint') for a in actuators if a.get('joint')]
+    return joints
+
+
+def actuator_order_check(profile: RobotProfile, name: str) -> Optional[Check]:
+    """A warning when a policy's joint_names list the MJCF's actuated joints in another order:
+    teams' sim2sim loops (Unitree's deploy_mujoco) send action k to actuator k, so a policy
+    trained that way lists them in the actuator order. (Joints are matched by name here; the
+    order is the policy's, and may be intended.)"""
+    from fall_predictor.robot.policy_config import PolicyConfigError, read_policy_config
+
+    if profile.mjcf_path is None:
+        return None
+    actuated = mjcf_actuator_joints(profile.mjcf_path)
+    try:
+        config = read_policy_config(profile.controllers[name].policy_path)
+    except PolicyConfigError:
+        return None
+    names = list(config.joint_names)
+    if sorted(actuated) != sorted(names) or actuated == names:
+        return None
+    first = next(k for k, (a, b) in enumerate(zip(actuated, names)) if a != b)
+    return Check(f'{name}: joint order', False, f'joint_names lists {names[first]!r} as action '
+                 f'{first}, the MJCF\'s actuator {first} is {actuated[first]!r}',
+                 'list joint_names in the order the policy was trained with (the actuator order, '
+                 'for a policy trained in that MJCF)', str(config.source), 'joint_names',
+                 warning=True)
 
 
 def urdf_mesh_check(profile: RobotProfile) -> Check:
