@@ -123,14 +123,8 @@ class Simulator:
         pb.changeDynamics(self.plane, -1, lateralFriction=self.config.ground_friction, physicsClientId=c)
         orn = pb.getQuaternionFromEuler((0, 0, torso_yaw_rad))
         # The base link frame at torso_position (PyBullet's base pose is its inertial frame).
-        try:
-            self.robot = pb.loadURDF(self._urdf, torso_position, orn,
-                                     flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=c)
-        except pb.error as error:
-            from fall_predictor.profiles import ProfileError
-            raise ProfileError(f'PyBullet cannot load it: {error}', file=self.profile.sim_urdf_path,
-                               field='sim_urdf', fix='run `fall-predictor check` on the profile '
-                               '(a missing mesh? a malformed link?)') from None
+        self.robot = pb.loadURDF(self._urdf, torso_position, orn,
+                                 flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=c)
         infos = [pb.getJointInfo(self.robot, i, physicsClientId=c)
                  for i in range(pb.getNumJoints(self.robot, physicsClientId=c))]
         #: The actuated joints (fixed joints of frames and sensors aside), in the URDF's order.
