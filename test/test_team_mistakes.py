@@ -29,7 +29,7 @@ def test_a_mistake_is_one_line_naming_the_file_and_the_field(mistake, tmp_path, 
     except SystemExit as exit_:                        # the argument parser's refusal
         code, out, err = exit_.code, '', stderr_lines(capsys.readouterr().err)
     assert code == mistake.exit_code, (code, out, err)
-    if mistake.exit_code == 1:                         # check: a table with the failing row
+    if mistake.is_check:                               # a table with the failing row
         assert '✗' in out and named(mistake, out), out
     else:
         assert len(err) == 1, err

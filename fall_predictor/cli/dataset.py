@@ -9,6 +9,7 @@ from typing import Optional
 
 from fall_predictor.cli import args as argtypes
 from fall_predictor.cli.args import add_robot_argument, emit as _emit, fail as _fail
+from fall_predictor.errors import one_line
 
 
 def _sensor_timing(args, profile) -> Optional[dict]:
@@ -156,11 +157,6 @@ def cmd_import_bags(args) -> int:
             report = import_recordings(args.bags, args.out)
     except (DatasetError, OSError, ProfileError) as error:
         return _fail('import-bags', error)
-    if not report.rows and report.rejected:
-        bag, why = next(iter(report.rejected.items()))
-        more = f' ({len(report.rejected) - 1} more rejected)' if len(report.rejected) > 1 else ''
-        return _fail('import-bags', f'no recording imported: {why}{more}; give rosbag2 '
-                                    'directories (each with its metadata.yaml)')
     pushes = read_manifest(args.out).get('push_times')
     no_push = [r.trajectory_id for r in report.rows if r.push_source == PUSH_UNKNOWN]
     payload = {'out': str(args.out), 'imported': len(report.rows),
@@ -178,6 +174,11 @@ def cmd_import_bags(args) -> int:
             lines.append(f'warning: --push-times names {name}, which is not among the recordings')
     lines += [f'REJECTED {bag}: {why}' for bag, why in report.rejected.items()]
     _emit(args, payload, lines)
+    if not report.rows and report.rejected:         # nothing imported: said on stderr too
+        bag, why = next(iter(report.rejected.items()))
+        more = f' ({len(report.rejected) - 1} more rejected)' if len(report.rejected) > 1 else ''
+        print(f'fall-predictor import-bags: error: no recording imported: {one_line(why)}{more}',
+              file=sys.stderr)
     return 0 if report.rows else 1
 
 
