@@ -47,11 +47,16 @@ def module_name(path: Path) -> str:
 
 
 def sub_package(module: str) -> str:
-    """'fall_predictor.data.bagio' -> 'data'; 'fall_predictor.cli' -> 'cli'; root -> ''."""
+    """'fall_predictor.data.bagio' -> 'data'; 'fall_predictor.cli' -> 'cli'; root (and a module
+    beside its __init__, such as 'fall_predictor.errors') -> ''."""
     parts = module.split('.')
     if len(parts) == 1:
         return ''
-    return 'cli' if parts[1] == '__main__' else parts[1]
+    if parts[1] == '__main__':
+        return 'cli'
+    if len(parts) == 2 and (PACKAGE_DIR / f'{parts[1]}.py').is_file():
+        return ''                       # a module of the root (errors): part of the root
+    return parts[1]
 
 
 def imports(path: Path) -> list[tuple[str, bool]]:

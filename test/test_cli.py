@@ -53,7 +53,7 @@ def test_stats_json_and_exit_code_on_a_damaged_dataset(small_dataset, tmp_path, 
 
 SUBCOMMANDS = ('simulate', 'generate', 'stats', 'train', 'rules', 'evaluate', 'fit-direction',
                'fit-time-to-fall', 'sweep', 'import-bags', 'bringup', 'robustness', 'repair-bag', 'estimation-error',
-               'calibrate', 'render')
+               'calibrate', 'render', 'check')
 
 #: Makes every ROS 2 Python package unimportable (rclpy, message packages, ament, launch), as
 #: on a machine without ROS; then runs the command line given as JSON on argv[1], one

@@ -332,8 +332,9 @@ def test_both_model_readers_find_the_robots_model_without_a_path_or_say_why(monk
 
 
 def test_predictor_process_refuses_to_start_with_a_clear_error(tmp_path: Path) -> None:
-    """Missing, corrupt, FIFO, device, oversized model, invalid parameter: exit code 1, one
-    FATAL line naming the problem, no traceback, no hang (processes started at once)."""
+    """Missing, corrupt, FIFO, device, oversized model: exit code 2 (a mistake in a file, as
+    the command line's); an invalid parameter: 1; each one FATAL line naming the problem, no
+    traceback, no hang (processes started at once)."""
     good = write_momentum_model(tmp_path / 'good.json')
     corrupt = tmp_path / 'corrupt.json'
     corrupt.write_text(good.read_text()[:200])
@@ -357,7 +358,7 @@ def test_predictor_process_refuses_to_start_with_a_clear_error(tmp_path: Path) -
     for name, process in processes.items():
         output, _ = process.communicate(timeout=60)
         expected = cases[name][1]
-        assert process.returncode == 1, (name, output)
+        assert process.returncode == (1 if name == 'bad tau_his' else 2), (name, output)
         assert 'Traceback' not in output, (name, output)
         fatal = [line for line in output.splitlines() if '[FATAL]' in line]
         assert len(fatal) == 1 and 'cannot start' in fatal[0] and expected in fatal[0], output
@@ -394,3 +395,22 @@ def test_simulated_robot_closes_the_lock_step_loop_in_process() -> None:
     assert counts['missed_commands'] == 0 and counts['late_commands'] == 0
     assert counts['steps'] >= steps
     assert np.array_equal(sim_com, offline[round(sim_t * 1000)].com)
+
+
+def test_a_node_refuses_a_profile_that_fails_its_static_checks_in_one_line(tmp_path: Path) -> None:
+    """A team's profile whose mass is not its URDF's: the node exits 2 with one FATAL line naming
+    the profile file, the field and the value to write (sim/checks.py), no traceback."""
+    import shutil
+    profiles = Path(__file__).resolve().parents[1] / 'fall_predictor' / 'profiles'
+    shutil.copytree(profiles / 'g1_12dof', tmp_path / 'g1_12dof')
+    profile = tmp_path / 'g1_12dof' / 'profile.yaml'
+    profile.write_text(profile.read_text().replace('total_mass_kg: 32.106857', 'total_mass_kg: 60'))
+    done = subprocess.run([sys.executable, '-m', 'fall_predictor.ros.predictor_node', '--ros-args',
+                           '-p', f'robot:={profile}'], env=ros_environment(DOMAIN),
+                          capture_output=True, text=True, timeout=60)
+    output = done.stdout + done.stderr
+    assert done.returncode == 2, output
+    assert 'Traceback' not in output
+    fatal = [line for line in output.splitlines() if '[FATAL]' in line]
+    assert len(fatal) == 1 and str(profile) in fatal[0] and 'total_mass_kg' in fatal[0], output
+    assert 'write total_mass_kg: 32.107' in fatal[0]

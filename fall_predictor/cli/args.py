@@ -21,8 +21,12 @@ def emit(args, payload: dict, lines: list[str]) -> None:
 
 
 def fail(command: str, error: Exception | str) -> int:
-    """A dataset, model file or setting that cannot be used: one clear line, exit code 2."""
-    print(f'fall-predictor {command}: error: {error}', file=sys.stderr)
+    """A dataset, model file or setting that cannot be used: one clear line, exit code 2 (with
+    ``--debug``, the error itself, traceback and all)."""
+    from fall_predictor.errors import debug, one_line
+    if debug() and isinstance(error, BaseException):
+        raise error
+    print(f'fall-predictor {command}: error: {one_line(error)}', file=sys.stderr)
     return 2
 
 
@@ -62,6 +66,24 @@ def controller_of(args) -> tuple[str, str]:
     controller = getattr(args, 'controller', None) or profile.default_controller
     profile.controller_profile(controller)
     return controller, getattr(args, 'simulator', None) or profile.simulator
+
+
+def checked_profile(robot, controller: str | None = None):
+    """The profile of ``robot`` once the static part of ``fall-predictor check`` passes for
+    ``controller`` (sim/checks.py); else ``StaticCheckFailed`` (a TeamFileError: one line naming
+    the file, the field and what to do)."""
+    from fall_predictor.sim.checks import require_static_checks
+    return require_static_checks(robot, controller)
+
+
+def unpushed_fall_causes(profile, controller: str) -> str:
+    """Where to look when ``profile``'s robot falls under ``controller`` with no push: the likely
+    causes in its files (``fall-predictor check`` runs it and says more)."""
+    policy = profile.controller_profile(controller)
+    if policy is None:
+        return f'servo_gains or the controller section of {profile.source}'
+    return ('the joint order of joint_names, default_angles in degrees, the sign of action_scale, '
+            f'the gait clock (gait_period_s), in {policy.policy_path}')
 
 
 def add_scheduler_argument(parser: argparse.ArgumentParser, what: str) -> None:

@@ -9,6 +9,7 @@ from typing import Optional
 
 from fall_predictor.cli import args as argtypes
 from fall_predictor.cli.args import add_robot_argument, emit as _emit, fail as _fail
+from fall_predictor.errors import one_line
 
 
 def _sensor_timing(args, profile) -> Optional[dict]:
@@ -26,13 +27,13 @@ def generation_config(args):
     """The ``GenerationConfig`` of ``generate``'s arguments: another robot's push range, and no gait
     draws for a robot whose controller only stands or whose profile says so (``gait_variety``)."""
     from fall_predictor.data.generation import GenerationConfig
-    from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
+    from fall_predictor.profiles import DEFAULT_ROBOT
     from fall_predictor.sim.pushes import PushDistribution
 
     from fall_predictor.profiles.profile import C_BAL
 
-    profile = load_profile(args.robot)
     controller, simulator = argtypes.controller_of(args)
+    profile = argtypes.checked_profile(args.robot, controller)
     standing = bool(profile.controller.get('gait', {}).get('standing', False))
     extra = {} if args.robot == DEFAULT_ROBOT else {
         'robot': args.robot, 'push_distribution': PushDistribution.for_robot(profile)}
@@ -84,6 +85,8 @@ def cmd_generate(args) -> int:
                'machines': cost.get('machines', {}),
                'recorded_past_horizon': {r.trajectory_id: {'fallen': r.fallen, 'after_push_end_s': round(
                    r.t_end - r.t_force_end, 3)} for r in went_on}}
+    before_push = [r for r in rows if r.fallen and r.t_fallen is not None and r.t_fallen < r.t_push]
+    payload['fell_before_push'] = len(before_push)
     machines = ', '.join(f'{host} ({m["cores"]} cores, {m["trajectories"]} traj)'
                          for host, m in payload['machines'].items())
     _emit(args, payload, [f'{len(rows)} trajectories in {args.out} ({fallen} fallen, '
@@ -92,6 +95,16 @@ def cmd_generate(args) -> int:
                           f'simulated s) on {machines}' if payload['cpu_s'] is not None else 'CPU: not recorded',
                           f'{len(went_on)} still moving at the {config.horizon_after_push_s:g} s horizon, '
                           f'recorded until they settled or fell ({sum(r.fallen for r in went_on)} fell)'])
+    if before_push:
+        # A robot that falls before any push has its files wrong (or walks beyond itself): the
+        # dataset's falls are not those of pushes.
+        from fall_predictor.profiles import load_profile
+        profile = load_profile(args.robot)
+        controller = argtypes.controller_of(args)[0]
+        print(f'warning: {len(before_push)} of {len(rows)} runs fell before their push (first at '
+              f'{min(r.t_fallen for r in before_push):.2f} s): run `fall-predictor check --robot '
+              f'{args.robot}` (likely: {argtypes.unpushed_fall_causes(profile, controller)})',
+              file=sys.stderr)
     return 0
 
 
@@ -134,6 +147,8 @@ def cmd_import_bags(args) -> int:
     from fall_predictor.profiles import ProfileError
 
     try:
+        if args.urdf is not None:                   # a broken URDF said now, not per recording
+            _check_urdf(args.urdf)
         push_times = read_push_times(args.push_times) if args.push_times is not None else None
         if all(is_robot_recording(bag) for bag in args.bags):       # a robot's own topics
             urdf = args.urdf.read_text() if args.urdf is not None else None
@@ -163,7 +178,28 @@ def cmd_import_bags(args) -> int:
             lines.append(f'warning: --push-times names {name}, which is not among the recordings')
     lines += [f'REJECTED {bag}: {why}' for bag, why in report.rejected.items()]
     _emit(args, payload, lines)
+    if not report.rows and report.rejected:         # nothing imported: said on stderr too
+        bag, why = next(iter(report.rejected.items()))
+        more = f' ({len(report.rejected) - 1} more rejected)' if len(report.rejected) > 1 else ''
+        print(f'fall-predictor import-bags: error: no recording imported: {one_line(why)}{more}',
+              file=sys.stderr)
     return 0 if report.rows else 1
+
+
+def _check_urdf(path: Path) -> None:
+    """ProfileError-like one line (TeamFileError) unless ``path`` is a URDF that parses."""
+    import xml.etree.ElementTree as ET
+
+    from fall_predictor.errors import TeamFileError
+    try:
+        text = path.read_text()
+        root = ET.fromstring(text) if text.strip() else None
+    except (ET.ParseError, OSError, UnicodeDecodeError) as error:
+        raise TeamFileError(f'not a readable URDF: {error}', file=path, field='--urdf',
+                            fix='give the robot\'s URDF (an intact XML file)') from None
+    if root is None or root.tag != 'robot':
+        raise TeamFileError('not a URDF (no <robot> element)', file=path, field='--urdf',
+                            fix='give the robot\'s URDF')
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -20,6 +20,7 @@ def cmd_robustness(args) -> int:
     from fall_predictor.profiles import ProfileError
     try:
         controller, simulator = argtypes.controller_of(args)
+        argtypes.checked_profile(args.robot, controller)
     except ProfileError as error:
         return fail('robustness', error)
     grid = RobustnessGrid(impulses_ns=tuple(args.impulses), n_phases=args.phases,
@@ -64,12 +65,12 @@ def cmd_calibrate(args) -> int:
     from joblib import delayed
 
     from fall_predictor.data.parallel import compute_parallel, progress_bar
-    from fall_predictor.profiles import ProfileError, load_profile
+    from fall_predictor.profiles import ProfileError
     from fall_predictor.sim.calibration import PROBE_FORCE_N_PER_KG, CalibrationSetup, calibrate
 
     try:
         controller, simulator = argtypes.controller_of(args)
-        profile = load_profile(args.robot)
+        profile = argtypes.checked_profile(args.robot, controller)
     except ProfileError as error:
         return fail('calibrate', error)
     probe = args.probe_force or PROBE_FORCE_N_PER_KG * profile.total_mass_kg

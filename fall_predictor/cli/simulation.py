@@ -14,7 +14,7 @@ from fall_predictor.cli.args import emit as _emit, fail as _fail
 
 def cmd_simulate(args) -> int:
     from fall_predictor.monitor.records import PushSpec
-    from fall_predictor.profiles import ProfileError, load_profile
+    from fall_predictor.profiles import ProfileError
     from fall_predictor.robot.control import make_controller
     from fall_predictor.sim.policy_runs import commanded_pushes, physics_dt_s
     from fall_predictor.sim.pushes import PushDistribution, robot_gait
@@ -23,7 +23,7 @@ def cmd_simulate(args) -> int:
 
     try:
         controller_name, simulator = argtypes.controller_of(args)
-        profile = load_profile(args.robot)
+        profile = argtypes.checked_profile(args.robot, controller_name)
         policy = profile.controller_profile(controller_name)
     except ProfileError as error:
         return _fail('simulate', error)
@@ -81,7 +81,39 @@ def cmd_simulate(args) -> int:
     lines.append('reflex: ' + ('none' if result.t_reflex is None else f'fired at {result.t_reflex:.3f} s'))
     lines.append(f'outcome: FALLEN at {result.t_fallen:.3f} s' if result.fallen else 'outcome: balanced')
     _emit(args, payload, lines)
+    if result.fallen and (push is None or result.t_fallen < push.t_push):
+        # No push fells a working robot: its files are wrong (check says which), or the
+        # commanded walk is beyond it.
+        print(f'warning: {profile.name} fell at {result.t_fallen:.2f} s under {controller.name} with '
+              f'no push{"" if push is None else " (before its push)"}: run `fall-predictor check --robot {args.robot}` (likely: '
+              + argtypes.unpushed_fall_causes(profile, controller_name)
+              + (f'; or the command {list(controller.velocity_command)} is beyond the policy'
+                 if policy is not None else '') + ')', file=sys.stderr)
+    elif policy is not None:
+        _warn_if_off_command(args, profile, controller, result, push)
     return 0
+
+
+#: simulate says when a learned policy does not walk as commanded, over at least this much walk
+#: before any push [s] (from its first second on: sim/checks.py).
+TRACKING_WINDOW_S = 3.0
+
+
+def _warn_if_off_command(args, profile, controller, result, push) -> None:
+    """One warning line when the walk before any push is not the commanded one (sim/checks.py's
+    measure): a policy that walks, but not as told, is a mistake in its files as often as a fall."""
+    from fall_predictor.sim.checks import MEASURE_FROM_S, command_problems
+
+    until = result.measurements[-1].t if push is None else push.t_push
+    if until - MEASURE_FROM_S < TRACKING_WINDOW_S:
+        return
+    found, problems = command_problems(result.measurements, controller.velocity_command, until)
+    if problems:
+        print(f'warning: {profile.name} under {controller.name} at the command '
+              f'{list(controller.velocity_command)}: {found}: {", ".join(problems)}: run '
+              f'`fall-predictor check --robot {args.robot}` (likely: '
+              f'{argtypes.unpushed_fall_causes(profile, controller.name)}; or the command is '
+              'beyond the policy)', file=sys.stderr)
 
 
 def cmd_render(args) -> int:
@@ -94,7 +126,7 @@ def cmd_render(args) -> int:
     import matplotlib.pyplot as plt
 
     from fall_predictor.monitor.records import PushSpec
-    from fall_predictor.profiles import ProfileError, load_profile
+    from fall_predictor.profiles import ProfileError
     from fall_predictor.robot.control import make_controller
     from fall_predictor.sim.policy_runs import physics_dt_s
     from fall_predictor.sim.trajectory import run_trajectory
@@ -102,7 +134,10 @@ def cmd_render(args) -> int:
 
     try:
         controller_name, simulator = argtypes.controller_of(args)
-        profile = load_profile(args.robot)
+        if simulator == 'mujoco':           # before MuJoCo is imported (the checks load it)
+            from fall_predictor.sim.gl_backend import choose_mujoco_gl
+            choose_mujoco_gl()
+        profile = argtypes.checked_profile(args.robot, controller_name)
         policy = profile.controller_profile(controller_name)
     except ProfileError as error:
         return _fail('render', error)

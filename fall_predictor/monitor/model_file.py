@@ -67,6 +67,7 @@ from pathlib import Path
 from typing import Any, Optional, Union
 
 from fall_predictor import __version__
+from fall_predictor.errors import TeamFileError
 from fall_predictor.monitor.features import FeatureSettings
 from fall_predictor.monitor.fileio import atomic_output, read_regular_file
 from fall_predictor.monitor.decision_list import (COMPARISON_OPS, Condition, DecisionList,
@@ -94,7 +95,7 @@ _CLASS_BY_NAME = {CLASS_NAMES[BALANCED]: BALANCED, CLASS_NAMES[FALLING]: FALLING
 PathLike = Union[str, 'os.PathLike[str]']
 
 
-class ModelFileError(ValueError):
+class ModelFileError(TeamFileError):
     """A model file that cannot be read or is not a valid model; the message names the file."""
 
 

@@ -15,6 +15,7 @@ from typing import Optional, Sequence
 import numpy as np
 import pinocchio as pin
 
+from fall_predictor.errors import TeamFileError
 from fall_predictor.monitor import rotations
 
 from fall_predictor.monitor.plausibility import JointBounds
@@ -67,7 +68,7 @@ def joint_limits_of(raw: object, where: str = 'monitor.joint_limits') -> dict[st
     return out
 
 
-class DescriptionError(ValueError):
+class DescriptionError(TeamFileError):
     """The robot description cannot serve the estimator; the message says why."""
 
 

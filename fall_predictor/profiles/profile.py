@@ -45,6 +45,7 @@ from typing import Any, Optional, Union
 import yaml
 
 from fall_predictor.monitor.lowstate import LowStateProfile, parse_unitree_hg
+from fall_predictor.errors import TeamFileError
 from fall_predictor.monitor.records import SoleGeometry
 from fall_predictor.monitor.robot_description import SIDES, SensorLayout, joint_limits_of
 
@@ -88,6 +89,10 @@ class PolicyControllerProfile:
     model: Optional[str] = None
 
 
+#: The keys of ``controllers.<name>``.
+CONTROLLER_KEYS = frozenset({'policy', 'push_force_n', 'command', 'settle_s', 'model'})
+
+
 def parse_controllers(path: Path, raw: Any) -> dict[str, PolicyControllerProfile]:
     """The ``controllers`` mapping of profile ``path`` (ValueError naming the key when wrong)."""
     if raw is None:
@@ -102,7 +107,7 @@ def parse_controllers(path: Path, raw: Any) -> dict[str, PolicyControllerProfile
                              '(its settings are the profile\'s controller section)')
         if not isinstance(fields, dict):
             raise ValueError(f'{path}: {where} must be a mapping')
-        unknown = sorted(set(fields) - {'policy', 'push_force_n', 'command', 'settle_s', 'model'})
+        unknown = sorted(set(fields) - CONTROLLER_KEYS)
         if unknown:
             raise ValueError(f'{path}: {where}: unknown keys {unknown}')
         policy = fields.get('policy')
@@ -143,7 +148,7 @@ def _pair(value: Any, where: str) -> tuple[float, float]:
     return float(value[0]), float(value[1])
 
 
-class ProfileError(ValueError):
+class ProfileError(TeamFileError):
     """A robot profile is missing or malformed; the message names the file and the key."""
 
 
@@ -326,13 +331,18 @@ def profile_path(robot: Union[str, Path]) -> Path:
     text = str(robot)
     if text.endswith(('.yaml', '.yml')) or '/' in text:
         path = Path(text).expanduser()
+        if path.is_dir() and (path / PROFILE_FILE).is_file():     # the profile's folder
+            path = path / PROFILE_FILE
         if not path.is_file():
             raise ProfileError(f'robot profile {text!r}: no such file')
         return path.resolve()
     path = PROFILES_DIR / text / PROFILE_FILE
     if not path.is_file():
-        raise ProfileError(f'unknown robot {text!r}: the shipped profiles are '
-                           f'{", ".join(available_profiles())}; or give the path to a profile file')
+        import difflib
+        near = difflib.get_close_matches(text, available_profiles(), n=1)
+        raise ProfileError(f'unknown robot {text!r}' + (f' (did you mean {near[0]!r}?)' if near else '')
+                           + f': the shipped profiles are {", ".join(available_profiles())}; or give '
+                           'the path to a profile file')
     return path
 
 

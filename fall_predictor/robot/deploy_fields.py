@@ -25,6 +25,8 @@ import math
 from pathlib import Path
 from typing import Any, Optional
 
+from fall_predictor.errors import TeamFileError
+
 #: The maker's names of the package's fields (each its own field when the package's is absent).
 SYNONYMS: dict[str, str] = {
     'kp': 'kps', 'stiffness': 'kps', 'p_gains': 'kps', 'kp_gains': 'kps',
@@ -44,7 +46,7 @@ PER_JOINT = ('kps', 'kds', 'action_scale', 'tau_limit', 'default_angles')
 MAPPING_FIELDS = frozenset({'obs_scales', 'field_names', 'observation', *PER_JOINT})
 
 
-class PolicyConfigError(ValueError):
+class PolicyConfigError(TeamFileError):
     """A policy config is missing, malformed or does not fit its network; the message names the
     file and the field."""
 

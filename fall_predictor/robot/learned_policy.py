@@ -26,10 +26,15 @@ from typing import Optional, Sequence, Union
 
 import numpy as np
 
+from fall_predictor.errors import TeamFileError
 from fall_predictor.monitor.sensor_records import SensorSample
 from fall_predictor.robot.networks import PolicyNetwork, load_network
 from fall_predictor.robot.observations import ObservationBuilder
 from fall_predictor.robot.policy_config import PolicyConfig, load_policy_config
+
+
+class NonFiniteActions(TeamFileError):
+    """The network gave NaN or inf: its file is named (weights that overflow, or NaN in them)."""
 
 
 class LearnedPolicy:
@@ -121,6 +126,13 @@ class LearnedPolicy:
                                       np.asarray(sensors.q)[index], np.asarray(sensors.dq)[index],
                                       command, self.last_action)
         action = self.network(obs)
+        if not np.isfinite(action).all() and np.isfinite(obs).all():
+            bad = [j for j, a in zip(self.config.joint_names, action) if not np.isfinite(a)]
+            raise NonFiniteActions(
+                f'the network gave {"NaN" if np.isnan(action).any() else "inf"} actions at '
+                f't = {t_s:.3f} s ({", ".join(bad[:3])}{" ..." if len(bad) > 3 else ""}) from a finite '
+                'observation', file=self.config.policy_path, field='policy_path',
+                fix='its weights overflow or hold NaN: export the trained policy again')
         if self._clip is not None:
             np.clip(action, -self._clip, self._clip, out=action)
         self.last_action[:] = action

@@ -39,8 +39,10 @@ from typing import Any, Callable, Iterator, Union
 
 import numpy as np
 
+from fall_predictor.errors import TeamFileError
 
-class TorchScriptError(ValueError):
+
+class TorchScriptError(TeamFileError):
     """The file is not a TorchScript archive, or holds something this reader does not support;
     the message names the file and what is wrong."""
 

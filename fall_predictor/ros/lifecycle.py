@@ -96,5 +96,5 @@ class MonitorLifecycleNode(LifecycleNode):
         finally:
             self._autostarting = False
         if not configured:
-            raise NodeStartupError(str(self.startup_error))
+            raise NodeStartupError(str(self.startup_error)) from self.startup_error
         self.trigger_activate()

@@ -10,12 +10,26 @@ ROBOT_PARAM = ParamSpec('robot', DEFAULT_ROBOT, 'robot profile: a shipped profil
                         'mass)', read_only=True)
 
 
+#: Profiles whose static checks passed in this process (a node asks more than once).
+_CHECKED: set = set()
+
+
 def profile_for(robot: str) -> RobotProfile:
-    """The profile of ``robot``; NodeStartupError (with the profile's complaint) if it cannot load."""
+    """The profile of ``robot`` once the static part of ``fall-predictor check`` passes
+    (sim/checks.py: the profile, URDF, MJCF, deploy configs and networks); NodeStartupError with
+    the first failure in one line (file, field, what to do) otherwise."""
+    from fall_predictor.errors import one_line
     try:
-        return load_profile(robot)
+        profile = load_profile(robot)
+        if profile.source not in _CHECKED:
+            from fall_predictor.sim.checks import require_static_checks
+            require_static_checks(robot)
+            _CHECKED.add(profile.source)
+        return profile
     except ProfileError as exc:
-        raise NodeStartupError(f'robot profile: {exc}') from exc
+        error = NodeStartupError(f'robot profile: {one_line(exc)}')
+        error.team_file = True              # exit 2 (ros/runner.py): a mistake in a team's file
+        raise error from exc
 
 
 def fallen_config_for(robot: str) -> FallenConfig:

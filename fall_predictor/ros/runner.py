@@ -15,6 +15,7 @@ from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedE
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
+from fall_predictor.errors import TeamFileError, one_line
 from fall_predictor.ros.parameters import NodeStartupError
 
 #: Environment variable that chooses the executor of every node process (:func:`make_executor`).
@@ -122,6 +123,17 @@ def run_node(factory: Callable[[], Node], name: str, args: Optional[list[str]] =
     return run_nodes((factory,), name, args)
 
 
+def _is_team_file_error(error: BaseException) -> bool:
+    """Whether ``error`` (or what it was raised from) is a mistake in a team's file: exit 2, as
+    the command line's. (A startup error raised through a node's constructor reaches here
+    without its cause: it says so itself, ``team_file``.)"""
+    while error is not None:
+        if isinstance(error, TeamFileError) or getattr(error, 'team_file', False):
+            return True
+        error = error.__cause__
+    return False
+
+
 def run_nodes(factories: Sequence[Callable[[], Node]], name: str,
               args: Optional[list[str]] = None) -> int:
     """Create one node per factory in this process and spin them all with one executor
@@ -143,13 +155,14 @@ def run_nodes(factories: Sequence[Callable[[], Node]], name: str,
             for factory in factories:
                 nodes.append(factory())
             kind = executor_kind()
-        except NodeStartupError as error:
+        except (NodeStartupError, TeamFileError) as error:
             # Stopping from here: bounded already (the FATAL line goes to the console before
-            # its /rosout publish, which is DDS).
+            # its /rosout publish, which is DDS). A mistake in a team's file not already said
+            # as a startup error (a deploy config, a network read by the node): one line, exit 2.
             could_not_start = True
             _bound_teardown(quiet=True)
-            rclpy.logging.get_logger(name).fatal(f'cannot start: {error}')
-            return 1
+            rclpy.logging.get_logger(name).fatal(f'cannot start: {one_line(error)}')
+            return 2 if _is_team_file_error(error) else 1
         if kind == 'events' and any(list(node.guards) for node in nodes):
             # This rclpy's EventsExecutor refuses guard conditions ("Guard conditions not
             # supported"), which the in-process lock-step loop of simulated_robot uses.

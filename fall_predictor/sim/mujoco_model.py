@@ -24,7 +24,7 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 from fall_predictor.monitor.rotations import rpy_matrix  # noqa: E402
-from fall_predictor.profiles import RobotProfile  # noqa: E402
+from fall_predictor.profiles import ProfileError, RobotProfile  # noqa: E402
 from fall_predictor.sim.urdf_loading import resolve_urdf_text  # noqa: E402
 
 #: How far above the ground the lowest foot geometry starts [m] (it settles in a step).
@@ -64,7 +64,8 @@ def _without_obsolete_attributes(path, error: ValueError) -> mujoco.MjModel:
 
     found = re.search(r"unrecognized attribute: '(\w+)'", str(error))
     if found is None or found.group(1) not in OBSOLETE_ATTRIBUTES:
-        raise ValueError(f'MuJoCo cannot read {path}: {error}') from None
+        raise ProfileError(f'MuJoCo cannot read it: {error}', file=path, field='mjcf',
+                           fix='fix the MJCF (or the file it names)') from None
     text = Path(path).read_text()
     for name, why in OBSOLETE_ATTRIBUTES.items():
         pattern = re.compile(rf'\s{name}\s*=\s*(["\'])[^"\']*\1')
@@ -128,8 +129,10 @@ def fixed_frame_in_body(model: mujoco.MjModel, profile: RobotProfile, frame: str
         body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, link)
         if body >= 0:
             return body, position, rotation
-    raise ValueError(f'{profile.source}: frame {frame!r} is neither a body nor a site of the '
-                     'MuJoCo model, nor fixed in the URDF to a link the model has')
+    raise ProfileError(f'frame {frame!r} is neither a body nor a site of the MuJoCo model, nor '
+                       'fixed in the URDF to a link the model has', file=profile.source,
+                       field='imu_frame' if frame == profile.imu_frame else None,
+                       fix='name a body or site of the MJCF, or a URDF link fixed to one')
 
 
 class FloatingBase:

@@ -35,7 +35,7 @@ import numpy as np  # noqa: E402
 
 from fall_predictor.monitor import rotations
 from fall_predictor.monitor.records import Measurement, PushSpec
-from fall_predictor.profiles import RobotProfile
+from fall_predictor.profiles import ProfileError, RobotProfile
 from fall_predictor.robot.control import JointCommand
 from fall_predictor.sim.mujoco_model import (FloatingBase, fixed_frame_in_body, load_model,
                                              robot_geoms, stand_on_ground)
@@ -59,7 +59,9 @@ class MujocoWorld:
         ids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name) for name in self.joint_names]
         missing = [n for n, i in zip(self.joint_names, ids) if i < 0]
         if missing:
-            raise ValueError(f'{profile.source}: the MuJoCo model has no joint {missing}')
+            raise ProfileError(f'the MuJoCo model ({profile.mjcf_path or profile.sim_urdf_path}) '
+                               f'has no joint {missing}', file=profile.source, field='joint_groups',
+                               fix='give the MJCF the URDF\'s joint names')
         self._qadr = np.array([m.jnt_qposadr[i] for i in ids])
         self._dadr = np.array([m.jnt_dofadr[i] for i in ids])
         self._base = FloatingBase(m, profile.source)
@@ -77,8 +79,9 @@ class MujocoWorld:
         self.feet = {side: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, foot.foot_link)
                      for side, foot in profile.feet.items()}
         if min(self.feet.values()) < 0:
-            raise ValueError(f'{profile.source}: the MuJoCo model lacks a foot link '
-                             f'{[f.foot_link for f in profile.feet.values()]}')
+            raise ProfileError(f'the MuJoCo model ({profile.mjcf_path or profile.sim_urdf_path}) '
+                               f'lacks a foot link {[f.foot_link for f in profile.feet.values()]}',
+                               file=profile.source, field='feet', fix='name bodies of the MJCF')
         self._sole = {side: np.asarray(foot.sole_origin_in_foot_m)
                       for side, foot in profile.feet.items()}
         self._sole_rot = {side: foot.sole_rotation_in_foot() for side, foot in profile.feet.items()}

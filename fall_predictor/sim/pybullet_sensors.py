@@ -4,7 +4,7 @@ foot's ground wrench where the profile has an F/T sensor."""
 from __future__ import annotations
 
 import numpy as np
-import pybullet as pb
+from fall_predictor.sim.pybullet_quiet import pb
 
 from fall_predictor.monitor.geometry import cross3
 from fall_predictor.sim.sensors import IMU_POSITION_IN_TORSO_M, SensorTruth

@@ -7,9 +7,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pybullet as pb
 
 from fall_predictor.monitor.records import Measurement
+from fall_predictor.sim.pybullet_quiet import pb
 from fall_predictor.sim.world import MIN_CONTACT_FORCE_N
 
 

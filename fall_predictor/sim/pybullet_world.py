@@ -14,7 +14,7 @@ from dataclasses import dataclass, replace
 from typing import Optional, Sequence
 
 import numpy as np
-import pybullet as pb
+from fall_predictor.sim.pybullet_quiet import pb
 
 from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2, Measurement, PushSpec
 from fall_predictor.profiles import DEFAULT_ROBOT, RobotProfile, load_profile

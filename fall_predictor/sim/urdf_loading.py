@@ -21,12 +21,14 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Optional
 
+from fall_predictor.errors import TeamFileError
+
 _PACKAGE_URI = re.compile(r'package://([^/"\s]+)/')
 _ZERO_INERTIAL = ('<inertial><origin xyz="0 0 0" rpy="0 0 0"/><mass value="0"/>'
                   '<inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial>')
 
 
-class MissingPackageError(RuntimeError):
+class MissingPackageError(TeamFileError, RuntimeError):
     """A mesh package the URDF names is not installed; the message says how to install it."""
 
 
@@ -72,6 +74,22 @@ def resolve_urdf_text(text: str) -> str:
 
 #: A ``filename`` attribute naming a file relative to the URDF's folder (no scheme, not absolute).
 _RELATIVE_FILENAME = re.compile(r'filename="(?![a-z]+://)(?!/)([^"]+)"')
+
+
+def missing_mesh_files(path: Path) -> list[str]:
+    """The mesh files the URDF at ``path`` names that are not there (``package://`` resolved;
+    MissingPackageError for a package not installed)."""
+    root = ET.fromstring(resolve_urdf_text(Path(path).read_text()))
+    folder = Path(path).resolve().parent
+    missing = []
+    for mesh in root.iter('mesh'):
+        name = mesh.get('filename', '')
+        if '://' in name and not name.startswith('file://'):
+            continue
+        file = Path(name.removeprefix('file://'))
+        if not (file if file.is_absolute() else folder / file).is_file():
+            missing.append(name)
+    return list(dict.fromkeys(missing))
 
 
 def _cache_dir() -> Path:
