@@ -39,7 +39,7 @@ setup(
                     'matplotlib>=3.7', 'tqdm>=4.60', 'example-robot-data>=4.1',
                     'mujoco>=3.2', 'onnxruntime>=1.17'],
         'cluster': ['distributed>=2023.1'],
-        'test': ['pytest>=7'],
+        'test': ['pytest>=7', 'pytest-xdist>=3'],
     },
     zip_safe=True,
     maintainer='fall_predictor developers',

@@ -1,9 +1,19 @@
 """Shared fixtures: a simulator per test; a small generated dataset per test session. The test
 tiers: ``pytest -m "not slow"`` is the fast tier (pure logic and physics oracles, no DDS, no
 cluster, no long simulation; under 2 minutes); the full suite (``scripts/test.sh``) runs all."""
+import os
 from pathlib import Path
 
 import pytest
+
+# One thread per process for OpenMP and BLAS (scikit-learn's boosted trees, numpy), here and in the
+# node processes the DDS tests start: on two cores shared by a test and its nodes, OpenMP threads
+# that spin for a core another process holds made a 1 s boosted-trees fit take 5-48 s. Fits are
+# the same with one thread (the histograms are summed per feature).
+os.environ['OMP_NUM_THREADS'] = '1'
+import threadpoolctl  # noqa: E402
+
+threadpoolctl.threadpool_limits(1)
 
 #: Modules of the slow tier: those that start ROS 2 nodes over DDS, a Dask cluster, or simulate
 #: for tens of seconds (their own names say which).

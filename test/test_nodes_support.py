@@ -37,12 +37,19 @@ MAX_DOMAIN_ID = 232
 
 
 def test_domain_id(offset: int) -> int:
-    """A ROS domain id for this test process: 1..70 from the pid plus ``offset`` (one per test
-    module, 0 <= offset < MAX_DOMAIN_ID), wrapped into 1..MAX_DOMAIN_ID; distinct offsets give
-    distinct ids within one process."""
+    """A ROS domain id for this test run: 1..70 from the run plus ``offset`` (one per test module,
+    0 <= offset < MAX_DOMAIN_ID), wrapped into 1..MAX_DOMAIN_ID; distinct offsets give distinct
+    ids. The run's part is the pid, or under pytest-xdist the run's id, which every worker shares:
+    the workers run whole modules (``--dist loadfile``), each on its own offsets, so two workers
+    never share a domain, and two runs on one machine rarely do."""
     if not 0 <= offset < MAX_DOMAIN_ID:
         raise ValueError(f'offset must be in [0, {MAX_DOMAIN_ID}), got {offset}')
-    return 1 + (os.getpid() % 70 + offset) % MAX_DOMAIN_ID
+    return 1 + (_run_part() + offset) % MAX_DOMAIN_ID
+
+
+def _run_part() -> int:
+    run = os.environ.get('PYTEST_XDIST_TESTRUNUID')
+    return int(run[:8], 16) % 70 if run else os.getpid() % 70
 
 
 test_domain_id.__test__ = False        # a helper, not a test

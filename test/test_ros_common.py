@@ -49,7 +49,7 @@ _NODE = textwrap.dedent('''
 
 
 def _run(mode: str, executor: str = '') -> subprocess.CompletedProcess:
-    env = ros_environment(test_domain_id(170))
+    env = ros_environment(test_domain_id(166))
     if executor:
         env['FALL_PREDICTOR_EXECUTOR'] = executor
     return subprocess.run([sys.executable, '-c', _NODE, mode], env=env,
@@ -83,7 +83,7 @@ def test_a_signal_during_a_callback_ends_the_process_cleanly_after_it(executor: 
                                                                        signum: int) -> None:
     """Ctrl-C or SIGTERM while a callback runs: the callback finishes (its publish succeeds),
     the process exits 0 and logs no error, with either executor."""
-    env = ros_environment(test_domain_id(170))
+    env = ros_environment(test_domain_id(166))
     env['FALL_PREDICTOR_EXECUTOR'] = executor
     process = subprocess.Popen([sys.executable, '-c', _NODE, 'busy'], env=env,
                                stderr=subprocess.PIPE, text=True)
@@ -102,7 +102,7 @@ def test_a_signal_during_a_callback_ends_the_process_cleanly_after_it(executor: 
 def test_a_process_with_guard_conditions_runs_them_with_either_setting(executor: str) -> None:
     """The EventsExecutor refuses guard conditions (simulated_robot's lock-step loop uses one):
     such a process spins on the SingleThreadedExecutor, and says so."""
-    env = ros_environment(test_domain_id(170))
+    env = ros_environment(test_domain_id(166))
     env['FALL_PREDICTOR_EXECUTOR'] = executor
     process = subprocess.Popen([sys.executable, '-c', _NODE, 'guard'], env=env,
                                stderr=subprocess.PIPE, text=True)
@@ -160,7 +160,7 @@ def test_a_node_that_cannot_start_exits_even_if_its_teardown_hangs() -> None:
     from fall_predictor.ros.runner import TEARDOWN_TIMEOUT_S
     started = time.monotonic()
     done = subprocess.run([sys.executable, '-c', _STUCK_TEARDOWN, 'refuse'],
-                          env=ros_environment(test_domain_id(170)), capture_output=True,
+                          env=ros_environment(test_domain_id(166)), capture_output=True,
                           text=True, timeout=60)
     elapsed_s = time.monotonic() - started
     assert done.returncode == 1, done.stderr
@@ -175,7 +175,7 @@ def test_a_teardown_that_hangs_at_interpreter_exit_ends_with_its_stacks() -> Non
     collector frees the node's cycle): exit code 1 and every thread's stack on stderr."""
     from fall_predictor.ros.runner import TEARDOWN_TIMEOUT_S
     process = subprocess.Popen([sys.executable, '-c', _STUCK_TEARDOWN, 'run'],
-                               env=ros_environment(test_domain_id(170)),
+                               env=ros_environment(test_domain_id(166)),
                                stderr=subprocess.PIPE, text=True)
     try:
         assert process.stderr.readline().strip() == 'started'
