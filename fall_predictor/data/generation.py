@@ -28,6 +28,7 @@ from fall_predictor.data.bag_writer import BagWriter
 from fall_predictor.data.bagio import BagError, read_trajectory
 from fall_predictor.data.dataset import (FORMAT, DatasetError, IndexRow, read_index, trajectory_id,
                                          write_index_csv)
+from fall_predictor.data.disturbance_generation import causes_manifest, disturbed_run, run_cause
 from fall_predictor.data.generation_cost import (COSTS_DIR, GENERATION_COST_KEY,
                                                  record_generation_cost, trajectory_cost)
 from fall_predictor.data.outcomes import height_drop_time, unsettled_at_horizon
@@ -90,6 +91,11 @@ class GenerationConfig:
     controller: Optional[str] = None
     #: The simulator: None (PyBullet, the datasets made before MuJoCo) or 'pybullet' / 'mujoco'.
     simulator: Optional[str] = None
+    #: The causes its runs draw, (name, weight) pairs (data/disturbance_generation.py); None:
+    #: pushes only, the datasets made before other causes.
+    causes: Optional[tuple[tuple[str, float], ...]] = None
+    #: A long walk's length [s] (the cause 'walk').
+    walk_s: float = 60.0
 
     @property
     def policy(self):
@@ -112,6 +118,8 @@ class GenerationConfig:
                 out['sensor_timing'] = self.timing().to_dict()
         if self.simulator not in (None, 'pybullet'):
             out['simulator'] = self.simulator
+        if self.causes is not None:
+            out.update(causes_manifest(self))
         policy = self.policy
         if policy is not None:
             # The run's draws are the policy's: the gait fields say nothing of it.
@@ -195,15 +203,20 @@ def _worker_policy(config: 'GenerationConfig'):
 def _policy_start(config: 'GenerationConfig', index: int, rng) -> tuple:
     """A learned policy's run: (its command, its push, run_trajectory's arguments: the world,
     the policy walking at the command, the live sensor model seeded as the bag's readings)."""
-    from fall_predictor.sim.policy_runs import commanded_pushes, policy_run
+    from fall_predictor.sim.policy_runs import commanded_pushes
     command, push = commanded_pushes(config.policy).sample(rng)
+    return command, push, _policy_arguments(config, index, command)
+
+
+def _policy_arguments(config: 'GenerationConfig', index: int, command) -> dict:
+    """run_trajectory's arguments of run ``index`` of a learned policy walking at ``command``."""
+    from fall_predictor.sim.policy_runs import policy_run
     learned = _worker_policy(config)
     profile = load_profile(config.robot)
     world = _worker_simulator(config.robot, config.simulator or profile.simulator,
                               learned.physics_dt_s)
     noise = 1.0 if config.sensor_noise_scale is None else config.sensor_noise_scale
-    return command, push, policy_run(profile, config.policy, learned, command, noise,
-                                     _sensor_seed(config, index), world)
+    return policy_run(profile, config.policy, learned, command, noise, _sensor_seed(config, index), world)
 
 
 def _sensor_seed(config: 'GenerationConfig', index: int) -> int:
@@ -242,11 +255,18 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
     from fall_predictor.sim.pushes import robot_gait, trajectory_seed
     from fall_predictor.sim.trajectory import run_trajectory
 
+
     cpu0, wall0 = time.thread_time(), time.perf_counter()
     tid = trajectory_id(index)
     rng = trajectory_seed(config.seed, index)
     command = None
-    if config.policy is not None:
+    cause = run_cause(config.causes, config.seed, index)
+    if cause != 'push':
+        world, start = ((_worker_simulator(config.robot, config.simulator), None) if config.policy is None
+                        else (None, partial(_policy_arguments, config, index)))
+        push, result, t_start, gait, command, cause_fields = disturbed_run(config, index, cause, world,
+                                                                           start, _still_moving)
+    elif config.policy is not None:
         gait = None
         command, push, start = _policy_start(config, index, rng)
     elif config.gait_variety:
@@ -257,12 +277,14 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
     else:
         gait, push = None, config.push_distribution.sample(rng, robot_gait(config.robot))
         start = {'prefix': _walk_prefix(config)}
-    t_start = round(push.t_push - config.pre_push_s, 6)
-    mass_kg = load_profile(config.robot).total_mass_kg
-    result = run_trajectory(push, push.t_force_end + config.horizon_after_push_s,
-                            record_sensors=config.sensor_noise_scale is not None,
-                            go_on_while=partial(_still_moving, push.t_push, t_start, mass_kg),
-                            max_extension_s=config.settle_extension_s, **start)
+    if cause == 'push':
+        t_start = round(push.t_push - config.pre_push_s, 6)
+        mass_kg = load_profile(config.robot).total_mass_kg
+        result = run_trajectory(push, push.t_force_end + config.horizon_after_push_s,
+                                record_sensors=config.sensor_noise_scale is not None,
+                                go_on_while=partial(_still_moving, push.t_push, t_start, mass_kg),
+                                max_extension_s=config.settle_extension_s, **start)
+        cause_fields = {} if config.causes is None else {'t_onset': push.t_push}
     simulated_s = result.measurements[-1].t
     first = next(i for i, m in enumerate(result.measurements) if m.t >= t_start - 1e-9)
     measurements = result.measurements[first:]
@@ -277,8 +299,9 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
         # (metadata.yaml names the MCAP file relative to it, so the files do not change).
         unfinished = Path(folder) / (tid + '.partial')
         with BagWriter(unfinished) as bag:
-            applied = next((m.push_force for m in measurements if m.push_force.any()), np.zeros(3))
-            bag.write_push(push.t_push, applied)
+            if cause == 'push':
+                applied = next((m.push_force for m in measurements if m.push_force.any()), np.zeros(3))
+                bag.write_push(push.t_push, applied)
             readings = _sensor_readings(config, index, result, bag, first)
             drivers = None if readings is None else _driver_streams(config)
             for k, m in enumerate(measurements):
@@ -296,7 +319,8 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
                    height_m=push.height_m, t_push=push.t_push, t_force_end=push.t_force_end,
                    fallen=result.fallen, t_fallen=result.t_fallen, t_height_drop=t_height_drop,
                    t_reflex=result.t_reflex, t_start=measurements[0].t, t_end=measurements[-1].t,
-                   samples=len(measurements), **_gait_fields(gait), **_command_fields(command))
+                   samples=len(measurements), **_gait_fields(gait), **_command_fields(command),
+                   **cause_fields)
     cost = trajectory_cost(time.thread_time() - cpu0, time.perf_counter() - wall0, simulated_s)
     return SimulatedTrajectory(row, files, cost)
 

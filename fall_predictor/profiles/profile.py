@@ -85,6 +85,8 @@ class PolicyControllerProfile:
     settle_s: float = 2.0
     #: The shipped model for this robot and controller: a file name in the package's models/.
     model: Optional[str] = None
+    #: Its datasets' ranges of the disturbances beyond pushes (profiles/cause_ranges.py).
+    causes: dict = field(default_factory=dict)
 
 
 def parse_controllers(path: Path, raw: Any) -> dict[str, PolicyControllerProfile]:
@@ -101,7 +103,8 @@ def parse_controllers(path: Path, raw: Any) -> dict[str, PolicyControllerProfile
                              '(its settings are the profile\'s controller section)')
         if not isinstance(fields, dict):
             raise ValueError(f'{path}: {where} must be a mapping')
-        unknown = sorted(set(fields) - {'policy', 'push_force_n', 'command', 'settle_s', 'model'})
+        unknown = sorted(set(fields) - {'policy', 'push_force_n', 'command', 'settle_s', 'model',
+                                        'causes'})
         if unknown:
             raise ValueError(f'{path}: {where}: unknown keys {unknown}')
         policy = fields.get('policy')
@@ -119,6 +122,7 @@ def parse_controllers(path: Path, raw: Any) -> dict[str, PolicyControllerProfile
             ranges = VelocityCommandRange(**{k: _pair(v, f'{where}.command.{k}')
                                              for k, v in command.items()})
             force = _pair(fields.get('push_force_n'), f'{where}.push_force_n')
+            causes = _mapping(fields.get('causes'), f'{where}.causes')
         except ValueError as error:
             raise ValueError(f'{path}: {error}') from None
         if force[0] < 0.0:
@@ -130,8 +134,15 @@ def parse_controllers(path: Path, raw: Any) -> dict[str, PolicyControllerProfile
         if model is not None and not isinstance(model, str):
             raise ValueError(f'{path}: {where}.model must be a file name')
         out[str(name)] = PolicyControllerProfile(str(name), policy_path, force, ranges,
-                                                 float(settle), model)
+                                                 float(settle), model, causes)
     return out
+
+
+def _mapping(value: Any, where: str) -> dict:
+    """A mapping (checked in full where it is used: profiles/cause_ranges.py), {} for none."""
+    if value is not None and not isinstance(value, dict):
+        raise ValueError(f'{where} must be a mapping')
+    return dict(value or {})
 
 
 def _pair(value: Any, where: str) -> tuple[float, float]:
@@ -221,6 +232,8 @@ class RobotProfile:
     controllers: dict[str, PolicyControllerProfile] = field(default_factory=dict)
     #: The controller of its datasets and nodes unless told otherwise.
     default_controller: str = C_BAL
+    #: C_bal's datasets' ranges of the disturbances beyond pushes (profiles/cause_ranges.py).
+    causes: dict = field(default_factory=dict)
 
     # -- controllers -------------------------------------------------------------------------
     @property
@@ -255,6 +268,11 @@ class RobotProfile:
         """The push force range of ``controller``'s datasets [N] (method §3)."""
         policy = self.controller_profile(controller)
         return self.push_force_n if policy is None else policy.push_force_n
+
+    def cause_ranges(self, controller: Optional[str] = None) -> dict:
+        """``controller``'s ranges of the disturbances beyond pushes (profiles/cause_ranges.py)."""
+        policy = self.controller_profile(controller)
+        return self.causes if policy is None else policy.causes
 
     # -- what the monitor needs --------------------------------------------------------------
     def sensor_layout(self) -> SensorLayout:
@@ -458,6 +476,7 @@ def _parse(path: Path, raw: Any) -> RobotProfile:
     mjcf = r.file('mjcf') if r.get('mjcf', None) is not None else None
     try:
         controllers = parse_controllers(path, r.get('controllers', None))
+        causes = _mapping(r.get('causes', None), 'causes')
     except ValueError as error:
         raise ProfileError(str(error)) from None
     default_controller = r.text('default_controller', C_BAL)
@@ -474,4 +493,4 @@ def _parse(path: Path, raw: Any) -> RobotProfile:
         sim_ground=sim_ground,
         controller=controller,
         posture=posture, model=r.text('model', 'default_model.json'), simulator=simulator,
-        mjcf_path=mjcf, controllers=controllers, default_controller=default_controller)
+        mjcf_path=mjcf, controllers=controllers, default_controller=default_controller, causes=causes)
