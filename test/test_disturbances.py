@@ -65,8 +65,9 @@ def test_a_command_schedule_holds_each_command_until_the_next():
 def test_terrain_lies_across_the_path_where_its_parameters_say():
     box = trip_box(0.8, 0.05, 0.1)
     assert box.top_at((0.85, 1.5)) == pytest.approx(0.05) and box.top_at((0.75, 0.0)) is None
-    patch = slip_patch(1.0, 2.0, 0.1)
-    assert patch.friction == 0.1 and patch.top_at((2.9, 0.0)) == pytest.approx(0.002)
+    patch = slip_patch(1.0, 0.1)
+    assert patch.friction == 0.1 and patch.top_at((12.0, 0.0)) == pytest.approx(0.002)
+    assert patch.top_at((0.99, 0.0)) is None
     down, = step_terrain('down', 0.6, 0.1)
     # The robot starts on the platform; its edge is 0.6 m ahead.
     assert start_height_m((down,)) == pytest.approx(0.1)
@@ -129,3 +130,22 @@ def test_each_cause_draws_the_same_disturbance_from_the_same_seed(cause, robot, 
         times = disturbance.schedule.times_s
         assert times[0] == 0.0 and times[-1] < 30.0
         assert all(2.0 - 1e-6 <= b - a <= 6.0 + 1e-3 for a, b in zip(times, times[1:]))
+
+
+@pytest.mark.parametrize('cause, probe, fells', [
+    ('trip', (0.0, 1.0), lambda s: s > 0.5),               # higher boxes fell
+    ('slip', (0.2, 1.0), lambda s: s < 0.6),               # lower friction fells
+])
+def test_a_causes_range_starts_at_its_mild_end_and_reaches_the_wanted_fall_fraction(cause, probe, fells):
+    from fall_predictor.sim.cause_calibration import suggest_cause_range
+    severities = np.linspace(probe[0], probe[1], 121)[:-1] + (probe[1] - probe[0]) / 240
+    rows = [{'severity': float(s), 'fallen': bool(fells(s)), 't_onset': 1.0, 'fell_before_onset': False,
+             'onset_to_fall_s': 0.5 if fells(s) else None} for s in severities]
+    summary = suggest_cause_range(cause, rows, probe, target_fall_fraction=0.4)
+    key = summary['parameter']
+    # Six bands, the severer half falling: five bands from the mild end fell 2 in 5.
+    expected = [0.0, 0.8333] if cause == 'trip' else [0.3333, 1.0]
+    assert summary['suggested'][key] == pytest.approx(expected, abs=1e-4)
+    assert summary['predicted_fall_fraction'] == pytest.approx(0.4) and summary['can_fell']
+    never = suggest_cause_range(cause, [{**r, 'fallen': False} for r in rows], probe)
+    assert not never['can_fell']

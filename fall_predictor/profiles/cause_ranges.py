@@ -17,7 +17,7 @@ from typing import Any
 #: The parameters each cause's ranges may set.
 CAUSE_PARAMETERS: dict[str, tuple[str, ...]] = {
     'trip': ('height_m', 'depth_m'),
-    'slip': ('friction', 'length_m'),
+    'slip': ('friction',),
     'step': ('height_m', 'slope_deg'),
     'fault': ('torque_scale', 'fade_s', 'period_s', 'duty'),
     'walk': ('segment_s',),

@@ -15,11 +15,12 @@ draws its command or gait as a push's does; a long walk's (a learned policy's) c
 every few seconds (:class:`~fall_predictor.sim.disturbances.CommandSchedule`).
 
 The onset is measured (:class:`OnsetProbe`): the first loaded contact of the robot with the
-obstacle, the patch, the step up or the ramp; the first sample a sole's centre is beyond a step
-down's edge; the fault's start. A run that never reaches its terrain has no onset (None).
+obstacle, the patch, the step up or the ramp; the first sample a sole's front edge (its centre
+plus half its length along its heading) is beyond a step down's edge; the fault's start. A run that never reaches its terrain has no onset (None).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from typing import Any, Optional
 
@@ -36,7 +37,7 @@ SEVERITY: dict[str, tuple[str, bool]] = {CAUSE_TRIP: ('height_m', True), CAUSE_S
 #: Every cause's ranges unless its robot's profile says otherwise: the severity's a wide probe.
 DEFAULT_RANGES: dict[str, dict[str, tuple[float, float]]] = {
     CAUSE_TRIP: {'height_m': (0.02, 0.12), 'depth_m': (0.04, 0.12)},
-    CAUSE_SLIP: {'friction': (0.03, 0.3), 'length_m': (0.6, 2.0)},
+    CAUSE_SLIP: {'friction': (0.05, 1.0)},
     CAUSE_STEP: {'height_m': (0.03, 0.2), 'slope_deg': (4.0, 14.0)},
     CAUSE_FAULT: {'torque_scale': (0.0, 0.5), 'fade_s': (0.5, 3.0), 'period_s': (0.2, 1.0),
                   'duty': (0.3, 0.7)},
@@ -161,9 +162,9 @@ def sample_disturbance(cause: str, rng: np.random.Generator, walker: Walker,
         terrain = (trip_box(distance, height, depth),)
         params.update(height_m=round(height, 6), depth_m=round(depth, 6))
     elif cause == CAUSE_SLIP:
-        friction, length = _u(rng, ranges['friction']), _u(rng, ranges['length_m'])
-        terrain = (slip_patch(distance, length, friction),)
-        params.update(friction=round(friction, 6), length_m=round(length, 6))
+        friction = _u(rng, ranges['friction'])
+        terrain = (slip_patch(distance, friction),)
+        params['friction'] = round(friction, 6)
     else:
         kind = _pick(rng, STEP_KIND_WEIGHTS)
         height, slope = _u(rng, ranges['height_m']), _u(rng, ranges['slope_deg'])
@@ -233,6 +234,7 @@ class OnsetProbe:
         self.t_onset: Optional[float] = None
         #: The foot ('l', 'r') or link (None) of the first contact, for terrain.
         self.contact_side: Optional[str] = None
+        self._toe_m: Optional[dict] = None        #: each sole's half length [m]
 
     def __call__(self, world, m) -> None:
         if self.t_onset is not None:
@@ -242,7 +244,11 @@ class OnsetProbe:
             if m.t >= d.fault.t_start_s - 1e-9:
                 self.t_onset = round(m.t, 6)
         elif d.edge_x_m is not None:
-            if max(m.left_foot[0], m.right_foot[0]) > d.edge_x_m:
+            if self._toe_m is None:
+                self._toe_m = {side: foot.sole().length_m / 2 for side, foot in world.profile.feet.items()}
+            toes = [foot[0] + self._toe_m[side] * math.cos(foot[2])
+                    for side, foot in (('l', m.left_foot), ('r', m.right_foot))]
+            if max(toes) > d.edge_x_m:
                 self.t_onset = round(m.t, 6)
         elif d.terrain:
             # The box laid for the cause (a step down's platform is under the start: its edge).

@@ -3,7 +3,7 @@
 A run is disturbed by one cause (the dataset index's ``cause``): a push (sim/pushes.py), or
 
 - a **trip**: a low box fixed to the ground across the path, which a swing foot can catch;
-- a **slip**: a low-friction patch across the path, under the feet for some steps;
+- a **slip**: a low-friction patch across the path, under the feet from its edge on;
 - a **step**: a step down (the robot starts on a platform whose edge crosses its path), a step up,
   or an incline (a ramp rising from the ground across the path);
 - a **fault** on a leg joint's actuator: its torque lost abruptly, fading over seconds, lost
@@ -39,6 +39,8 @@ FAULT_MODES = ('lost', 'fade', 'intermittent', 'stuck')
 TERRAIN_WIDTH_M = 4.0
 #: A slip patch's thickness [m]: its top this far above the ground (a sheet, not a step).
 PATCH_THICKNESS_M = 0.002
+#: How far a platform, a step up or a slip patch reaches along the path [m] (beyond any run's walk).
+STEP_LENGTH_M = 20.0
 #: A stuck joint may move this far either side of where it stuck [rad] (the engines' joint limit).
 STUCK_PLAY_RAD = 1e-3
 
@@ -213,15 +215,15 @@ def trip_box(distance_m: float, height_m: float, depth_m: float) -> TerrainBox:
                       (depth_m / 2, TERRAIN_WIDTH_M / 2, height_m / 2))
 
 
-def slip_patch(distance_m: float, length_m: float, friction: float) -> TerrainBox:
-    """A low-friction sheet across the path from ``distance_m`` ahead, ``length_m`` long."""
+def slip_patch(distance_m: float, friction: float, length_m: Optional[float] = None) -> TerrainBox:
+    """A low-friction sheet across the path from ``distance_m`` ahead, ``length_m`` long (default:
+    beyond any run's walk, :data:`STEP_LENGTH_M`). Its far edge is best out of reach: a sole of
+    small spheres (MuJoCo's G1) stepping off a sheet's edge catches on it, a fall that is not a
+    slip's."""
+    length_m = STEP_LENGTH_M if length_m is None else length_m
     return TerrainBox((distance_m + length_m / 2, 0.0, PATCH_THICKNESS_M / 2),
                       (length_m / 2, TERRAIN_WIDTH_M / 2, PATCH_THICKNESS_M / 2),
                       friction=friction, rgba=(0.3, 0.6, 0.95, 1.0))
-
-
-#: How far a platform or a step up reaches along the path [m] (beyond any run's walk).
-STEP_LENGTH_M = 20.0
 
 
 def step_terrain(kind: str, distance_m: float, height_m: float = 0.0, slope_deg: float = 0.0
