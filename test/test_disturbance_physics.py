@@ -59,6 +59,9 @@ def test_a_trips_onset_is_the_first_contact_with_the_box_and_the_foot_is_stopped
     before = np.linalg.norm(foot[k] - foot[k - window]) / (t[k] - t[k - window])
     after = np.linalg.norm(foot[k + window] - foot[k]) / (t[k + window] - t[k])
     assert before > 0.3 and after < 0.5 * before
+    # A link other than a foot resting on the box (a shin over it) is no fall: only the ground's are.
+    fallen_m = load_profile(ROBOT).fallen_com_height_m
+    assert not any(m.non_foot_contact for _, m, *_ in steps if m.com[2] > fallen_m + 0.1)
 
 
 @pytest.mark.parametrize('simulator', ENGINES)

@@ -206,7 +206,7 @@ def _disturbance_to_render(args, profile, controller_name, world):
     onset = first.extras['t_onset']
     if onset is None:
         onset = expected_s if args.cause != 'walk' else 2.0
-    words = ', '.join(f'{k} {v:g}' if isinstance(v, float) else f'{k} {v}'
+    words = ', '.join(f'{k} {v:.3g}' if isinstance(v, float) else f'{k} {v}'
                       for k, v in disturbance.params.items() if k not in ('times_s', 'commands'))
     return disturbance, onset, controller(), f'{args.cause} ({words}; t = 0: onset)'
 

@@ -110,6 +110,7 @@ class MujocoWorld:
         self._prev: Optional[Measurement] = None
         self._terrain_geoms = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f'terrain_{k}')
                                for k in range(len(self._terrain))]
+        self._terrain_set = frozenset(self._terrain_geoms)
         self._joint_ids = ids
         self._joint_limits = (m.jnt_range[ids].copy(), m.jnt_limited[ids].copy())
 
@@ -306,7 +307,8 @@ class MujocoWorld:
                 continue
             side = self._foot_of_body.get(int(m.geom_bodyid[robot_geom]))
             if side is None:
-                non_foot = True
+                # Another link on the ground; on a terrain box (a shin over an obstacle) it is not.
+                non_foot = non_foot or (g1 if sign > 0 else g2) not in self._terrain_set
             else:
                 per_foot[side].append((c.pos.copy(), world))
         return per_foot, non_foot
