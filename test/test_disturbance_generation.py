@@ -85,3 +85,20 @@ def test_generate_with_causes_and_stats_per_cause(tmp_path, capsys):
     assert stats['by_cause'] == generated['by_cause']
     assert main(['generate', '--trajectories', '1', '--out', str(tmp_path / 'bad'), '--causes', 'push,jump']) == 2
     assert 'unknown cause' in capsys.readouterr().err
+
+
+def test_generate_randomize_records_each_runs_world_and_repeats_it(tmp_path, capsys):
+    from fall_predictor.sim.randomization import RandomizationRanges, WorldRandomization
+    args = ['generate', '--robot', 'g1_12dof', '--trajectories', '2', '--seed', '2', '--horizon', '0.5',
+            '--settle-extension', '0', '--causes', 'push,fault', '--randomize', '--json']
+    assert main(args + ['--out', str(tmp_path / 'a')]) == 0
+    assert main(args + ['--out', str(tmp_path / 'b')]) == 0
+    capsys.readouterr()
+    a, b = read_index(tmp_path / 'a'), read_index(tmp_path / 'b')
+    assert a == b
+    ranges = RandomizationRanges().to_dict()
+    for row in a:
+        world = WorldRandomization(**json.loads(row.randomization))
+        for name, (low, high) in ranges.items():
+            assert low <= getattr(world, name) <= high
+    assert json.loads((tmp_path / 'a' / 'dataset.json').read_text())['randomization'] == ranges

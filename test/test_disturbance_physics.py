@@ -141,3 +141,24 @@ def test_a_long_walks_commands_change_at_the_drawn_times(simulator):
     t = np.array([s[0] for s in steps])
     # Turning at 0.5 rad/s for the last second and more.
     assert heading[-1] - heading[t >= 3.0][0] > 0.2
+
+
+def test_a_world_reused_across_causes_is_nominal_again_for_each_run():
+    """A stuck joint, then a terrain run, then a flat one in one MuJoCo world (as a dataset's
+    worker runs them): the flat run's model is the pristine one (no joint left stuck)."""
+    from fall_predictor.sim.randomization import WorldRandomization
+    profile = load_profile(ROBOT)
+    policy = profile.controller_profile()
+    learned = load_learned_policy(policy)
+    world = make_world(profile, 'mujoco', learned.physics_dt_s)
+    pristine = (world.model.jnt_range.copy(), world.model.jnt_limited.copy(), world.model.body_mass.copy(),
+                world.model.geom_friction.copy())
+    stuck = Disturbance('fault', fault=JointFault('left_knee_joint', 'stuck', 0.5))
+    for disturbance, randomization in ((stuck, WorldRandomization(friction=0.4, link_mass_scale=1.1)),
+                                       (Disturbance('trip', terrain=(trip_box(0.5, 0.03, 0.05),)), None)):
+        run_trajectory(None, 1.0, disturbance=disturbance, randomization=randomization,
+                       **policy_run(profile, policy, learned, (0.3, 0.0, 0.0), 1.0, 0, world))
+    run_trajectory(None, 0.1, **policy_run(profile, policy, learned, (0.3, 0.0, 0.0), 1.0, 0, world))
+    now = (world.model.jnt_range, world.model.jnt_limited, world.model.body_mass, world.model.geom_friction)
+    assert all(np.array_equal(a, b) for a, b in zip(pristine, now))
+    world.close()

@@ -43,6 +43,8 @@ def generation_config(args):
         from fall_predictor.data.disturbance_generation import parse_causes
         extra['causes'] = parse_causes(args.causes)      # ValueError: generate says why
         extra['walk_s'] = args.walk_s
+    if args.randomize:
+        extra['randomize'] = True
     noise = args.sensor_noise
     if controller != C_BAL and noise is None:
         noise = 1.0                 # a learned policy walks on its sensors: the bags hold them
@@ -216,6 +218,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                         'equal); default: pushes only, as datasets made before')
     p.add_argument('--walk-s', type=argtypes.positive, default=60.0, metavar='SECONDS',
                    help='length of a long walk (the cause walk; default 60 s)')
+    p.add_argument('--randomize', action='store_true',
+                   help='randomise each run\'s world as legged_gym-style training does (ground friction, '
+                        'link masses, base payload, motor strength, PD gains, sensor latency, IMU bias: '
+                        'sim/randomization.py), its draw in the index')
     p.add_argument('--fixed-gait', action='store_true',
                    help='every trajectory walks the default gait (faster: the walk is simulated once per '
                         'process) instead of drawing its gait (method §3 amendment)')

@@ -116,6 +116,9 @@ class IndexRow:
     #: contact with the obstacle or patch, the edge crossed, the fault's start; None for a long
     #: walk (no disturbance) and in datasets made before causes existed (:attr:`onset_s`).
     t_onset: Optional[float] = None
+    #: The run's randomised world as JSON text (sim/randomization.WorldRandomization: friction,
+    #: masses, drives, sensor latency and IMU bias; ``generate --randomize``); None: nominal.
+    randomization: Optional[str] = None
 
     @property
     def push(self) -> PushSpec:

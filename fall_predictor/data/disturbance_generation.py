@@ -70,7 +70,30 @@ def causes_manifest(config) -> dict:
             'walk_s': config.walk_s}
 
 
-def disturbed_run(config, index: int, cause: str, world, start, still_moving) -> tuple:
+def run_randomization(config, index: int):
+    """Run ``index``'s randomised world (sim/randomization.py), or None without ``randomize``."""
+    if not config.randomize:
+        return None
+    from fall_predictor.sim.randomization import RandomizationRanges, WorldRandomization, randomization_rng
+    return WorldRandomization.sample(RandomizationRanges(), randomization_rng(config.seed, index))
+
+
+def randomization_fields(config, index: int) -> dict:
+    """Run ``index``'s index fields of its randomised world (none for a nominal one)."""
+    randomization = run_randomization(config, index)
+    return {} if randomization is None else {'randomization': cause_params_text(randomization.to_dict())}
+
+
+def sensor_params(config, index: int, noise_scale: float):
+    """The sensor model of run ``index`` (noise x ``noise_scale``; a randomised world's latency
+    and IMU bias)."""
+    from fall_predictor.sim.sensors import SensorParams
+    params = SensorParams(noise_scale=noise_scale)
+    randomization = run_randomization(config, index)
+    return params if randomization is None else randomization.sensor_params(params)
+
+
+def disturbed_run(config, index: int, cause: str, world, start, still_moving, randomization=None) -> tuple:
     """Simulate run ``index`` of ``cause`` (not a push) in ``world`` (C_bal's), or with
     ``start(command)``, a learned policy's run_trajectory arguments for its command (its world,
     controller and sensors): (its stand-in push, the result, the recording's start [s], C_bal's
@@ -97,6 +120,7 @@ def disturbed_run(config, index: int, cause: str, world, start, still_moving) ->
                            profile.total_mass_kg)
     result = run_trajectory(None, duration, record_sensors=config.sensor_noise_scale is not None,
                             disturbance=disturbance, max_extension_s=config.settle_extension_s,
+                            randomization=randomization,
                             go_on_while=None if cause == CAUSE_WALK else still_moving, **start)
     t_onset = result.extras['t_onset']
     if cause == CAUSE_WALK:

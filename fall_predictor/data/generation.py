@@ -28,7 +28,8 @@ from fall_predictor.data.bag_writer import BagWriter
 from fall_predictor.data.bagio import BagError, read_trajectory
 from fall_predictor.data.dataset import (FORMAT, DatasetError, IndexRow, read_index, trajectory_id,
                                          write_index_csv)
-from fall_predictor.data.disturbance_generation import causes_manifest, disturbed_run, run_cause
+from fall_predictor.data.disturbance_generation import (causes_manifest, disturbed_run, randomization_fields,
+                                                        run_cause, run_randomization, sensor_params)
 from fall_predictor.data.generation_cost import (COSTS_DIR, GENERATION_COST_KEY,
                                                  record_generation_cost, trajectory_cost)
 from fall_predictor.data.outcomes import height_drop_time, unsettled_at_horizon
@@ -96,6 +97,9 @@ class GenerationConfig:
     causes: Optional[tuple[tuple[str, float], ...]] = None
     #: A long walk's length [s] (the cause 'walk').
     walk_s: float = 60.0
+    #: Each run's world randomised (sim/randomization.py, legged_gym-style ranges), its draw in
+    #: the index; False: the nominal world, as datasets made before.
+    randomize: bool = False
 
     @property
     def policy(self):
@@ -120,6 +124,9 @@ class GenerationConfig:
             out['simulator'] = self.simulator
         if self.causes is not None:
             out.update(causes_manifest(self))
+        if self.randomize:
+            from fall_predictor.sim.randomization import RandomizationRanges
+            out['randomization'] = RandomizationRanges().to_dict()
         policy = self.policy
         if policy is not None:
             # The run's draws are the policy's: the gait fields say nothing of it.
@@ -216,7 +223,8 @@ def _policy_arguments(config: 'GenerationConfig', index: int, command) -> dict:
     world = _worker_simulator(config.robot, config.simulator or profile.simulator,
                               learned.physics_dt_s)
     noise = 1.0 if config.sensor_noise_scale is None else config.sensor_noise_scale
-    return policy_run(profile, config.policy, learned, command, noise, _sensor_seed(config, index), world)
+    return policy_run(profile, config.policy, learned, command, noise, _sensor_seed(config, index), world,
+                      sensor_params(config, index, noise))
 
 
 def _sensor_seed(config: 'GenerationConfig', index: int) -> int:
@@ -252,8 +260,9 @@ class SimulatedTrajectory:
 def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
     """Simulate trajectory ``index`` and record it as a bag in a private temporary directory;
     return the bag's bytes. Writes nothing else, so it runs anywhere (a Dask worker included)."""
+    from fall_predictor.sim.drivers import DriverStreams
     from fall_predictor.sim.pushes import robot_gait, trajectory_seed
-    from fall_predictor.sim.trajectory import run_trajectory
+    from fall_predictor.sim.trajectory import gait_run, run_trajectory
 
 
     cpu0, wall0 = time.thread_time(), time.perf_counter()
@@ -264,27 +273,30 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
     if cause != 'push':
         world, start = ((_worker_simulator(config.robot, config.simulator), None) if config.policy is None
                         else (None, partial(_policy_arguments, config, index)))
-        push, result, t_start, gait, command, cause_fields = disturbed_run(config, index, cause, world,
-                                                                           start, _still_moving)
+        push, result, t_start, gait, command, cause_fields = disturbed_run(
+            config, index, cause, world, start, _still_moving, run_randomization(config, index))
     elif config.policy is not None:
         gait = None
         command, push, start = _policy_start(config, index, rng)
     elif config.gait_variety:
-        from fall_predictor.sim.trajectory import gait_run
         gait, push = config.push_distribution.sample_with_gait(rng)
         start = gait_run(_worker_simulator(config.robot, config.simulator), gait,
                          push.t_force_end + config.horizon_after_push_s + config.settle_extension_s)
     else:
         gait, push = None, config.push_distribution.sample(rng, robot_gait(config.robot))
-        start = {'prefix': _walk_prefix(config)}
+        start = ({'prefix': _walk_prefix(config)} if not config.randomize else gait_run(
+            _worker_simulator(config.robot, config.simulator), robot_gait(config.robot),
+            push.t_force_end + config.horizon_after_push_s + config.settle_extension_s))
     if cause == 'push':
         t_start = round(push.t_push - config.pre_push_s, 6)
         mass_kg = load_profile(config.robot).total_mass_kg
         result = run_trajectory(push, push.t_force_end + config.horizon_after_push_s,
                                 record_sensors=config.sensor_noise_scale is not None,
                                 go_on_while=partial(_still_moving, push.t_push, t_start, mass_kg),
-                                max_extension_s=config.settle_extension_s, **start)
+                                max_extension_s=config.settle_extension_s,
+                                randomization=run_randomization(config, index), **start)
         cause_fields = {} if config.causes is None else {'t_onset': push.t_push}
+    cause_fields.update(randomization_fields(config, index))
     simulated_s = result.measurements[-1].t
     first = next(i for i, m in enumerate(result.measurements) if m.t >= t_start - 1e-9)
     measurements = result.measurements[first:]
@@ -303,7 +315,7 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
                 applied = next((m.push_force for m in measurements if m.push_force.any()), np.zeros(3))
                 bag.write_push(push.t_push, applied)
             readings = _sensor_readings(config, index, result, bag, first)
-            drivers = None if readings is None else _driver_streams(config)
+            drivers = None if readings is None else DriverStreams(config.timing())
             for k, m in enumerate(measurements):
                 bag.write_measurement(m)
                 if drivers is not None:
@@ -335,19 +347,14 @@ def _still_moving(t_push: float, t_start: float, mass_kg: float, measurements: l
     return unsettled_at_horizon(t, momentum, t_push, mass_kg) is not None
 
 
-def _driver_streams(config: GenerationConfig):
-    from fall_predictor.sim.drivers import DriverStreams
-    return DriverStreams(config.timing())
-
-
 def _sensor_readings(config: GenerationConfig, index: int, result, bag: BagWriter, first: int):
     """The run's sensor readings (noise seeded by dataset seed and index), with the sensor
     parameters and the robot description written into ``bag``; None without sensors."""
     if config.sensor_noise_scale is None:
         return None
-    from fall_predictor.sim.sensors import SensorParams, apply_sensors, robot_description
+    from fall_predictor.sim.sensors import apply_sensors, robot_description
 
-    params = SensorParams(noise_scale=config.sensor_noise_scale)
+    params = sensor_params(config, index, config.sensor_noise_scale)
     write_sensor_params(bag, {**params.to_dict(), 'timing': config.timing().to_dict()})
     profile = load_profile(config.robot)
     write_robot_description(bag, result.measurements[first].t, robot_description(profile))

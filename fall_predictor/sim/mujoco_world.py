@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 import os
+from dataclasses import replace
 from typing import Optional
 
 # Rendering without a display (the package's renders are headless); a user's choice stands.
@@ -55,6 +56,7 @@ class MujocoWorld:
         self._flat_model = load_model(profile)
         self._terrain: tuple = ()
         self._fault = FaultProtocol()
+        self._random = None               #: the run's randomised world (sim/randomization.py)
         self._load(self._flat_model)
         self.t = 0.0
         self.tick = 0
@@ -113,6 +115,12 @@ class MujocoWorld:
         self._terrain_set = frozenset(self._terrain_geoms)
         self._joint_ids = ids
         self._joint_limits = (m.jnt_range[ids].copy(), m.jnt_limited[ids].copy())
+        # The nominal masses, inertias and ground friction a randomised start scales.
+        self._robot_bodies = np.array([b for b in range(m.nbody) if m.body_rootid[b] == m.body_rootid[self._root_body]
+                                       and b != 0])
+        self._nominal = (m.body_mass.copy(), m.body_inertia.copy(), m.geom_friction.copy(), m.geom_priority.copy())
+        self._floor = np.array(sorted(set(self._ground) - set(self._terrain_geoms)), dtype=int)
+        self._scales = (1.0, 1.0, 1.0)
 
     def _effort_limits(self, joint_ids: list[int]) -> np.ndarray:
         m = self.model
@@ -141,6 +149,7 @@ class MujocoWorld:
         # A joint a fault left stuck is free again.
         m.jnt_range[self._joint_ids], m.jnt_limited[self._joint_ids] = self._joint_limits
         self._fault.clear()
+        self._randomize()
         q = np.array([posture.joint_angles.get(n, 0.0) for n in self.joint_names])
         d.qpos[self._qadr] = q
         half = 0.5 * posture.base_yaw_rad
@@ -193,6 +202,11 @@ class MujocoWorld:
         boxes = tuple(boxes)
         if boxes == self._terrain:
             return
+        # The model left behind is the robot's own again (a stuck joint freed, masses and friction
+        # nominal): it is read as nominal when it comes back.
+        m = self.model
+        m.jnt_range[self._joint_ids], m.jnt_limited[self._joint_ids] = self._joint_limits
+        m.body_mass[:], m.body_inertia[:], m.geom_friction[:], m.geom_priority[:] = self._nominal
         self._terrain = boxes
         self._load(model_with_terrain(self.profile, boxes) if boxes else self._flat_model)
 
@@ -221,6 +235,33 @@ class MujocoWorld:
                                       c.pos.copy(), normal, friction))
         return out
 
+    def set_randomization(self, randomization) -> None:
+        """Randomise the world (sim/randomization.WorldRandomization) from the next :meth:`start`
+        on; None: the nominal world."""
+        self._random = randomization
+
+    def _randomize(self) -> None:
+        """The nominal masses, inertias and ground friction, then the run's randomisation: every
+        robot body's mass and inertia scaled, the base's given the added mass, the floor's
+        friction deciding its contacts (priority over the robot's geometries)."""
+        m = self.model
+        mass, inertia, friction, priority = self._nominal
+        m.body_mass[:], m.body_inertia[:], m.geom_friction[:], m.geom_priority[:] = mass, inertia, friction, priority
+        r = self._random
+        self._scales = (1.0, 1.0, 1.0) if r is None else r.drive_scales()
+        if r is not None:
+            bodies = self._robot_bodies
+            m.body_mass[bodies] *= r.link_mass_scale
+            m.body_inertia[bodies] *= r.link_mass_scale
+            base = self._root_body
+            new = max(m.body_mass[base] + r.added_base_mass_kg, 0.1 * mass[base])
+            m.body_inertia[base] *= new / m.body_mass[base]
+            m.body_mass[base] = new
+            m.geom_friction[self._floor, 0] = r.friction
+            m.geom_priority[self._floor] = 2
+        self.total_mass = (float(m.body_subtreemass[self._root_body]) if r is None
+                           else float(m.body_mass[self._robot_bodies].sum()))
+
     def schedule_fault(self, fault) -> None:
         """Fail ``fault``'s joint drive from its start (sim/disturbances.JointFault)."""
         self._fault.schedule(fault, self.joint_names)
@@ -228,12 +269,17 @@ class MujocoWorld:
     def step(self) -> Measurement:
         m, d = self.model, self.data
         q, dq = d.qpos[self._qadr], d.qvel[self._dadr]
+        kp_scale, kd_scale, limit_scale = self._scales
         if self._kp is None and self._servo is not None:
             from fall_predictor.robot.actuation import servo_torques
-            tau = servo_torques(self._servo, self._targets, q, dq)
+            servo = self._servo if self._random is None else replace(
+                self._servo, kp=self._servo.kp * kp_scale, kd=self._servo.kd * kd_scale,
+                effort=self._servo.effort * limit_scale)
+            tau = servo_torques(servo, self._targets, q, dq)
         else:
-            tau = self._kp * (self._targets - q) - self._kd * dq
-        tau = np.minimum(np.maximum(tau, -self._limit), self._limit)
+            tau = kp_scale * self._kp * (self._targets - q) - kd_scale * self._kd * dq
+        limit = self._limit if limit_scale == 1.0 else self._limit * limit_scale
+        tau = np.minimum(np.maximum(tau, -limit), limit)
         # A faulty drive gives a share of its torque; a stuck joint is locked by its limits
         # (sim/disturbances.py).
         tau = self._fault.torques(self.t, tau)

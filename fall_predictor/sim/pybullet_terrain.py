@@ -1,4 +1,5 @@
-"""Terrain boxes and joint faults in the PyBullet world (the engine's side of sim/disturbances.py).
+"""Terrain boxes, joint faults and domain randomisation in the PyBullet world (the engine's side of
+sim/disturbances.py and sim/randomization.py).
 
 Boxes are static bodies (mass 0) made with the world at each start; a contact on one has the box's
 friction (PyBullet multiplies the two bodies' lateral frictions, the feet's being 1.0 by default,
@@ -52,3 +53,19 @@ def lock_joint(world, index: int, angle_rad: float) -> None:
     """Lock joint ``index`` (profile order) at ``angle_rad`` with its limits."""
     pb.changeDynamics(world.robot, world.joint_indices[index], jointLowerLimit=angle_rad - STUCK_PLAY_RAD,
                       jointUpperLimit=angle_rad + STUCK_PLAY_RAD, physicsClientId=world.client)
+
+
+def randomize_dynamics(world, randomization, n_links: int) -> None:
+    """The ground's friction and the links' masses of a freshly loaded robot, randomised: every
+    link with mass scaled (its inertia with it), the base then given the added mass."""
+    c = world.client
+    pb.changeDynamics(world.plane, -1, lateralFriction=randomization.friction, physicsClientId=c)
+    for link in [-1, *range(n_links)]:
+        info = pb.getDynamicsInfo(world.robot, link, physicsClientId=c)
+        mass = info[0]
+        if mass <= 0.0:
+            continue
+        new = max(mass * randomization.link_mass_scale
+                  + (randomization.added_base_mass_kg if link == -1 else 0.0), 0.1 * mass)
+        inertia = np.asarray(info[2]) * (new / mass)
+        pb.changeDynamics(world.robot, link, mass=new, localInertiaDiagonal=inertia.tolist(), physicsClientId=c)

@@ -95,6 +95,9 @@ class PybulletWorld:
         self.terrain_bodies: list[int] = []
         self._fault = FaultProtocol()
         self._stuck = False
+        #: The run's randomised world (sim/randomization.py), None: nominal; the drives it scaled.
+        self._random = None
+        self._scaled_servo: Optional[tuple] = None
 
     # -- world -------------------------------------------------------------------------
     def reset(self, joint_positions: Sequence[float], torso_position: Sequence[float],
@@ -157,6 +160,9 @@ class PybulletWorld:
                               localInertiaDiagonal=inertia.tolist(), physicsClientId=c)
         for link in self.foot_links.values():
             pb.changeDynamics(self.robot, link, lateralFriction=self.config.foot_friction, physicsClientId=c)
+        if self._random is not None:
+            from fall_predictor.sim.pybullet_terrain import randomize_dynamics
+            randomize_dynamics(self, self._random, len(infos))
         for i, q in zip(self.joint_indices, joint_positions):
             pb.resetJointState(self.robot, i, q, 0.0, physicsClientId=c)
         if self.config.actuation == 'pd_torque':
@@ -360,6 +366,23 @@ class PybulletWorld:
                                              renderer=pb.ER_TINY_RENDERER, physicsClientId=c)
         return np.reshape(np.asarray(rgba, dtype=np.uint8), (height, width, 4))[:, :, :3]
 
+    def set_randomization(self, randomization) -> None:
+        """Randomise the world (sim/randomization.WorldRandomization) from the next :meth:`start`
+        on; None: the nominal world."""
+        if randomization is not None and self.config.actuation != 'pd_torque':
+            raise ValueError("domain randomisation needs the torque drives (actuation 'pd_torque')")
+        self._random = randomization
+
+    def _drives(self) -> ServoArrays:
+        """The servo arrays the drives run with: the robot's, scaled by the randomisation."""
+        if self._random is None:
+            return self.servo
+        if self._scaled_servo is None or self._scaled_servo[0] is not self.servo:
+            kp, kd, limit = self._random.drive_scales()
+            self._scaled_servo = (self.servo, replace(self.servo, kp=self.servo.kp * kp, kd=self.servo.kd * kd,
+                                                      effort=self.servo.effort * limit))
+        return self._scaled_servo[1]
+
     def set_terrain(self, boxes) -> None:
         """Lay ``boxes`` (sim/disturbances.TerrainBox) from the next :meth:`start` on."""
         self._terrain = tuple(boxes)
@@ -389,7 +412,7 @@ class PybulletWorld:
             # The servos close their loops on the joint state at the start of the step; a faulty
             # drive gives a share of its torque (sim/disturbances.py).
             self._torques = self._fault.torques(
-                self.t, servo_torques(self.servo, self._targets, self._q, self._dq))
+                self.t, servo_torques(self._drives(), self._targets, self._q, self._dq))
             if not self._stuck and (stuck := self._fault.stuck_joint(self.t, self._q)) is not None:
                 from fall_predictor.sim.pybullet_terrain import lock_joint
                 lock_joint(self, *stuck)

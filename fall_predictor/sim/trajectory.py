@@ -211,7 +211,7 @@ def run_trajectory(push: Optional[PushSpec], duration_s: float, *,
                    go_on_while: Optional[Callable[[list[Measurement]], bool]] = None,
                    max_extension_s: float = 0.0,
                    on_step: Optional[Callable] = None,
-                   disturbance=None) -> TrajectoryResult:
+                   disturbance=None, randomization=None) -> TrajectoryResult:
     """Simulate from the controller's starting posture for up to ``duration_s`` seconds.
 
     ``world``: the world to run in (any world of sim/world.py; default: a fresh one of the
@@ -231,7 +231,11 @@ def run_trajectory(push: Optional[PushSpec], duration_s: float, *,
     pushes (sim/disturbances.Disturbance): its terrain laid before the start, its fault scheduled,
     a long walk's command schedule followed, its onset measured (``extras['t_onset']``,
     sim/disturbance_runs.OnsetProbe); the world is flat and sound again afterwards.
+    ``randomization``: the run's randomised world (sim/randomization.WorldRandomization; its
+    sensors' part is the ``sensors`` given), nominal again afterwards.
     """
+    if randomization is not None and prefix is not None:
+        raise ValueError('a randomised run starts its own world: no shared walk prefix')
     if prefix is not None and disturbance is None and push is not None and push.t_push <= prefix.until_s:
         sim = prefix.sim
         run = prefix.start_at(push.t_push)
@@ -240,6 +244,11 @@ def run_trajectory(push: Optional[PushSpec], duration_s: float, *,
         own = world is None and prefix is None
         sim = prefix.sim if prefix is not None else (world or make_world(load_profile(DEFAULT_ROBOT)))
         probe = None
+        if randomization is not None:
+            if not callable(getattr(sim, 'set_randomization', None)):
+                raise ValueError(f'the {type(sim).__name__} world cannot be randomised: it lacks '
+                                 'set_randomization (sim/world.py World)')
+            sim.set_randomization(randomization)
         if disturbance is not None:
             probe, controller, on_step = _disturbed(sim, disturbance, controller, on_step)
         run = _new_run(sim, duration_s + max_extension_s + WALK_MARGIN_S, record_sensors, controller,
@@ -269,6 +278,8 @@ def run_trajectory(push: Optional[PushSpec], duration_s: float, *,
     finally:
         if disturbance is not None and disturbance.terrain:
             sim.set_terrain(())
+        if randomization is not None:
+            sim.set_randomization(None)
         if own:
             sim.close()
 

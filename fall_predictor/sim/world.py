@@ -101,6 +101,10 @@ class World(Protocol):
     def terrain_contacts(self) -> list[TerrainContact]:
         """The robot's loaded contacts with the terrain boxes at the current step."""
 
+    def set_randomization(self, randomization) -> None:
+        """Randomise the world (sim/randomization.WorldRandomization: ground friction, link
+        masses, drives) from the next :meth:`start` on; None: the nominal world."""
+
     def schedule_fault(self, fault) -> None:
         """Apply ``fault`` (sim/disturbances.JointFault; None: none) to the drive of its joint
         from its start on, until the next :meth:`start`."""
