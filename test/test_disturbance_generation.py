@@ -102,3 +102,13 @@ def test_generate_randomize_records_each_runs_world_and_repeats_it(tmp_path, cap
         for name, (low, high) in ranges.items():
             assert low <= getattr(world, name) <= high
     assert json.loads((tmp_path / 'a' / 'dataset.json').read_text())['randomization'] == ranges
+
+
+def test_render_a_cause_frames_the_run_around_its_measured_onset(tmp_path, capsys):
+    out = tmp_path / 'trip.png'
+    assert main(['render', '--robot', 'g1_12dof', '--cause', 'trip', '--seed', '2', '--frames', '2',
+                 '--before', '0.2', '--after', '0.3', '--out', str(out), '--json']) == 0
+    rendered = json.loads(capsys.readouterr().out)
+    assert out.stat().st_size > 10_000 and rendered['frames'] == 2
+    assert rendered['cause'] == 'trip' and rendered['cause_params']['height_m'] > 0
+    assert rendered['t_onset'] > 2.0                      # the first contact, measured
