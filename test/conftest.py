@@ -30,7 +30,7 @@ SLOW_MODULES = frozenset({
     'test_stabilizer', 'test_controllers', 'test_g1', 'test_robot_rates', 'test_robot_import',
     'test_cli', 'test_dataset', 'test_state_source', 'test_estimation_cli', 'test_simulator',
     'test_team_model', 'test_onboard_replay', 'test_lowstate_replay', 'test_generate_stop',
-    'test_check_runs',
+    'test_check_runs', 'test_disturbance_physics', 'test_disturbance_generation', 'test_randomization',
 })
 
 

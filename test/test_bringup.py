@@ -105,7 +105,7 @@ def test_an_unpaced_run_checks_no_sample_age_a_paced_run_does() -> None:
 def test_record_live_with_c_bal_throughout_then_import_and_train(tmp_path: Path) -> None:
     """Offline from live: bring-up records (C_bal in charge), import the bags, train on them."""
     from fall_predictor.cli import main as cli_main
-    from fall_predictor.data.generation import import_recordings
+    from fall_predictor.data.recording_import import import_recordings
     from fall_predictor.monitor.model_file import load_model
 
     results = run_bringup(PUSHES, SEED, None, domain_id=test_domain_id(150),
@@ -133,7 +133,7 @@ def test_record_live_with_c_bal_throughout_then_import_and_train(tmp_path: Path)
 
 
 def test_recordings_where_c_fall_took_over_are_rejected(tmp_path: Path) -> None:
-    from fall_predictor.data.generation import import_recordings
+    from fall_predictor.data.recording_import import import_recordings
 
     run_bringup(1, SEED, None, domain_id=test_domain_id(160),
                 model_path=write_momentum_model(tmp_path / 'model.json'),

@@ -222,3 +222,44 @@ def test_a_dataset_split_in_two_reads_as_two_datasets_reusing_the_cache(small_da
     assert all(np.array_equal(t.com_height, by_id[t.trajectory_id].com_height)
                for p in parts for t in p.trajectories)
     assert json.loads((tmp_path / 'b' / 'dataset.json').read_text())['split_of']['first_index'] == 3
+
+
+def _index_row(**fields):
+    from fall_predictor.data.dataset import IndexRow
+    base = dict(trajectory_id='traj_00000', bag='bags/traj_00000', force_n=0.0, angle_deg=0.0,
+                height_m=0.0, t_push=3.2, t_force_end=3.2, fallen=True, t_fallen=4.5,
+                t_height_drop=4.1, t_reflex=None, t_start=2.2, t_end=4.5, samples=2301)
+    return IndexRow(**{**base, **fields})
+
+
+def test_the_index_round_trips_cause_params_and_onset(tmp_path):
+    import csv
+    from dataclasses import asdict
+    from fall_predictor.data.dataset import cause_params_text, write_index_csv
+    (tmp_path / 'index').mkdir()
+    (tmp_path / 'dataset.json').write_text('{}')
+    params = {'height_m': 0.04, 'depth_m': 0.05, 'distance_m': 0.6}
+    row = _index_row(cause='trip', cause_params=cause_params_text(params), t_onset=3.217)
+    (tmp_path / 'index' / 'traj_00000.json').write_text(json.dumps(asdict(row)))
+    back, = read_index(tmp_path)
+    assert back == row and back.params == params and back.onset_s == 3.217
+    with open(write_index_csv(tmp_path, [back])) as f:
+        line, = csv.DictReader(f)
+    assert (line['cause'], json.loads(line['cause_params']), float(line['t_onset'])) == ('trip', params, 3.217)
+
+
+def test_a_row_made_before_causes_reads_as_a_push_whose_onset_is_its_push(tmp_path):
+    from dataclasses import asdict
+    (tmp_path / 'index').mkdir()
+    (tmp_path / 'dataset.json').write_text('{}')
+    old = asdict(_index_row(force_n=120.0, t_force_end=3.3))
+    for name in ('cause', 'cause_params', 't_onset'):
+        del old[name]
+    (tmp_path / 'index' / 'traj_00000.json').write_text(json.dumps(old))
+    row, = read_index(tmp_path)
+    assert (row.cause, row.params, row.onset_s) == ('push', {}, 3.2)
+    # A long walk has no onset; an unknown cause is named, not read as a push.
+    assert _index_row(cause='walk').onset_s is None
+    (tmp_path / 'index' / 'traj_00000.json').write_text(json.dumps({**old, 'cause': 'earthquake'}))
+    with pytest.raises(DatasetError, match='earthquake'):
+        read_index(tmp_path)

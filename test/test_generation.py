@@ -1,4 +1,4 @@
-"""Datasets made from recorder_node bags (data/generation.py ``import_recordings``): the falls are
+"""Datasets made from recorder_node bags (data/recording_import.py ``import_recordings``): the falls are
 found with the recorded robot's own fallen height, not another robot's."""
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from fall_predictor.data.bag_writer import BagWriter
-from fall_predictor.data.generation import import_recordings
+from fall_predictor.data.recording_import import import_recordings
 from fall_predictor.monitor.records import Measurement
 from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
 

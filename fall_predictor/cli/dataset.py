@@ -41,6 +41,12 @@ def generation_config(args):
         extra['controller'] = controller
     if simulator != 'pybullet':
         extra['simulator'] = simulator
+    if args.causes is not None:
+        from fall_predictor.data.disturbance_generation import parse_causes
+        extra['causes'] = parse_causes(args.causes)      # ValueError: generate says why
+        extra['walk_s'] = args.walk_s
+    if args.randomize:
+        extra['randomize'] = True
     noise = args.sensor_noise
     if controller != C_BAL and noise is None:
         noise = 1.0                 # a learned policy walks on its sensors: the bags hold them
@@ -59,7 +65,7 @@ def cmd_generate(args) -> int:
     from fall_predictor.profiles import ProfileError
     try:
         config = generation_config(args)
-    except ProfileError as error:
+    except (ProfileError, ValueError) as error:
         return _fail('generate', error)
     start = time.perf_counter()
     try:
@@ -70,6 +76,7 @@ def cmd_generate(args) -> int:
     except WriterStopped as stop:
         print(f'fall-predictor generate: {stop}', file=sys.stderr)
         return 128 + stop.signum            # the shell's convention for a process a signal ended
+    from fall_predictor.data.stats import stats_by_cause
     wall = time.perf_counter() - start
     rows = [r for r in rows if int(r.trajectory_id.split('_')[1]) < args.trajectories]
     fallen = sum(r.fallen for r in rows)
@@ -82,7 +89,7 @@ def cmd_generate(args) -> int:
                'disk_bytes': size, 'seed': args.seed, 'jobs': args.jobs, 'scheduler': args.scheduler,
                'gait_variety': config.gait_variety, 'cpu_s': cost.get('cpu_s'),
                'cpu_per_simulated_s': cost.get('cpu_per_simulated_s'),
-               'machines': cost.get('machines', {}),
+               'machines': cost.get('machines', {}), 'by_cause': stats_by_cause(rows),
                'recorded_past_horizon': {r.trajectory_id: {'fallen': r.fallen, 'after_push_end_s': round(
                    r.t_end - r.t_force_end, 3)} for r in went_on}}
     before_push = [r for r in rows if r.fallen and r.t_fallen is not None and r.t_fallen < r.t_push]
@@ -94,7 +101,8 @@ def cmd_generate(args) -> int:
                           f'CPU {payload["cpu_s"]:.0f} s in all ({payload["cpu_per_simulated_s"]:.3f} s per '
                           f'simulated s) on {machines}' if payload['cpu_s'] is not None else 'CPU: not recorded',
                           f'{len(went_on)} still moving at the {config.horizon_after_push_s:g} s horizon, '
-                          f'recorded until they settled or fell ({sum(r.fallen for r in went_on)} fell)'])
+                          f'recorded until they settled or fell ({sum(r.fallen for r in went_on)} fell)',
+                          *_cause_lines(payload['by_cause'], config.causes)])
     if before_push:
         # A robot that falls before any push has its files wrong (or walks beyond itself): the
         # dataset's falls are not those of pushes.
@@ -108,14 +116,31 @@ def cmd_generate(args) -> int:
     return 0
 
 
+def _cause_lines(by_cause: dict, causes) -> list:
+    if causes is None and set(by_cause) <= {'push'}:
+        return []
+    lines = []
+    for cause, c in by_cause.items():
+        text = f'{cause}: {c["runs"]} runs, {c["fallen"]} fallen ({c["fall_fraction"]:.2f})'
+        if c['without_onset']:
+            text += f', {c["without_onset"]} never disturbed (no onset)'
+        if c['onset_to_fall_s_median'] is not None:
+            text += f', onset to fall {c["onset_to_fall_s_median"]:.2f} s (median)'
+        if cause == 'walk':
+            text += f', {c["hours"]:.3f} h walked'
+        lines.append(text)
+    return lines
+
+
 def cmd_stats(args) -> int:
     from fall_predictor.data.dataset import load_features, read_index, robot_total_mass_kg
-    from fall_predictor.data.stats import dataset_stats, plot_fig6
+    from fall_predictor.data.stats import dataset_stats, plot_fig6, stats_by_cause
 
     rows = read_index(args.data)
     report = load_features(args.data, jobs=args.jobs, progress=not args.json)
     stats = dataset_stats(rows, report.trajectories, robot_total_mass_kg(args.data))
     stats['unreadable_bags'] = report.errors
+    stats['by_cause'] = stats_by_cause(rows)
     plots_dir = Path(args.plots) if args.plots else Path(args.data) / 'plots'
     stats['plots'] = [str(p) for p in plot_fig6(report.trajectories, plots_dir)]
     lines = [f"{stats['trajectories']} trajectories, {stats['fallen']} fallen "
@@ -132,6 +157,7 @@ def cmd_stats(args) -> int:
         lines.append(f"airborne_upright_fraction: {stats['airborne_upright_fraction']:.4f}")
     lines.append('contact-mode occupancy: ' + ', '.join(
         f'{k} {v:.3f}' for k, v in stats['contact_mode_occupancy'].items() if v > 0))
+    lines += _cause_lines(stats['by_cause'], None)
     for tid, error in report.errors.items():
         lines.append(f'UNREADABLE {tid}: {error}')
     lines.append('plots: ' + ', '.join(stats['plots']))
@@ -141,7 +167,7 @@ def cmd_stats(args) -> int:
 
 def cmd_import_bags(args) -> int:
     from fall_predictor.data.dataset import PUSH_UNKNOWN, DatasetError, read_manifest
-    from fall_predictor.data.generation import ImportReport, import_recordings
+    from fall_predictor.data.recording_import import ImportReport, import_recordings
     from fall_predictor.data.robot_import import (import_robot_recordings, is_robot_recording,
                                                   read_push_times)
     from fall_predictor.profiles import ProfileError
@@ -227,6 +253,16 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help='joint state rate with --sensor-timing robot [Hz]')
     add_robot_argument(p)
     argtypes.add_controller_arguments(p)
+    p.add_argument('--causes', default=None, metavar='CAUSE[:WEIGHT],...',
+                   help='what disturbs the runs, with mix weights: push, trip, slip, step, fault, walk '
+                        '(e.g. push:0.4,trip:0.15,slip:0.15,step:0.1,fault:0.1,walk:0.1; no weights: '
+                        'equal); default: pushes only, as datasets made before')
+    p.add_argument('--walk-s', type=argtypes.positive, default=60.0, metavar='SECONDS',
+                   help='length of a long walk (the cause walk; default 60 s)')
+    p.add_argument('--randomize', action='store_true',
+                   help='randomise each run\'s world as legged_gym-style training does (ground friction, '
+                        'link masses, base payload, motor strength, PD gains, sensor latency, IMU bias: '
+                        'sim/randomization.py), its draw in the index')
     p.add_argument('--fixed-gait', action='store_true',
                    help='every trajectory walks the default gait (faster: the walk is simulated once per '
                         'process) instead of drawing its gait (method §3 amendment)')

@@ -73,24 +73,23 @@ def cmd_calibrate(args) -> int:
         profile = argtypes.checked_profile(args.robot, controller)
     except ProfileError as error:
         return fail('calibrate', error)
-    probe = args.probe_force or PROBE_FORCE_N_PER_KG * profile.total_mass_kg
-    setup = CalibrationSetup(args.robot, controller, simulator, probe, args.seed, args.horizon)
-
     def parallel_map(function, items):
         results = []
-        with progress_bar(len(items), desc='pushes', unit='push', disable=args.json) as bar:
+        with progress_bar(len(items), desc='runs', unit='run', disable=args.json) as bar:
             for result in compute_parallel(args.jobs, return_as='generator')(
                     delayed(function)(item) for item in items):
                 results.append(result)
                 bar.update(1)
         return results
 
+    if args.cause != 'push':
+        return _calibrate_cause(args, profile, controller, simulator, parallel_map)
+    probe = args.probe_force or PROBE_FORCE_N_PER_KG * profile.total_mass_kg
+    setup = CalibrationSetup(args.robot, controller, simulator, probe, args.seed, args.horizon)
     start = time.perf_counter()
     summary = calibrate(setup, args.trajectories, parallel_map, args.target)
     summary['wall_s'] = time.perf_counter() - start
-    if args.out:
-        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.out).write_text(json.dumps(summary, indent=1, sort_keys=True) + '\n')
+    _write(args.out, summary)
     where = (f'controllers.{controller}.push_force_n' if profile.controller_profile(controller)
              else 'push_force_n')
     lines = [f'{summary["runs"]} pushes of up to {probe:.0f} N ({probe * 0.1:.0f} N s) of {profile.name} '
@@ -106,6 +105,46 @@ def cmd_calibrate(args) -> int:
     return 0
 
 
+def _write(out, summary: dict) -> None:
+    if out:
+        Path(out).parent.mkdir(parents=True, exist_ok=True)
+        Path(out).write_text(json.dumps(summary, indent=1, sort_keys=True) + '\n')
+
+
+def _calibrate_cause(args, profile, controller, simulator, parallel_map) -> int:
+    """``calibrate --cause``: the cause's severity range (sim/cause_calibration.py)."""
+    from fall_predictor.sim.cause_calibration import CauseCalibrationSetup, calibrate_cause
+    if args.cause == 'walk':
+        return fail('calibrate', 'a long walk has no disturbance to calibrate')
+    setup = CauseCalibrationSetup(args.robot, controller, simulator, args.cause,
+                                  None if args.probe is None else tuple(sorted(args.probe)),
+                                  args.seed, args.horizon)
+    start = time.perf_counter()
+    target = 0.45 if args.target == 0.5 else args.target
+    summary = calibrate_cause(setup, args.trajectories, parallel_map, target)
+    summary['wall_s'] = time.perf_counter() - start
+    _write(args.out, summary)
+    key = summary['parameter']
+    where = (f'controllers.{controller}.causes.{args.cause}.{key}' if profile.controller_profile(controller)
+             else f'causes.{args.cause}.{key}')
+    lines = [f'{summary["runs"]} {args.cause} runs of {profile.name} under {controller} in {simulator}, '
+             f'{key} drawn over {summary["probe"]}: {summary["fall_fraction"]:.2f} fell '
+             f'(onset to fall, median: {summary["onset_to_fall_s_median"]} s; '
+             f'{summary["without_onset"]} never disturbed, {summary["fell_before_onset"]} fell before the onset)']
+    lines += [f'  {b[key][0]:8.4f}-{b[key][1]:8.4f}: {b["runs"]:4d} runs, '
+              + ('-' if b['fall_fraction'] is None else f'{b["fall_fraction"]:.2f} fell')
+              for b in summary['fall_probability_by_band']]
+    if summary['can_fell']:
+        low, high = summary['suggested'][key]
+        lines.append(f'suggested: {where}: [{low:g}, {high:g}] (predicted fall fraction '
+                     f'{summary["predicted_fall_fraction"]:.2f}; put it in the robot profile)')
+    else:
+        lines.append(f'{args.cause} cannot fell {profile.name} under {controller} within the probe: '
+                     f'its severest band fells fewer than 30 % of the runs')
+    emit(args, {k: v for k, v in summary.items() if k != 'rows'} if args.json else summary, lines)
+    return 0
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser('calibrate', help='the push range that fells about half of a robot\'s runs',
                        description='Push the robot under its controller N times with the dataset '
@@ -117,7 +156,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--seed', type=int, default=0)
     p.add_argument('--probe-force', type=argtypes.positive, default=None, metavar='N',
                    help='largest force drawn [N] (default: 30 N per kg of robot)')
-    p.add_argument('--target', type=argtypes.positive, default=0.5, help='fall fraction wanted')
+    p.add_argument('--target', type=argtypes.positive, default=0.5,
+                   help='fall fraction wanted (default 0.5 for pushes, 0.45 for another --cause)')
+    p.add_argument('--cause', choices=('push', 'trip', 'slip', 'step', 'fault'), default='push',
+                   help='the disturbance calibrated (default push): trip height, slip friction, step '
+                        'height, fault\'s remaining torque share (sim/cause_calibration.py)')
+    p.add_argument('--probe', type=argtypes.nonnegative, nargs=2, default=None, metavar=('LOW', 'HIGH'),
+                   help='with --cause: the range its parameter is drawn over (default: a wide probe)')
     p.add_argument('--horizon', type=argtypes.positive, default=4.0,
                    help='seconds after the push ends before a run counts as survived')
     p.add_argument('--jobs', type=argtypes.positive_int, default=1, help='parallel processes')

@@ -142,9 +142,15 @@ def cmd_render(args) -> int:
     except ProfileError as error:
         return _fail('render', error)
     world = make_world(profile, simulator, physics_dt_s(policy))
-    controller = make_controller(profile, controller_name, args.command, dt_s=world.dt_s,
-                                 walk_duration_s=args.onset + args.after + 5.0)
-    push = PushSpec(args.force, args.angle, args.height, args.onset)
+    disturbance = None
+    if args.cause != 'push':
+        # Another cause (sim/disturbances.py), drawn from --seed: a first run measures its onset.
+        disturbance, args.onset, controller, what = _disturbance_to_render(args, profile, controller_name, world)
+        args.force, args.angle = 0.0, 0.0           # the camera at right angles to the walk (+x)
+    else:
+        controller = make_controller(profile, controller_name, args.command, dt_s=world.dt_s,
+                                     walk_duration_s=args.onset + args.after + 5.0)
+    push = PushSpec(args.force, args.angle, args.height, args.onset) if disturbance is None else None
     times = list(np.linspace(args.onset - args.before, args.onset + args.after, args.frames))
     images, labels, heading, frame_times = [], [], [], []
     height_m = 0.42 * profile.guard_com_height_m / 0.48     # the ASIMO-like robot's view, scaled
@@ -167,7 +173,8 @@ def cmd_render(args) -> int:
         # With a model, the robot's sensors are simulated (a policy's are anyway) for the monitor.
         result = run_trajectory(push, args.onset + args.after + 0.01, stop_when_fallen=False,
                                 world=world, controller=controller, on_step=on_step,
-                                record_sensors=args.model is not None and policy is None)
+                                record_sensors=args.model is not None and policy is None,
+                                disturbance=disturbance)
     finally:
         world.close()
     alarm = _monitor_alarm(profile, args.model, result) if args.model is not None else None
@@ -181,8 +188,9 @@ def cmd_render(args) -> int:
     who = controller.name
     if policy is not None:
         who += ' at (' + ', '.join(f'{c:g}' for c in controller.velocity_command) + ')'
-    what = (f'{push.impulse_ns:.0f} N s push, {args.angle:.0f}° from the heading, {args.height:.2f} m '
-            'above the CoM (t = 0: onset)') if args.force else 'no push (t = 0: the given onset)'
+    if disturbance is None:
+        what = (f'{push.impulse_ns:.0f} N s push, {args.angle:.0f}° from the heading, {args.height:.2f} m '
+                'above the CoM (t = 0: onset)') if args.force else 'no push (t = 0: the given onset)'
     fig.suptitle(f'{profile.name}, {who}, {simulator}: {what}' + ('' if args.model is None else
                                      f'\nmonitor ({Path(args.model).name}): ' + (
                                          'no alarm' if alarm is None else
@@ -194,6 +202,8 @@ def cmd_render(args) -> int:
     fig.savefig(args.out, dpi=110)
     plt.close(fig)
     payload = {'out': str(args.out), 'fallen': result.fallen, 't_fallen': result.t_fallen,
+               'cause': args.cause, 't_onset': args.onset if disturbance is not None else push.t_push,
+               'cause_params': None if disturbance is None else disturbance.params,
                'frames': len(images), 'robot': profile.name, 'controller': controller.name,
                'simulator': simulator, 'model': None if args.model is None else str(args.model),
                't_alarm': None if alarm is None else alarm.stamp_s,
@@ -206,6 +216,34 @@ def cmd_render(args) -> int:
                                                     f'FALLING at {alarm.stamp_s:.3f} s'))
     _emit(args, payload, lines)
     return 0
+
+
+def _disturbance_to_render(args, profile, controller_name, world):
+    """``render --cause``: (the disturbance drawn from ``--seed`` as a dataset draws it, its onset
+    measured by a first run [s], a fresh controller for the rendered run, the title's words)."""
+    from fall_predictor.robot.control import make_controller
+    from fall_predictor.sim.disturbance_runs import (cause_ranges, fault_joints, run_length_s,
+                                                     sample_disturbance, walker_for)
+    from fall_predictor.sim.trajectory import WALK_MARGIN_S, run_trajectory
+
+    disturbance, gait, expected_s = sample_disturbance(
+        args.cause, np.random.default_rng(args.seed), walker_for(profile, controller_name),
+        cause_ranges(profile, controller_name, args.cause), fault_joints(profile), walk_s=args.after)
+
+    def controller():
+        command = disturbance.command or args.command
+        if disturbance.schedule is not None:
+            command = disturbance.schedule.at(0.0)
+        return make_controller(profile, controller_name, command, dt_s=world.dt_s,
+                               walk_duration_s=expected_s + args.after + WALK_MARGIN_S + 5.0, gait=gait)
+    first = run_trajectory(None, run_length_s(args.cause, expected_s, args.after), world=world,
+                           controller=controller(), disturbance=disturbance)
+    onset = first.extras['t_onset']
+    if onset is None:
+        onset = expected_s if args.cause != 'walk' else 2.0
+    words = ', '.join(f'{k} {v:.3g}' if isinstance(v, float) else f'{k} {v}'
+                      for k, v in disturbance.params.items() if k not in ('times_s', 'commands'))
+    return disturbance, onset, controller(), f'{args.cause} ({words}; t = 0: onset)'
 
 
 def _monitor_alarm(profile, model: Path, result):
@@ -256,6 +294,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    'of frames, the camera following the robot at right angles to the '
                                    'push (headless: PyBullet\'s TinyRenderer, MuJoCo\'s offscreen '
                                    'renderer with MUJOCO_GL=egl or osmesa).')
+    p.add_argument('--cause', choices=('push', 'trip', 'slip', 'step', 'fault', 'walk'), default='push',
+                   help='what disturbs the run (default push); another cause is drawn from --seed as '
+                        'a dataset draws it, the frames around its measured onset')
+    p.add_argument('--seed', type=int, default=0, help='with --cause: the draw of the disturbance')
     p.add_argument('--force', type=argtypes.finite(float), default=250.0, help='push force [N] for 0.1 s')
     p.add_argument('--angle', type=argtypes.finite(float), default=90.0,
                    help='push direction from the heading [deg]')

@@ -43,9 +43,10 @@ import numpy as np
 from fall_predictor.data.bagio import BagError, read_trajectory
 from fall_predictor.data.cache import bag_fingerprint, cached_arrays, derivation_key, files_fingerprint
 from fall_predictor.data.outcomes import unsettled_at_horizon
+from fall_predictor.data.refused_samples import (RefusedSamples, _refused_arrays, refused_samples,
+                                                 usable_features)
 from fall_predictor.monitor.features import FeatureSettings
 from fall_predictor.monitor.fileio import atomic_output
-from fall_predictor.monitor.plausibility import ImplausibleSample
 from fall_predictor.monitor.records import (FEATURE_NAMES, N_FEATURES, Measurement, PushSpec,
                                             TrajectoryFeatures)
 
@@ -59,6 +60,12 @@ CACHE_FORMAT = 'fall_predictor/features-cache/v7'
 ROBOT_URDF_FILE = 'robot.urdf'
 #: Where features can come from (module docs); the CLI default is ``'estimated'``.
 STATES = ('estimated', 'true')
+#: What can disturb a run (:attr:`IndexRow.cause`): a push, a trip over an obstacle, a slip on a
+#: low-friction patch, a step down or up or an incline, an actuator fault on a leg joint, and a
+#: long walk with changing commands and no disturbance (sim/disturbances.py describes each).
+CAUSE_PUSH, CAUSE_TRIP, CAUSE_SLIP, CAUSE_STEP, CAUSE_FAULT, CAUSE_WALK = (
+    'push', 'trip', 'slip', 'step', 'fault', 'walk')
+CAUSES = (CAUSE_PUSH, CAUSE_TRIP, CAUSE_SLIP, CAUSE_STEP, CAUSE_FAULT, CAUSE_WALK)
 
 
 class DatasetError(Exception):
@@ -98,11 +105,48 @@ class IndexRow:
     #: made (a simulated push, a recorder's push topic; unknown in a robot's recordings imported
     #: before this field): :func:`push_time_known`.
     push_source: Optional[str] = None
+    #: What disturbed the run (:data:`CAUSES`); every dataset made before causes existed holds
+    #: pushes. A run of another cause keeps the push fields at a zero force, ``t_push`` and
+    #: ``t_force_end`` at its onset (none for a long walk: its start).
+    cause: str = CAUSE_PUSH
+    #: The cause's parameters as JSON text (an object; the push's are its own fields): e.g. a
+    #: trip's obstacle, a slip's patch friction, a fault's joint and profile (sim/disturbances.py).
+    cause_params: Optional[str] = None
+    #: When the disturbance first acted [s], measured in the run: the push's onset, the first
+    #: contact with the obstacle or patch, the edge crossed, the fault's start; None for a long
+    #: walk (no disturbance) and in datasets made before causes existed (:attr:`onset_s`).
+    t_onset: Optional[float] = None
+    #: The run's randomised world as JSON text (sim/randomization.WorldRandomization: friction,
+    #: masses, drives, sensor latency and IMU bias; ``generate --randomize``); None: nominal.
+    randomization: Optional[str] = None
 
     @property
     def push(self) -> PushSpec:
         return PushSpec(self.force_n, self.angle_deg, self.height_m, self.t_push,
                         round(self.t_force_end - self.t_push, 6))
+
+    @property
+    def onset_s(self) -> Optional[float]:
+        """When the disturbance first acted [s]: ``t_onset``, or a push's ``t_push`` in rows
+        made before ``t_onset`` existed; None for a run no disturbance acted on."""
+        if self.t_onset is not None:
+            return self.t_onset
+        return self.t_push if self.cause == CAUSE_PUSH else None
+
+    @property
+    def params(self) -> dict[str, Any]:
+        """The cause's parameters (``cause_params`` parsed; {} when none)."""
+        if not self.cause_params:
+            return {}
+        params = json.loads(self.cause_params)
+        if not isinstance(params, dict):
+            raise DatasetError(f'{self.trajectory_id}: cause_params is not a JSON object')
+        return params
+
+
+def cause_params_text(params: dict[str, Any]) -> str:
+    """``params`` as :attr:`IndexRow.cause_params` stores them (sorted keys, compact)."""
+    return json.dumps(params, sort_keys=True, separators=(',', ':'))
 
 
 #: :attr:`IndexRow.push_source` values.
@@ -182,9 +226,12 @@ def read_index(out: str | os.PathLike) -> list[IndexRow]:
     rows = []
     for path in sorted((out / 'index').glob('traj_*.json')):
         try:
-            rows.append(IndexRow(**json.loads(path.read_text())))
+            row = IndexRow(**json.loads(path.read_text()))
         except (OSError, json.JSONDecodeError, TypeError) as exc:
             raise DatasetError(f'{path}: unreadable index row: {exc}') from exc
+        if row.cause not in CAUSES:
+            raise DatasetError(f'{path}: unknown cause {row.cause!r} (one of {", ".join(CAUSES)})')
+        rows.append(row)
     return rows
 
 
@@ -198,74 +245,6 @@ def write_index_csv(out: Path, rows: Iterable[IndexRow]) -> Path:
         for row in rows:
             writer.writerow(asdict(row))
     return path
-
-
-# -- refused samples ----------------------------------------------------------------------------
-@dataclass(frozen=True)
-class RefusedSamples:
-    """The samples of one trajectory left out as holes (module docs)."""
-
-    estimator: int = 0              #: estimates the state estimator refused (a fault instead)
-    features: int = 0               #: measurements the feature extractor refused
-    first: str = ''                 #: the first of them: its time [s] and why
-
-    @property
-    def total(self) -> int:
-        return self.estimator + self.features
-
-    def to_json(self) -> dict[str, Any]:
-        return {'estimator': self.estimator, 'features': self.features, 'total': self.total,
-                'first': self.first}
-
-    @classmethod
-    def summed(cls, refused: Iterable['RefusedSamples']) -> 'RefusedSamples':
-        """The counts of several trajectories' refused samples added up (``first``: none)."""
-        refused = list(refused)
-        return cls(sum(r.estimator for r in refused), sum(r.features for r in refused))
-
-
-def usable_features(measurements: Sequence[Measurement], settings: FeatureSettings = FeatureSettings(),
-                    attitude: bool = True
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[tuple[float, str]]]:
-    """The features of the measurements the extractor accepts, as the onboard chain computes them
-    (``monitor/chain.py``): one :class:`~fall_predictor.monitor.features.FeatureExtractor` over
-    the whole recording; a measurement it refuses (ValueError, among them
-    :class:`~fall_predictor.monitor.plausibility.ImplausibleSample`) leaves it unchanged and is a
-    hole. Returns the indices of the accepted measurements, their inputs (N, 15), or (N, 19)
-    with ``attitude``, their contact modes, and the refused ones as ``(t [s], why)``."""
-    extractor = settings.extractor(attitude=attitude)
-    kept: list[int] = []
-    rows: list[np.ndarray] = []
-    modes: list[int] = []
-    refused: list[tuple[float, str]] = []
-    for i, m in enumerate(measurements):
-        try:
-            x, mode = extractor.update(m)
-        except (ValueError, ImplausibleSample) as error:
-            refused.append((float(m.t), f'measurement refused: {error}'))
-            continue
-        kept.append(i)
-        rows.append(x)
-        modes.append(mode)
-    X = np.array(rows).reshape(len(rows), extractor.n_outputs)
-    return np.array(kept, dtype=np.int64), X, np.array(modes, dtype=np.int64), refused
-
-
-def _refused_arrays(estimator: list[tuple[float, str]], features: list[tuple[float, str]]
-                    ) -> dict[str, np.ndarray]:
-    """The cache entry's record of the refused samples (:class:`RefusedSamples`)."""
-    first = min(estimator + features, default=None, key=lambda refusal: refusal[0])
-    return {'refused_estimator': np.asarray(len(estimator)),
-            'refused_features': np.asarray(len(features)),
-            'refused_first': np.asarray('' if first is None else f'{first[0]:.3f} s: {first[1]}')}
-
-
-def refused_samples(arrays: dict[str, np.ndarray]) -> RefusedSamples:
-    """The refused samples a cache entry records (none in entries of other derived data)."""
-    if 'refused_estimator' not in arrays:
-        return RefusedSamples()
-    return RefusedSamples(int(arrays['refused_estimator']), int(arrays['refused_features']),
-                          str(arrays['refused_first']))
 
 
 # -- feature cache ------------------------------------------------------------------------------

@@ -18,18 +18,19 @@ import time
 from dataclasses import asdict, dataclass, field
 from functools import partial
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Iterable, Optional
+from typing import TYPE_CHECKING, Any, Optional
 
 import numpy as np
 
 from fall_predictor.profiles import DEFAULT_ROBOT, load_profile, profile_reference
 from fall_predictor.profiles.profile import C_BAL
 from fall_predictor.data.bag_writer import BagWriter
-from fall_predictor.data.bagio import BagError, read_trajectory
 from fall_predictor.data.dataset import (FORMAT, DatasetError, IndexRow, read_index, trajectory_id,
                                          write_index_csv)
 from fall_predictor.data.dataset_writer import (StopRequested, WriterStopped, commit_section,
                                                 stop_on_signals, writer_lock)
+from fall_predictor.data.disturbance_generation import (causes_manifest, disturbed_run, randomization_fields,
+                                                        run_cause, run_randomization, sensor_params)
 from fall_predictor.data.generation_cost import (COSTS_DIR, GENERATION_COST_KEY,
                                                  record_generation_cost, trajectory_cost)
 from fall_predictor.data.outcomes import height_drop_time, unsettled_at_horizon
@@ -92,10 +93,18 @@ class GenerationConfig:
     controller: Optional[str] = None
     #: The simulator: None (PyBullet, the datasets made before MuJoCo) or 'pybullet' / 'mujoco'.
     simulator: Optional[str] = None
+    #: The causes its runs draw, (name, weight) pairs (data/disturbance_generation.py); None:
+    #: pushes only, the datasets made before other causes.
+    causes: Optional[tuple[tuple[str, float], ...]] = None
+    #: A long walk's length [s] (the cause 'walk').
+    walk_s: float = 60.0
+    #: Each run's world randomised (sim/randomization.py, legged_gym-style ranges), its draw in
+    #: the index; False: the nominal world, as datasets made before.
+    randomize: bool = False
 
     @property
     def policy(self):
-        """The learned policy's profile entry (profiles/controllers.py), or None for C_bal."""
+        """The learned policy's profile entry (profiles/controller_entries.py), or None for C_bal."""
         if self.controller in (None, C_BAL):
             return None
         return load_profile(self.robot).controller_profile(self.controller)
@@ -114,6 +123,11 @@ class GenerationConfig:
                 out['sensor_timing'] = self.timing().to_dict()
         if self.simulator not in (None, 'pybullet'):
             out['simulator'] = self.simulator
+        if self.causes is not None:
+            out.update(causes_manifest(self))
+        if self.randomize:
+            from fall_predictor.sim.randomization import RandomizationRanges
+            out['randomization'] = RandomizationRanges().to_dict()
         policy = self.policy
         if policy is not None:
             # The run's draws are the policy's: the gait fields say nothing of it.
@@ -197,15 +211,21 @@ def _worker_policy(config: 'GenerationConfig'):
 def _policy_start(config: 'GenerationConfig', index: int, rng) -> tuple:
     """A learned policy's run: (its command, its push, run_trajectory's arguments: the world,
     the policy walking at the command, the live sensor model seeded as the bag's readings)."""
-    from fall_predictor.sim.policy_runs import commanded_pushes, policy_run
+    from fall_predictor.sim.policy_runs import commanded_pushes
     command, push = commanded_pushes(config.policy).sample(rng)
+    return command, push, _policy_arguments(config, index, command)
+
+
+def _policy_arguments(config: 'GenerationConfig', index: int, command) -> dict:
+    """run_trajectory's arguments of run ``index`` of a learned policy walking at ``command``."""
+    from fall_predictor.sim.policy_runs import policy_run
     learned = _worker_policy(config)
     profile = load_profile(config.robot)
     world = _worker_simulator(config.robot, config.simulator or profile.simulator,
                               learned.physics_dt_s)
     noise = 1.0 if config.sensor_noise_scale is None else config.sensor_noise_scale
-    return command, push, policy_run(profile, config.policy, learned, command, noise,
-                                     _sensor_seed(config, index), world)
+    return policy_run(profile, config.policy, learned, command, noise, _sensor_seed(config, index), world,
+                      sensor_params(config, index, noise))
 
 
 def _sensor_seed(config: 'GenerationConfig', index: int) -> int:
@@ -241,30 +261,43 @@ class SimulatedTrajectory:
 def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
     """Simulate trajectory ``index`` and record it as a bag in a private temporary directory;
     return the bag's bytes. Writes nothing else, so it runs anywhere (a Dask worker included)."""
+    from fall_predictor.sim.drivers import DriverStreams
     from fall_predictor.sim.pushes import robot_gait, trajectory_seed
-    from fall_predictor.sim.trajectory import run_trajectory
+    from fall_predictor.sim.trajectory import gait_run, run_trajectory
+
 
     cpu0, wall0 = time.thread_time(), time.perf_counter()
     tid = trajectory_id(index)
     rng = trajectory_seed(config.seed, index)
     command = None
-    if config.policy is not None:
+    cause = run_cause(config.causes, config.seed, index)
+    if cause != 'push':
+        world, start = ((_worker_simulator(config.robot, config.simulator), None) if config.policy is None
+                        else (None, partial(_policy_arguments, config, index)))
+        push, result, t_start, gait, command, cause_fields = disturbed_run(
+            config, index, cause, world, start, _still_moving, run_randomization(config, index))
+    elif config.policy is not None:
         gait = None
         command, push, start = _policy_start(config, index, rng)
     elif config.gait_variety:
-        from fall_predictor.sim.trajectory import gait_run
         gait, push = config.push_distribution.sample_with_gait(rng)
         start = gait_run(_worker_simulator(config.robot, config.simulator), gait,
                          push.t_force_end + config.horizon_after_push_s + config.settle_extension_s)
     else:
         gait, push = None, config.push_distribution.sample(rng, robot_gait(config.robot))
-        start = {'prefix': _walk_prefix(config)}
-    t_start = round(push.t_push - config.pre_push_s, 6)
-    mass_kg = load_profile(config.robot).total_mass_kg
-    result = run_trajectory(push, push.t_force_end + config.horizon_after_push_s,
-                            record_sensors=config.sensor_noise_scale is not None,
-                            go_on_while=partial(_still_moving, push.t_push, t_start, mass_kg),
-                            max_extension_s=config.settle_extension_s, **start)
+        start = ({'prefix': _walk_prefix(config)} if not config.randomize else gait_run(
+            _worker_simulator(config.robot, config.simulator), robot_gait(config.robot),
+            push.t_force_end + config.horizon_after_push_s + config.settle_extension_s))
+    if cause == 'push':
+        t_start = round(push.t_push - config.pre_push_s, 6)
+        mass_kg = load_profile(config.robot).total_mass_kg
+        result = run_trajectory(push, push.t_force_end + config.horizon_after_push_s,
+                                record_sensors=config.sensor_noise_scale is not None,
+                                go_on_while=partial(_still_moving, push.t_push, t_start, mass_kg),
+                                max_extension_s=config.settle_extension_s,
+                                randomization=run_randomization(config, index), **start)
+        cause_fields = {} if config.causes is None else {'t_onset': push.t_push}
+    cause_fields.update(randomization_fields(config, index))
     simulated_s = result.measurements[-1].t
     first = next(i for i, m in enumerate(result.measurements) if m.t >= t_start - 1e-9)
     measurements = result.measurements[first:]
@@ -279,10 +312,11 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
         # (metadata.yaml names the MCAP file relative to it, so the files do not change).
         unfinished = Path(folder) / (tid + '.partial')
         with BagWriter(unfinished) as bag:
-            applied = next((m.push_force for m in measurements if m.push_force.any()), np.zeros(3))
-            bag.write_push(push.t_push, applied)
+            if cause == 'push':
+                applied = next((m.push_force for m in measurements if m.push_force.any()), np.zeros(3))
+                bag.write_push(push.t_push, applied)
             readings = _sensor_readings(config, index, result, bag, first)
-            drivers = None if readings is None else _driver_streams(config)
+            drivers = None if readings is None else DriverStreams(config.timing())
             for k, m in enumerate(measurements):
                 bag.write_measurement(m)
                 if drivers is not None:
@@ -298,7 +332,8 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
                    height_m=push.height_m, t_push=push.t_push, t_force_end=push.t_force_end,
                    fallen=result.fallen, t_fallen=result.t_fallen, t_height_drop=t_height_drop,
                    t_reflex=result.t_reflex, t_start=measurements[0].t, t_end=measurements[-1].t,
-                   samples=len(measurements), **_gait_fields(gait), **_command_fields(command))
+                   samples=len(measurements), **_gait_fields(gait), **_command_fields(command),
+                   **cause_fields)
     cost = trajectory_cost(time.thread_time() - cpu0, time.perf_counter() - wall0, simulated_s)
     return SimulatedTrajectory(row, files, cost)
 
@@ -313,19 +348,14 @@ def _still_moving(t_push: float, t_start: float, mass_kg: float, measurements: l
     return unsettled_at_horizon(t, momentum, t_push, mass_kg) is not None
 
 
-def _driver_streams(config: GenerationConfig):
-    from fall_predictor.sim.drivers import DriverStreams
-    return DriverStreams(config.timing())
-
-
 def _sensor_readings(config: GenerationConfig, index: int, result, bag: BagWriter, first: int):
     """The run's sensor readings (noise seeded by dataset seed and index), with the sensor
     parameters and the robot description written into ``bag``; None without sensors."""
     if config.sensor_noise_scale is None:
         return None
-    from fall_predictor.sim.sensors import SensorParams, apply_sensors, robot_description
+    from fall_predictor.sim.sensors import apply_sensors, robot_description
 
-    params = SensorParams(noise_scale=config.sensor_noise_scale)
+    params = sensor_params(config, index, config.sensor_noise_scale)
     write_sensor_params(bag, {**params.to_dict(), 'timing': config.timing().to_dict()})
     profile = load_profile(config.robot)
     write_robot_description(bag, result.measurements[first].t, robot_description(profile))
@@ -420,73 +450,3 @@ def _generate_locked(out: Path, trajectories: int, config: GenerationConfig, job
     rows = read_index(out)
     write_index_csv(out, rows)
     return rows
-
-
-
-# -- recordings ---------------------------------------------------------------------------------
-@dataclass
-class ImportReport:
-    rows: list[IndexRow]
-    rejected: dict[str, str]         #: bag path -> why it cannot be a training trajectory
-
-
-def _recorded_row(bag: Path, tid: str, fallen_height_m: float) -> IndexRow:
-    """The index row of a recorder_node bag (the simulator's or the live estimator's state on
-    the measurement topic): fallen below ``fallen_height_m``, the recorded robot's profile's."""
-    from fall_predictor.data.bagio import iter_messages
-    from fall_predictor.data.outcomes import first_fallen_time
-    from fall_predictor.contract.topics import CONTROLLER_MODE
-
-    recorded = read_trajectory(bag)
-    if not recorded.pushes or len(recorded.pushes) != 1:
-        raise DatasetError(f'{bag}: {len(recorded.pushes or [])} pushes recorded; a training trajectory '
-                           'holds exactly one (method §3)')
-    modes = [m.msg.data for m in iter_messages(bag, [CONTROLLER_MODE.name])]
-    if 'fall' in modes:
-        raise DatasetError(f'{bag}: C_fall took over during the recording; hindsight labels need C_bal '
-                           'throughout (record with `bringup --no-fall-trigger`)')
-    ms = recorded.measurements
-    t = np.array([m.t for m in ms])
-    z = np.array([m.com[2] for m in ms])
-    t_fallen = first_fallen_time(t, z, np.array([m.non_foot_contact for m in ms]), fallen_height_m)
-    push = recorded.pushes[0]
-    at_push = ms[int(np.searchsorted(t, push.t))]
-    angle = np.degrees(np.arctan2(push.force[1], push.force[0]) - at_push.heading)
-    return IndexRow(trajectory_id=tid, bag=f'bags/{tid}', force_n=float(np.hypot(*push.force[:2])),
-                    angle_deg=float((angle + 180.0) % 360.0 - 180.0), height_m=float('nan'),
-                    t_push=push.t, t_force_end=round(push.t + 0.1, 6), fallen=t_fallen is not None,
-                    t_fallen=t_fallen, t_height_drop=None if t_fallen is None else height_drop_time(t, z, t_fallen),
-                    t_reflex=None, t_start=float(t[0]), t_end=float(t[-1]), samples=len(ms))
-
-
-def import_recordings(bags: Iterable[str | os.PathLike], out: str | os.PathLike,
-                      robot: str = DEFAULT_ROBOT) -> ImportReport:
-    """Make a dataset directory from live recordings (e.g. ``recorder_node`` bags) of robot
-    ``robot`` (a profile's name or path: its fallen CoM height labels the falls, its name and
-    mass go into the manifest), so that ``train``, ``evaluate`` and ``sweep`` can use them. Bags
-    are copied; the push height above the CoM is not recorded and is NaN in the index. Bags that
-    cannot serve as training trajectories are reported in ``rejected`` with the reason, not
-    imported."""
-    fallen_height_m = load_profile(robot).fallen_com_height_m
-    out = Path(out)
-    if out.exists():
-        raise DatasetError(f'{out}: exists; import into a new directory')
-    (out / 'bags').mkdir(parents=True)
-    (out / 'index').mkdir()
-    sources = [str(Path(b).resolve()) for b in bags]
-    manifest = {'format': FORMAT, 'source': 'recordings', 'bags': sources,
-                'robot': simulated_robot(robot)}
-    atomic_write_text(out / 'dataset.json', json.dumps(manifest, indent=1))
-    rows, rejected = [], {}
-    for source in sources:
-        tid = trajectory_id(len(rows))
-        try:
-            row = _recorded_row(Path(source), tid, fallen_height_m)
-        except (DatasetError, BagError) as exc:
-            rejected[source] = str(exc)
-            continue
-        shutil.copytree(source, out / 'bags' / tid, copy_function=shutil.copy2)
-        atomic_write_text(out / 'index' / f'{tid}.json', json.dumps(asdict(row), sort_keys=True))
-        rows.append(row)
-    write_index_csv(out, rows)
-    return ImportReport(rows, rejected)

@@ -171,3 +171,18 @@ def plot_fig6(trajectories: list[TrajectoryFeatures], out_dir: Path, max_traject
         fig.savefig(path, dpi=110)
         plt.close(fig)
     return paths
+
+
+def stats_by_cause(rows) -> dict:
+    """Per cause of the index ``rows`` (data/dataset.py IndexRow.cause): runs, falls, the fall fraction, the runs whose disturbance never acted (no
+    onset), the median onset-to-fall time [s] and the simulated hours of a long walk."""
+    out = {}
+    for cause in sorted({r.cause for r in rows}):
+        mine = [r for r in rows if r.cause == cause]
+        fell = [r for r in mine if r.fallen]
+        delays = [r.t_fallen - r.onset_s for r in fell if r.onset_s is not None]
+        out[cause] = {'runs': len(mine), 'fallen': len(fell), 'fall_fraction': len(fell) / len(mine),
+                      'without_onset': sum(r.onset_s is None for r in mine) if cause != 'walk' else None,
+                      'onset_to_fall_s_median': float(np.median(delays)) if delays else None,
+                      'hours': round(sum(r.t_end - r.t_start for r in mine) / 3600.0, 4)}
+    return out

@@ -27,7 +27,8 @@ from typing import Any, Iterable, Optional
 
 import yaml
 
-from fall_predictor.profiles.profile import (CONTROLLER_KEYS, ProfileError, RobotProfile,
+from fall_predictor.profiles.controller_entries import CONTROLLER_KEYS
+from fall_predictor.profiles.profile import (ProfileError, RobotProfile,
                                              load_profile, profile_path)
 
 #: The keys a profile file may hold: those profile.py's _parse reads (any other is named, with
@@ -35,7 +36,8 @@ from fall_predictor.profiles.profile import (CONTROLLER_KEYS, ProfileError, Robo
 PROFILE_KEYS = frozenset({
     'name', 'description', 'urdf', 'sim_urdf', 'mjcf', 'simulator', 'total_mass_kg', 'imu_frame',
     'feet', 'monitor', 'joint_groups', 'servo_gains', 'controller', 'posture', 'push_force_n',
-    'gait_variety', 'sim_ground', 'model', 'controllers', 'default_controller', 'unitree_hg'})
+    'gait_variety', 'sim_ground', 'model', 'controllers', 'default_controller', 'unitree_hg',
+    'causes'})
 #: The keys of ``feet.<side>``.
 FOOT_KEYS = frozenset({'foot_link', 'sole_frame', 'sole_length_m', 'sole_width_m',
                        'sole_origin_in_foot_m', 'force_torque_frame', 'sole_rpy_in_foot'})

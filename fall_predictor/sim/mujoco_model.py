@@ -56,6 +56,30 @@ def load_model(profile: RobotProfile) -> mujoco.MjModel:
     return spec.compile()
 
 
+def model_with_terrain(profile: RobotProfile, boxes) -> mujoco.MjModel:
+    """:func:`load_model`'s model with ``boxes`` (sim/disturbances.TerrainBox) fixed to the world
+    as box geometries named ``terrain_<k>``: their friction decides a contact's (priority 1 over
+    the robot's geometries; MuJoCo otherwise takes the larger of the two)."""
+    if profile.mjcf_path is not None:
+        try:
+            spec = mujoco.MjSpec.from_file(str(profile.mjcf_path))
+        except ValueError as error:
+            spec = _spec_without_obsolete_attributes(profile.mjcf_path, error)
+    else:
+        text = resolve_urdf_text(profile.sim_urdf_path.read_text())
+        spec = mujoco.MjSpec.from_string(text)
+        spec.meshdir = str(profile.sim_urdf_path.parent)
+        spec.compiler.discardvisual = False
+        spec.worldbody.first_body().add_freejoint()
+        spec.worldbody.add_geom(name='ground', type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 0.05])
+    for k, box in enumerate(boxes):
+        x, y, z, w = box.quaternion_xyzw()
+        spec.worldbody.add_geom(name=f'terrain_{k}', type=mujoco.mjtGeom.mjGEOM_BOX,
+                                size=list(box.half_extents_m), pos=list(box.centre_m), quat=[w, x, y, z],
+                                friction=[box.friction, 0.005, 0.0001], priority=1, rgba=list(box.rgba))
+    return spec.compile()
+
+
 def _without_obsolete_attributes(path, error: ValueError) -> mujoco.MjModel:
     """``path`` read again without the obsolete attributes MuJoCo refused; ValueError (naming the
     file) for any other error."""
@@ -78,6 +102,21 @@ def _without_obsolete_attributes(path, error: ValueError) -> mujoco.MjModel:
         return spec.compile()
     except ValueError as again:
         raise ValueError(f'MuJoCo cannot read {path}: {again}') from None
+
+
+def _spec_without_obsolete_attributes(path, error: ValueError) -> mujoco.MjSpec:
+    """The spec of ``path`` read without the obsolete attributes MuJoCo refused (see
+    :func:`_without_obsolete_attributes`)."""
+    import re
+    found = re.search(r"unrecognized attribute: '(\w+)'", str(error))
+    if found is None or found.group(1) not in OBSOLETE_ATTRIBUTES:
+        raise ValueError(f'MuJoCo cannot read {path}: {error}') from None
+    text = Path(path).read_text()
+    for name in OBSOLETE_ATTRIBUTES:
+        text = re.sub(rf'\s{name}\s*=\s*(["\'])[^"\']*\1', '', text)
+    spec = mujoco.MjSpec.from_string(text)
+    spec.modelfiledir = str(Path(path).resolve().parent)
+    return spec
 
 
 def robot_geoms(model: mujoco.MjModel, root_body: int) -> tuple[frozenset, frozenset]:

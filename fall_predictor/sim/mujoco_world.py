@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 import os
+from dataclasses import replace
 from typing import Optional
 
 # Rendering without a display (the package's renders are headless); a user's choice stands.
@@ -38,9 +39,10 @@ from fall_predictor.monitor.records import Measurement, PushSpec
 from fall_predictor.profiles import ProfileError, RobotProfile
 from fall_predictor.robot.control import JointCommand
 from fall_predictor.sim.mujoco_model import (FloatingBase, fixed_frame_in_body, load_model,
-                                             robot_geoms, stand_on_ground)
+                                             model_with_terrain, robot_geoms, stand_on_ground)
+from fall_predictor.sim.disturbances import STUCK_PLAY_RAD, FaultProtocol, start_height_m
 from fall_predictor.sim.pushes import PushProtocol
-from fall_predictor.sim.world import MIN_CONTACT_FORCE_N
+from fall_predictor.sim.world import MIN_CONTACT_FORCE_N, TerrainContact
 
 
 class MujocoWorld:
@@ -49,11 +51,25 @@ class MujocoWorld:
 
     def __init__(self, profile: RobotProfile, dt_s: Optional[float] = None) -> None:
         self.profile = profile
-        self.model = load_model(profile)
-        if dt_s is not None:
-            self.model.opt.timestep = float(dt_s)
+        self._dt_override = dt_s
+        #: The robot's own model (no terrain), and the terrain of the model in use.
+        self._flat_model = load_model(profile)
+        self._terrain: tuple = ()
+        self._fault = FaultProtocol()
+        self._random = None               #: the run's randomised world (sim/randomization.py)
+        self._load(self._flat_model)
+        self.t = 0.0
+        self.tick = 0
+
+    def _load(self, model: mujoco.MjModel) -> None:
+        """Use ``model`` (the robot's, with or without terrain): its data and indices."""
+        profile = self.profile
+        self.model = model
+        if self._dt_override is not None:
+            self.model.opt.timestep = float(self._dt_override)
         self.data = mujoco.MjData(self.model)
         m = self.model
+        self._renderer = None
         self.dt_s = float(m.opt.timestep)
         self.joint_names = profile.joint_names
         ids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name) for name in self.joint_names]
@@ -97,8 +113,17 @@ class MujocoWorld:
         self._limit = self._effort
         self._tau = np.zeros(len(ids))
         self._prev: Optional[Measurement] = None
-        self.t = 0.0
-        self.tick = 0
+        self._terrain_geoms = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f'terrain_{k}')
+                               for k in range(len(self._terrain))]
+        self._terrain_set = frozenset(self._terrain_geoms)
+        self._joint_ids = ids
+        self._joint_limits = (m.jnt_range[ids].copy(), m.jnt_limited[ids].copy())
+        # The nominal masses, inertias and ground friction a randomised start scales.
+        self._robot_bodies = np.array([b for b in range(m.nbody) if m.body_rootid[b] == m.body_rootid[self._root_body]
+                                       and b != 0])
+        self._nominal = (m.body_mass.copy(), m.body_inertia.copy(), m.geom_friction.copy(), m.geom_priority.copy())
+        self._floor = np.array(sorted(set(self._ground) - set(self._terrain_geoms)), dtype=int)
+        self._scales = (1.0, 1.0, 1.0)
 
     def _effort_limits(self, joint_ids: list[int]) -> np.ndarray:
         m = self.model
@@ -124,12 +149,19 @@ class MujocoWorld:
         touches the ground."""
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
+        # A joint a fault left stuck is free again.
+        m.jnt_range[self._joint_ids], m.jnt_limited[self._joint_ids] = self._joint_limits
+        self._fault.clear()
+        self._randomize()
         q = np.array([posture.joint_angles.get(n, 0.0) for n in self.joint_names])
         d.qpos[self._qadr] = q
         half = 0.5 * posture.base_yaw_rad
         self._base.set_pose(d, posture.base_position_m, (math.cos(half), 0.0, 0.0, math.sin(half)))
         if posture.base_position_m is None:
             stand_on_ground(m, d, self._base, self.feet.values())
+        lift = start_height_m(self._terrain, (0.0, 0.0))
+        if lift:
+            self._base.raise_by(d, lift)
         mujoco.mj_forward(m, d)
         self._targets = q.copy()
         self._tau = np.zeros(len(q))
@@ -166,15 +198,99 @@ class MujocoWorld:
     def schedule_push(self, push: PushSpec) -> None:
         self._push.schedule(push)
 
+    # -- disturbances beyond pushes (sim/disturbances.py) ------------------------------------------
+    def set_terrain(self, boxes) -> None:
+        """Lay ``boxes`` (sim/disturbances.TerrainBox) from the next :meth:`start` on: the model
+        is compiled again with them (mujoco_model.model_with_terrain); none: the robot's own."""
+        boxes = tuple(boxes)
+        if boxes == self._terrain:
+            return
+        # The model left behind is the robot's own again (a stuck joint freed, masses and friction
+        # nominal): it is read as nominal when it comes back.
+        m = self.model
+        m.jnt_range[self._joint_ids], m.jnt_limited[self._joint_ids] = self._joint_limits
+        m.body_mass[:], m.body_inertia[:], m.geom_friction[:], m.geom_priority[:] = self._nominal
+        self._terrain = boxes
+        self._load(model_with_terrain(self.profile, boxes) if boxes else self._flat_model)
+
+    def terrain_contacts(self) -> list[TerrainContact]:
+        """The robot's loaded contacts with the terrain boxes at the current step."""
+        m, d = self.model, self.data
+        box_of = {g: k for k, g in enumerate(self._terrain_geoms)}
+        force6 = np.zeros(6)
+        out = []
+        for i in range(d.ncon):
+            c = d.contact[i]
+            g1, g2 = int(c.geom1), int(c.geom2)
+            if g1 in box_of and g2 in self._robot_geoms:
+                box, robot_geom, sign = box_of[g1], g2, 1.0
+            elif g2 in box_of and g1 in self._robot_geoms:
+                box, robot_geom, sign = box_of[g2], g1, -1.0
+            else:
+                continue
+            mujoco.mj_contactForce(m, d, i, force6)
+            if force6[0] <= MIN_CONTACT_FORCE_N:
+                continue
+            frame = c.frame.reshape(3, 3)
+            normal = sign * force6[0] * frame[0]
+            friction = sign * (force6[1] * frame[1] + force6[2] * frame[2])
+            out.append(TerrainContact(box, self._foot_of_body.get(int(m.geom_bodyid[robot_geom])),
+                                      c.pos.copy(), normal, friction))
+        return out
+
+    def set_randomization(self, randomization) -> None:
+        """Randomise the world (sim/randomization.WorldRandomization) from the next :meth:`start`
+        on; None: the nominal world."""
+        self._random = randomization
+
+    def _randomize(self) -> None:
+        """The nominal masses, inertias and ground friction, then the run's randomisation: every
+        robot body's mass and inertia scaled, the base's given the added mass, the floor's
+        friction deciding its contacts (priority over the robot's geometries)."""
+        m = self.model
+        mass, inertia, friction, priority = self._nominal
+        m.body_mass[:], m.body_inertia[:], m.geom_friction[:], m.geom_priority[:] = mass, inertia, friction, priority
+        r = self._random
+        self._scales = (1.0, 1.0, 1.0) if r is None else r.drive_scales()
+        if r is not None:
+            bodies = self._robot_bodies
+            m.body_mass[bodies] *= r.link_mass_scale
+            m.body_inertia[bodies] *= r.link_mass_scale
+            base = self._root_body
+            new = max(m.body_mass[base] + r.added_base_mass_kg, 0.1 * mass[base])
+            m.body_inertia[base] *= new / m.body_mass[base]
+            m.body_mass[base] = new
+            m.geom_friction[self._floor, 0] = r.friction
+            m.geom_priority[self._floor] = 2
+        self.total_mass = (float(m.body_subtreemass[self._root_body]) if r is None
+                           else float(m.body_mass[self._robot_bodies].sum()))
+
+    def schedule_fault(self, fault) -> None:
+        """Fail ``fault``'s joint drive from its start (sim/disturbances.JointFault)."""
+        self._fault.schedule(fault, self.joint_names)
+
     def step(self) -> Measurement:
         m, d = self.model, self.data
         q, dq = d.qpos[self._qadr], d.qvel[self._dadr]
+        kp_scale, kd_scale, limit_scale = self._scales
         if self._kp is None and self._servo is not None:
             from fall_predictor.robot.actuation import servo_torques
-            tau = servo_torques(self._servo, self._targets, q, dq)
+            servo = self._servo if self._random is None else replace(
+                self._servo, kp=self._servo.kp * kp_scale, kd=self._servo.kd * kd_scale,
+                effort=self._servo.effort * limit_scale)
+            tau = servo_torques(servo, self._targets, q, dq)
         else:
-            tau = self._kp * (self._targets - q) - self._kd * dq
-        tau = np.minimum(np.maximum(tau, -self._limit), self._limit)
+            tau = kp_scale * self._kp * (self._targets - q) - kd_scale * self._kd * dq
+        limit = self._limit if limit_scale == 1.0 else self._limit * limit_scale
+        tau = np.minimum(np.maximum(tau, -limit), limit)
+        # A faulty drive gives a share of its torque; a stuck joint is locked by its limits
+        # (sim/disturbances.py).
+        tau = self._fault.torques(self.t, tau)
+        stuck = self._fault.stuck_joint(self.t, q)
+        if stuck is not None:
+            j = self._joint_ids[stuck[0]]
+            m.jnt_range[j] = (stuck[1] - STUCK_PLAY_RAD, stuck[1] + STUCK_PLAY_RAD)
+            m.jnt_limited[j] = 1
         self._tau = tau
         if self._actuators is not None:
             d.ctrl[self._actuators] = tau
@@ -240,7 +356,8 @@ class MujocoWorld:
                 continue
             side = self._foot_of_body.get(int(m.geom_bodyid[robot_geom]))
             if side is None:
-                non_foot = True
+                # Another link on the ground; on a terrain box (a shin over an obstacle) it is not.
+                non_foot = non_foot or (g1 if sign > 0 else g2) not in self._terrain_set
             else:
                 per_foot[side].append((c.pos.copy(), world))
         return per_foot, non_foot
@@ -316,7 +433,7 @@ class MujocoWorld:
         ``MUJOCO_GL=egl`` or ``osmesa`` before MuJoCo is imported on a machine without a display),
         the camera ``distance_m`` from ``target``, looking along ``yaw_deg``, ``pitch_deg``
         (the angles as PyBullet's camera takes them, so that both engines' renders match)."""
-        renderer = getattr(self, '_renderer', None)
+        renderer = self._renderer
         if renderer is None or (renderer.width, renderer.height) != (width, height):
             self.model.vis.global_.offwidth = max(self.model.vis.global_.offwidth, width)
             self.model.vis.global_.offheight = max(self.model.vis.global_.offheight, height)

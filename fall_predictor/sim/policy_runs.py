@@ -40,12 +40,14 @@ def commanded_pushes(policy: PolicyControllerProfile) -> CommandedPushes:
 
 
 def policy_run(profile: RobotProfile, policy: PolicyControllerProfile, learned: LearnedPolicy,
-               command, sensor_noise_scale: float, sensor_seed: int, world) -> dict:
+               command, sensor_noise_scale: float, sensor_seed: int, world,
+               sensor_params: Optional[SensorParams] = None) -> dict:
     """``run_trajectory``'s arguments for one run of ``learned`` (the policy ``policy`` of
     ``profile``'s robot, its network loaded once by the caller) walking at ``command`` in
     ``world``, its sensors made live (noise x ``sensor_noise_scale``, seeded by
-    ``sensor_seed``)."""
-    suite = SensorSuite(SensorParams(noise_scale=sensor_noise_scale), seed=sensor_seed,
+    ``sensor_seed``; ``sensor_params``: other sensors, a randomised world's)."""
+    params = sensor_params or SensorParams(noise_scale=sensor_noise_scale)
+    suite = SensorSuite(params, seed=sensor_seed,
                         dt_s=world.dt_s, profile=profile)
     return {'world': world, 'controller': PolicyControl(learned, command, name=policy.name),
             'sensors': suite}

@@ -56,7 +56,17 @@ def ground_contacts(world) -> tuple:
     measured = world._measured
     if measured is not None and measured[0] == world.tick:
         return measured[2]
-    return pb.getContactPoints(bodyA=world.robot, bodyB=world.plane, physicsClientId=world.client)
+    return _contact_points(world)
+
+
+def _contact_points(world) -> tuple:
+    """The robot's contact points with the ground and with any terrain box on it (its top is
+    ground to a foot; sim/disturbances.py)."""
+    contacts = pb.getContactPoints(bodyA=world.robot, bodyB=world.plane, physicsClientId=world.client)
+    if world.terrain_bodies:
+        from fall_predictor.sim.pybullet_terrain import terrain_contact_points
+        contacts = tuple(contacts) + terrain_contact_points(world)
+    return contacts
 
 def measure(world) -> Measurement:
     """CoM, momenta about the CoM, heading, contacts and CoP of the current state."""
@@ -91,7 +101,7 @@ def measure(world) -> Measurement:
     rot0 = rots[0]
     heading = math.atan2(rot0[1, 0], rot0[0, 0])
 
-    contacts = pb.getContactPoints(bodyA=world.robot, bodyB=world.plane, physicsClientId=c)
+    contacts = _contact_points(world)
     # Kept for the sensor truth of the same step (sim.sensors), which needs the same reads.
     world._measured = (world.tick, links, contacts)
     per_foot: dict[int, list[tuple[float, float, float]]] = {lk: [] for lk in world.foot_links.values()}
@@ -102,7 +112,8 @@ def measure(world) -> Measurement:
         link = cp[3]
         if link in per_foot:
             per_foot[link].append((cp[6][0], cp[6][1], cp[9]))
-        else:
+        elif cp[2] == world.plane:
+            # Another link on the ground; on a terrain box (a shin over an obstacle) it is not.
             non_foot = True
     left = np.array(per_foot[world.foot_links['l']], dtype=float).reshape(-1, 3)
     right = np.array(per_foot[world.foot_links['r']], dtype=float).reshape(-1, 3)

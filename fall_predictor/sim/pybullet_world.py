@@ -23,6 +23,7 @@ from fall_predictor.robot.control import JointCommand
 from fall_predictor.sim import pybullet_state
 from fall_predictor.sim.urdf_loading import pybullet_urdf
 from fall_predictor.sim.pushes import PushProtocol
+from fall_predictor.sim.disturbances import FaultProtocol, start_height_m
 
 GRAVITY = STANDARD_GRAVITY_M_S2
 DT_S = 0.001
@@ -89,6 +90,14 @@ class PybulletWorld:
         self._prev_measurement: Optional[Measurement] = None
         self._targets = np.zeros(0)
         self._torques = np.zeros(0)
+        #: Terrain boxes laid at each start (sim/disturbances.py) and their bodies; the fault.
+        self._terrain: tuple = ()
+        self.terrain_bodies: list[int] = []
+        self._fault = FaultProtocol()
+        self._stuck = False
+        #: The run's randomised world (sim/randomization.py), None: nominal; the drives it scaled.
+        self._random = None
+        self._scaled_servo: Optional[tuple] = None
 
     # -- world -------------------------------------------------------------------------
     def reset(self, joint_positions: Sequence[float], torso_position: Sequence[float],
@@ -103,6 +112,11 @@ class PybulletWorld:
         self._ground_drawn = False
         self.plane = self._ground()
         pb.changeDynamics(self.plane, -1, lateralFriction=self.config.ground_friction, physicsClientId=c)
+        if self._terrain:
+            from fall_predictor.sim.pybullet_terrain import add_box
+            self.terrain_bodies = [add_box(c, box) for box in self._terrain]
+        else:
+            self.terrain_bodies = []
         orn = pb.getQuaternionFromEuler((0, 0, torso_yaw_rad))
         # The base link frame at torso_position (PyBullet's base pose is its inertial frame).
         self.robot = pb.loadURDF(self._urdf, torso_position, orn,
@@ -146,6 +160,9 @@ class PybulletWorld:
                               localInertiaDiagonal=inertia.tolist(), physicsClientId=c)
         for link in self.foot_links.values():
             pb.changeDynamics(self.robot, link, lateralFriction=self.config.foot_friction, physicsClientId=c)
+        if self._random is not None:
+            from fall_predictor.sim.pybullet_terrain import randomize_dynamics
+            randomize_dynamics(self, self._random, len(infos))
         for i, q in zip(self.joint_indices, joint_positions):
             pb.resetJointState(self.robot, i, q, 0.0, physicsClientId=c)
         if self.config.actuation == 'pd_torque':
@@ -174,6 +191,8 @@ class PybulletWorld:
         self._measured = None      # this step's PyBullet reads (measure)
         self._push.clear()
         self._push_force_world = np.zeros(3)
+        self._fault.clear()
+        self._stuck = False
         self._prev_measurement = None
         self.set_joint_targets(joint_positions)
         self._torques = np.zeros(self.n_joints)
@@ -297,11 +316,12 @@ class PybulletWorld:
         its lowest geometry just above the ground, as in MuJoCo."""
         q0 = [posture.joint_angles.get(name, 0.0) for name in self.profile.joint_names]
         if posture.base_position_m is not None:
-            return self.reset(q0, posture.base_position_m, posture.base_yaw_rad)
+            x, y, z = posture.base_position_m
+            return self.reset(q0, (x, y, z + start_height_m(self._terrain, (x, y))), posture.base_yaw_rad)
         self.reset(q0, (0.0, 0.0, STAND_SEARCH_HEIGHT_M), posture.base_yaw_rad)
         c = self.client
-        gaps = [point[8] for point in pb.getClosestPoints(self.robot, self.plane, STAND_SEARCH_HEIGHT_M,
-                                                          physicsClientId=c)]
+        gaps = [point[8] for body in (self.plane, *self.terrain_bodies)
+                for point in pb.getClosestPoints(self.robot, body, STAND_SEARCH_HEIGHT_M, physicsClientId=c)]
         if not gaps:
             raise ValueError(f'{self.profile.source}: no geometry of the robot within '
                              f'{STAND_SEARCH_HEIGHT_M} m of the ground in its starting posture')
@@ -346,6 +366,39 @@ class PybulletWorld:
                                              renderer=pb.ER_TINY_RENDERER, physicsClientId=c)
         return np.reshape(np.asarray(rgba, dtype=np.uint8), (height, width, 4))[:, :, :3]
 
+    def set_randomization(self, randomization) -> None:
+        """Randomise the world (sim/randomization.WorldRandomization) from the next :meth:`start`
+        on; None: the nominal world."""
+        if randomization is not None and self.config.actuation != 'pd_torque':
+            raise ValueError("domain randomisation needs the torque drives (actuation 'pd_torque')")
+        self._random = randomization
+
+    def _drives(self) -> ServoArrays:
+        """The servo arrays the drives run with: the robot's, scaled by the randomisation."""
+        if self._random is None:
+            return self.servo
+        if self._scaled_servo is None or self._scaled_servo[0] is not self.servo:
+            kp, kd, limit = self._random.drive_scales()
+            self._scaled_servo = (self.servo, replace(self.servo, kp=self.servo.kp * kp, kd=self.servo.kd * kd,
+                                                      effort=self.servo.effort * limit))
+        return self._scaled_servo[1]
+
+    def set_terrain(self, boxes) -> None:
+        """Lay ``boxes`` (sim/disturbances.TerrainBox) from the next :meth:`start` on."""
+        self._terrain = tuple(boxes)
+
+    def terrain_contacts(self) -> list:
+        """The robot's loaded contacts with the terrain boxes (sim/world.TerrainContact)."""
+        from fall_predictor.sim.pybullet_terrain import terrain_contacts
+        return terrain_contacts(self)
+
+    def schedule_fault(self, fault) -> None:
+        """Fail ``fault``'s joint drive from its start (sim/disturbances.JointFault)."""
+        if fault is not None and self.config.actuation != 'pd_torque':
+            raise ValueError("an actuator fault needs the torque drives (actuation 'pd_torque')")
+        self._fault.schedule(fault, self.joint_names)
+        self._stuck = False
+
     def save_state(self) -> int:
         """A snapshot of the world to :meth:`restore` later."""
         return pb.saveState(physicsClientId=self.client)
@@ -356,8 +409,14 @@ class PybulletWorld:
         self._update_push()
         applied = self._push_force_world.copy()
         if self.config.actuation == 'pd_torque':
-            # The servos close their loops on the joint state at the start of the step.
-            self._torques = servo_torques(self.servo, self._targets, self._q, self._dq)
+            # The servos close their loops on the joint state at the start of the step; a faulty
+            # drive gives a share of its torque (sim/disturbances.py).
+            self._torques = self._fault.torques(
+                self.t, servo_torques(self._drives(), self._targets, self._q, self._dq))
+            if not self._stuck and (stuck := self._fault.stuck_joint(self.t, self._q)) is not None:
+                from fall_predictor.sim.pybullet_terrain import lock_joint
+                lock_joint(self, *stuck)
+                self._stuck = True
             # The joint sees the motor torque and the drive's viscous friction.
             joint_torques = self._torques - self.servo.damping * self._dq
             pb.setJointMotorControlArray(self.robot, self.joint_indices, pb.TORQUE_CONTROL,

@@ -210,7 +210,8 @@ def run_trajectory(push: Optional[PushSpec], duration_s: float, *,
                    sensors: Optional[SensorSuite] = None,
                    go_on_while: Optional[Callable[[list[Measurement]], bool]] = None,
                    max_extension_s: float = 0.0,
-                   on_step: Optional[Callable] = None) -> TrajectoryResult:
+                   on_step: Optional[Callable] = None,
+                   disturbance=None, randomization=None) -> TrajectoryResult:
     """Simulate from the controller's starting posture for up to ``duration_s`` seconds.
 
     ``world``: the world to run in (any world of sim/world.py; default: a fresh one of the
@@ -226,20 +227,37 @@ def run_trajectory(push: Optional[PushSpec], duration_s: float, *,
     must have been made with it too). ``go_on_while``: asked with the samples so far when a run
     that has not fallen reaches ``duration_s``; while it says so the run goes on, in steps of
     :data:`EXTENSION_STEP_S`, for up to ``max_extension_s`` more seconds (a robot still moving
-    when the horizon ends: its outcome is not known yet).
+    when the horizon ends: its outcome is not known yet). ``disturbance``: a disturbance beyond
+    pushes (sim/disturbances.Disturbance): its terrain laid before the start, its fault scheduled,
+    a long walk's command schedule followed, its onset measured (``extras['t_onset']``,
+    sim/disturbance_runs.OnsetProbe); the world is flat and sound again afterwards.
+    ``randomization``: the run's randomised world (sim/randomization.WorldRandomization; its
+    sensors' part is the ``sensors`` given), nominal again afterwards.
     """
-    if prefix is not None and push is not None and push.t_push <= prefix.until_s:
+    if randomization is not None and prefix is not None:
+        raise ValueError('a randomised run starts its own world: no shared walk prefix')
+    if prefix is not None and disturbance is None and push is not None and push.t_push <= prefix.until_s:
         sim = prefix.sim
         run = prefix.start_at(push.t_push)
         own = False
     else:
         own = world is None and prefix is None
         sim = prefix.sim if prefix is not None else (world or make_world(load_profile(DEFAULT_ROBOT)))
+        probe = None
+        if randomization is not None:
+            if not callable(getattr(sim, 'set_randomization', None)):
+                raise ValueError(f'the {type(sim).__name__} world cannot be randomised: it lacks '
+                                 'set_randomization (sim/world.py World)')
+            sim.set_randomization(randomization)
+        if disturbance is not None:
+            probe, controller, on_step = _disturbed(sim, disturbance, controller, on_step)
         run = _new_run(sim, duration_s + max_extension_s + WALK_MARGIN_S, record_sensors, controller,
                        sensors)
     try:
         if push is not None:
             sim.schedule_push(push)
+        if disturbance is not None and disturbance.fault is not None:
+            sim.schedule_fault(disturbance.fault)
         _advance(sim, run, duration_s, stop_when_fallen, fall_trigger, on_step)
         end_s = duration_s + max_extension_s
         while (go_on_while is not None and run.t_fallen is None and sim.t < end_s - 1e-9
@@ -255,10 +273,34 @@ def run_trajectory(push: Optional[PushSpec], duration_s: float, *,
                                 t_reflex=None if event is None else event.t,
                                 t_switch=run.switch.t_switch,
                                 sensor_truths=run.sensor_truths or [],
-                                sensor_readings=run.sensor_readings or [])
+                                sensor_readings=run.sensor_readings or [],
+                                extras={} if disturbance is None else {'t_onset': probe.t_onset})
     finally:
+        if disturbance is not None and disturbance.terrain:
+            sim.set_terrain(())
+        if randomization is not None:
+            sim.set_randomization(None)
         if own:
             sim.close()
+
+
+def _disturbed(sim: World, disturbance, controller: Optional[Controller], on_step):
+    """A disturbed run's onset probe, controller and step callback; its terrain laid."""
+    from fall_predictor.sim.disturbance_runs import OnsetProbe, ScheduledCommand
+    from fall_predictor.sim.world import require_disturbances
+    require_disturbances(sim, disturbance.cause)
+    sim.set_terrain(disturbance.terrain)
+    probe = OnsetProbe(disturbance)
+    if disturbance.schedule is not None:
+        if controller is None or not hasattr(controller, 'velocity_command'):
+            raise ValueError('a long walk\'s changing commands need a learned policy\'s controller')
+        controller = ScheduledCommand(controller, disturbance.schedule)
+
+    def step(world, m):
+        probe(world, m)
+        if on_step is not None:
+            on_step(world, m)
+    return probe, controller, step
 
 
 def gait_run(world: World, gait, duration_s: float) -> dict:

@@ -19,6 +19,7 @@ is one module with a class of the :class:`World` methods, constructed as ``cls(p
 from __future__ import annotations
 
 import importlib
+from dataclasses import dataclass
 from typing import Optional, Protocol, Sequence, Union
 
 import numpy as np
@@ -29,6 +30,19 @@ from fall_predictor.profiles import RobotProfile
 #: Contacts reported with less normal force than this carry no load (solver slop) [N], in any
 #: engine.
 MIN_CONTACT_FORCE_N = 1e-6
+
+
+@dataclass(frozen=True)
+class TerrainContact:
+    """One loaded contact of the robot with a terrain box (sim/disturbances.py): which box (its
+    index in the terrain), the robot's foot ('l', 'r') or None for another link, the point [m],
+    and the forces on the robot [N] along the contact normal and in its plane (friction)."""
+
+    box: int
+    side: Optional[str]
+    point_m: np.ndarray
+    normal_force_n: np.ndarray
+    friction_force_n: np.ndarray
 
 
 class World(Protocol):
@@ -78,6 +92,23 @@ class World(Protocol):
     def close(self) -> None:
         """Release the engine."""
 
+    # -- disturbances beyond pushes (sim/disturbances.py); optional: a world without them runs
+    # pushes only, and says so when asked for more ------------------------------------------------
+    def set_terrain(self, boxes: Sequence) -> None:
+        """Lay ``boxes`` (sim/disturbances.TerrainBox) fixed to the ground from the next
+        :meth:`start` on, the robot starting on the highest one under it (none: the flat ground)."""
+
+    def terrain_contacts(self) -> list[TerrainContact]:
+        """The robot's loaded contacts with the terrain boxes at the current step."""
+
+    def set_randomization(self, randomization) -> None:
+        """Randomise the world (sim/randomization.WorldRandomization: ground friction, link
+        masses, drives) from the next :meth:`start` on; None: the nominal world."""
+
+    def schedule_fault(self, fault) -> None:
+        """Apply ``fault`` (sim/disturbances.JointFault; None: none) to the drive of its joint
+        from its start on, until the next :meth:`start`."""
+
 
 #: The registered engines: name -> the world class, or 'module:Class' imported when first used
 #: (a robot simulated in one engine never imports another's).
@@ -125,3 +156,15 @@ def make_world(profile: RobotProfile, simulator: Optional[str] = None,
         source = '' if simulator != profile.simulator else f'{profile.source}: '
         raise ValueError(f'{source}{error}') from None
     return cls(profile, dt_s=dt_s, **options)
+
+
+#: The optional World methods of disturbances beyond pushes.
+DISTURBANCE_METHODS = ('set_terrain', 'terrain_contacts', 'schedule_fault')
+
+
+def require_disturbances(world: World, cause: str) -> None:
+    """ValueError, naming the engine, when ``world`` cannot lay terrain or fail a joint."""
+    missing = [name for name in DISTURBANCE_METHODS if not callable(getattr(world, name, None))]
+    if missing:
+        raise ValueError(f'the {type(world).__name__} world cannot simulate a {cause}: it lacks '
+                         f'{", ".join(missing)} (sim/world.py World)')
