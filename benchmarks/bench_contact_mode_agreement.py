@@ -39,7 +39,7 @@ from fall_predictor.data.estimation import (POST_PUSH_WINDOW_S, contact_mode_or_
                                            estimate_bag)
 from fall_predictor.monitor.estimator import EstimatorConfig
 from fall_predictor.monitor.records import CONTACT_MODE_NAMES, SoleGeometry
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 
 #: The window before the robot counts as fallen that is its own phase [s].
 BEFORE_FALLEN_S = 0.5

@@ -37,7 +37,7 @@ def parse_setting(text: str) -> dict[str, float]:
 
 def controller(robot: str, overrides: dict[str, float]):
     """The profile's gait, reflex and stabilizer settings with ``overrides`` applied."""
-    from fall_predictor.profiles import load_profile
+    from fall_predictor.profiles.profile import load_profile
     from fall_predictor.robot.balance_controller import controller_configs
     profile = load_profile(robot)
     parts = list(controller_configs(profile))

@@ -34,7 +34,7 @@ from fall_predictor.data.onboard_replay import (lowstate_messages, onboard_chain
                                                 standard_messages)
 from fall_predictor.monitor.fall_monitor import STATUS_DEGRADED
 from fall_predictor.monitor.lowstate import LowStateConverter
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 from fall_predictor.robot.control import make_controller
 from fall_predictor.sim.lowstate_driver import RECEIVE_EPOCH_NS, BoardTiming, lowstate_records
 from fall_predictor.sim.policy_runs import commanded_pushes, physics_dt_s

@@ -36,7 +36,7 @@ import numpy as np
 import yaml
 
 from fall_predictor.monitor.records import PushSpec
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 from fall_predictor.robot.networks import load_network
 from fall_predictor.robot.policy_config import load_policy_config
 

@@ -42,7 +42,7 @@ from fall_predictor.monitor.fall_monitor import FallenConfig, FallMonitor
 from fall_predictor.monitor.model_file import load_model
 from fall_predictor.monitor.records import PushSpec
 from fall_predictor.monitor.sensor_pipeline import SensorPipeline
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 from fall_predictor.sim.drivers import driver_messages
 from fall_predictor.sim.sensors import SensorParams, apply_sensors
 from fall_predictor.sim.trajectory import run_trajectory

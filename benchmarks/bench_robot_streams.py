@@ -38,7 +38,7 @@ from fall_predictor.data.dataset import read_index
 from fall_predictor.data.onboard_replay import first_alarm, onboard_chain
 from fall_predictor.data.sensorbag import read_robot_description, read_sensor_messages
 from fall_predictor.monitor.sensor_records import SensorSample
-from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
+from fall_predictor.profiles.profile import DEFAULT_ROBOT, load_profile
 from fall_predictor.sim.drivers import DriverTiming, driver_messages
 
 from portable_paths import portable             # noqa: E402  (benchmarks/ is on the path)

@@ -23,7 +23,7 @@ import time
 import pybullet as pb
 
 from bare_physics import MAX_POSE_ERROR_M, record_calls, replay
-from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
+from fall_predictor.profiles.profile import DEFAULT_ROBOT, load_profile
 from fall_predictor.robot.control import BalanceControl, ControllerSwitch
 from fall_predictor.robot.balance_controller import BalanceController, controller_configs
 from fall_predictor.sim.pybullet_world import PybulletWorld, PybulletConfig

@@ -30,7 +30,7 @@ site="$work/install/fall_predictor/lib/python3.11/site-packages"
   "$venv/bin/python" -c 'import fall_predictor, fall_predictor.msg as m, fall_predictor.ros.fall_monitor
 assert fall_predictor.__file__.startswith("'"$site"'"), fall_predictor.__file__
 m.FallState(); m.Measurement()
-from fall_predictor.profiles import available_profiles, load_profile
+from fall_predictor.profiles.profile import available_profiles, load_profile
 assert set(available_profiles()) >= {"asimo_like", "g1"}, available_profiles()
 for name in available_profiles():
     assert load_profile(name).urdf_path.is_file()') \

@@ -44,7 +44,7 @@ def _estimated_measurements(result, seed: int) -> list:
     from dataclasses import replace
 
     from fall_predictor.monitor.sensor_pipeline import SensorPipeline
-    from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
+    from fall_predictor.profiles.profile import DEFAULT_ROBOT, load_profile
     from fall_predictor.sim.drivers import driver_messages
     from fall_predictor.sim.sensors import SensorParams, apply_sensors
 

@@ -11,7 +11,7 @@ def g1_standing(n: int, period_ns: int = 2_000_000):
     import pinocchio as pin
 
     from fall_predictor.monitor.sensor_records import ImuReading, JointStateReading
-    from fall_predictor.profiles import load_profile
+    from fall_predictor.profiles.profile import load_profile
     profile = load_profile('g1')
     robot = profile.sensor_layout().description(profile.urdf_xml())
     model, data = robot.model, robot.model.createData()

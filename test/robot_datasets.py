@@ -22,7 +22,7 @@ import numpy as np
 from fall_predictor.data.bag_writer import BagWriter
 from fall_predictor.data.dataset import FORMAT, IndexRow, trajectory_id, write_index_csv
 from fall_predictor.monitor.records import Measurement
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 
 DT_S = 0.001
 DURATION_S = 0.5

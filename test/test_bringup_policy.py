@@ -13,7 +13,7 @@ import pytest
 from test_bringup import _node_processes_on
 from test_nodes_support import test_domain_id, write_momentum_model
 
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 from fall_predictor.ros.bringup import node_overrides, run_bringup
 from fall_predictor.ros.errors import BringupError
 from fall_predictor.sim.policy_runs import commanded_pushes

@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 from fall_predictor.cli.main import main
-from fall_predictor.profiles import available_profiles
+from fall_predictor.profiles.profile import available_profiles
 
 PROFILES = Path(__file__).resolve().parents[1] / 'fall_predictor' / 'profiles'
 

@@ -13,7 +13,7 @@ import pytest
 import yaml
 
 from fall_predictor.cli.main import main
-from fall_predictor.profiles import available_profiles
+from fall_predictor.profiles.profile import available_profiles
 from fall_predictor.profiles.checks import nearest, unknown_keys
 from fall_predictor.sim.checks import StaticCheckFailed, require_static_checks, static_checks
 

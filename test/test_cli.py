@@ -199,7 +199,7 @@ def test_generate_with_the_robot_timing_splits_that_robots_own_joints(robot, leg
     were written into the command)."""
     from fall_predictor.cli import build_parser
     from fall_predictor.cli.dataset import generation_config
-    from fall_predictor.profiles import load_profile
+    from fall_predictor.profiles.profile import load_profile
     config = generation_config(build_parser().parse_args(
         ['generate', '--trajectories', '2', '--out', 'x', '--robot', robot,
          '--sensor-noise', '1', '--sensor-timing', 'robot', '--joint-rate-hz', '500']))

@@ -117,7 +117,7 @@ def test_a_fall_after_a_step_back_is_caught_as_without_it(robot: str, push: tupl
     from fall_predictor.monitor.model_file import load_model
     from fall_predictor.monitor.records import PushSpec
     from fall_predictor.monitor.sensor_pipeline import SensorPipeline
-    from fall_predictor.profiles import load_profile
+    from fall_predictor.profiles.profile import load_profile
     from fall_predictor.sim.drivers import DriverTiming, driver_messages
     from fall_predictor.sim.sensors import SensorParams, apply_sensors
     from fall_predictor.sim.trajectory import run_trajectory

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from fall_predictor.monitor.records import PushSpec
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 from fall_predictor.robot.control import BalanceControl, ControllerSwitch
 from fall_predictor.robot.balance_controller import BalanceController, GaitConfig, controller_configs
 from fall_predictor.robot.gait import GRAVITY

@@ -12,7 +12,7 @@ from fall_predictor.data.dataset import (FORMAT, DatasetError, dataset_guard_com
 from fall_predictor.data.generation import GenerationConfig, generate_dataset, simulated_robot
 from fall_predictor.monitor.records import FALLEN_COM_HEIGHT_M
 from fall_predictor.data.stats import dataset_stats, plot_fig6
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 
 
 def test_each_trajectory_has_a_complete_bag_and_index_row(small_dataset):

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 from fall_predictor.sim.disturbances import (STUCK_PLAY_RAD, CommandSchedule, Disturbance, JointFault,
                                              slip_patch, step_terrain, trip_box)
 from fall_predictor.sim.policy_runs import load_learned_policy, policy_run

@@ -8,7 +8,7 @@ import pytest
 
 from fall_predictor.data.dataset import CAUSES as INDEX_CAUSES
 from fall_predictor.data.disturbance_generation import parse_causes, run_cause
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 from fall_predictor.profiles.cause_ranges import parse_cause_ranges
 from fall_predictor.sim.disturbance_runs import (DEFAULT_RANGES, cause_ranges, fault_joints,
                                                  sample_disturbance, walker_for)

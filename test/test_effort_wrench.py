@@ -14,7 +14,7 @@ from fall_predictor.monitor.effort_wrench import EffortWrench, leg_joint_ids
 from fall_predictor.monitor.estimator import StateEstimator
 from fall_predictor.monitor.records import PushSpec
 from fall_predictor.monitor.robot_description import slice_if_consecutive
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 from fall_predictor.sim.sensors import SensorParams, apply_sensors
 from fall_predictor.sim.trajectory import run_trajectory
 

@@ -11,7 +11,7 @@ import pytest
 
 from fall_predictor.monitor.estimator import StateEstimator
 from fall_predictor.monitor.records import PushSpec
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 from fall_predictor.robot.balance_controller import BalanceController, controller_configs
 from fall_predictor.sim.sensors import SensorParams, apply_sensors
 from fall_predictor.sim.pybullet_world import GRAVITY, PybulletWorld

@@ -10,7 +10,7 @@ import pytest
 from fall_predictor.data.bag_writer import BagWriter
 from fall_predictor.data.recording_import import import_recordings
 from fall_predictor.monitor.records import Measurement
-from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
+from fall_predictor.profiles.profile import DEFAULT_ROBOT, load_profile
 
 #: Where the recorded G1 ends: below its profile's fallen height (0.38 m), above the ASIMO-like
 #: robot's (0.33 m).

@@ -14,7 +14,7 @@ from fall_predictor.monitor.fall_monitor import STATUS_DEGRADED, FallenConfig, F
 from fall_predictor.monitor.plausibility import MAX_TEXT_CHARS, bound_names, bound_text
 from fall_predictor.monitor.sensor_pipeline import SensorPipeline
 from fall_predictor.monitor.sensor_records import JointStateReading
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 from fall_predictor.ros import conversions as ros_qos
 
 G1 = load_profile('g1')

@@ -14,7 +14,7 @@ from fall_predictor.contract.topics import WireFormatError
 from fall_predictor.data.bagio import typestore
 from fall_predictor.monitor.lowstate import (MOTOR_SLOTS, LowStateConverter, LowStateRecord,
                                              parse_unitree_hg)
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 
 G1 = load_profile('g1')
 G1_12 = load_profile('g1_12dof')

@@ -17,7 +17,7 @@ from fall_predictor.data.onboard_replay import lowstate_messages, onboard_chain,
 from fall_predictor.monitor.fall_monitor import EVENT_FALLING
 from fall_predictor.monitor.lowstate import LowStateConverter
 from fall_predictor.monitor.records import PushSpec
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 from fall_predictor.ros.bringup import ros_environment, start_process, stop_nodes
 from fall_predictor.sim.lowstate_driver import lowstate_records
 from test_nodes_support import ros_context, test_domain_id

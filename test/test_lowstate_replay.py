@@ -18,7 +18,7 @@ from fall_predictor.data.onboard_replay import (lowstate_messages, onboard_chain
 from fall_predictor.monitor.fall_monitor import STATUS_DEGRADED, STATUS_OK
 from fall_predictor.monitor.lowstate import LowStateConverter
 from fall_predictor.monitor.records import PushSpec
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 from fall_predictor.sim.lowstate_driver import RECEIVE_EPOCH_NS, BoardTiming, lowstate_records
 
 PROFILE = load_profile('g1_12dof')

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import yaml
 
-from fall_predictor.profiles import ProfileError, available_profiles, load_profile
+from fall_predictor.profiles.profile import ProfileError, available_profiles, load_profile
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT / 'models'

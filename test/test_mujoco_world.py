@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2, PushSpec
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 from fall_predictor.robot.control import JointCommand, Posture, make_controller
 from fall_predictor.sim.mujoco_world import MujocoWorld
 from fall_predictor.sim.sensors import SensorParams, SensorSuite

@@ -21,7 +21,7 @@ from fall_predictor.monitor.decision_list import PerModeDecisionLists
 from fall_predictor.monitor.features import FeatureSettings
 from fall_predictor.monitor.model_file import ModelMetadata, save_model
 from fall_predictor.monitor.records import Measurement
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 
 DT_S = 0.001
 DURATION_S = 1.0

@@ -180,7 +180,7 @@ def test_joint_states_and_pushes_have_bounds_too():
 
 def _g1_bounds():
     """The shipped G1 (12 joints) description's joint bounds, from its URDF."""
-    from fall_predictor.profiles import load_profile
+    from fall_predictor.profiles.profile import load_profile
     profile = load_profile('g1_12dof')
     return profile.sensor_layout().description(profile.urdf_xml()).joint_bounds
 
@@ -223,7 +223,7 @@ def test_a_profiles_own_joint_limits_replace_the_urdfs(tmp_path):
     """``monitor.joint_limits`` in a profile: the limits the monitor judges the encoders by."""
     import shutil
 
-    from fall_predictor.profiles import ProfileError, load_profile
+    from fall_predictor.profiles.profile import ProfileError, load_profile
     from fall_predictor.profiles.profile import profile_path
     folder = tmp_path / 'g1_12dof'
     shutil.copytree(profile_path('g1_12dof').parent, folder)

@@ -13,7 +13,7 @@ import pytest
 import yaml
 
 from fall_predictor.monitor import records
-from fall_predictor.profiles import ProfileError, available_profiles, load_profile
+from fall_predictor.profiles.profile import ProfileError, available_profiles, load_profile
 from fall_predictor.profiles.profile import PROFILES_DIR
 
 PACKAGE_DIR = Path(__file__).resolve().parents[1] / 'fall_predictor'

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 from fall_predictor.robot.control import JointCommand, make_controller
 from fall_predictor.sim.randomization import RandomizationRanges, WorldRandomization, randomization_rng
 from fall_predictor.sim.sensors import SensorParams

@@ -110,7 +110,7 @@ def test_a_recording_the_estimator_cannot_use_is_refused_naming_that_robots_topi
     from fall_predictor.data.dataset import DatasetError
     from fall_predictor.data.sensorbag import write_robot_description
     from fall_predictor.monitor.sensor_records import ImuReading
-    from fall_predictor.profiles import load_profile
+    from fall_predictor.profiles.profile import load_profile
     profile = load_profile(robot)
     bag = tmp_path / 'imu_only'
     with BagWriter(bag) as writer:

@@ -23,7 +23,7 @@ from fall_predictor.contract.topics import FALL_EVENT, FALLING, IMU, JOINT_COMMA
 from fall_predictor.contract.wire import LEVEL_WARN
 from fall_predictor.monitor.fall_monitor import EVENT_RESET
 from fall_predictor.msg import FallEvent
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 from fall_predictor.robot.control import make_controller
 from fall_predictor.robot.learned_policy import LearnedPolicy
 from fall_predictor.ros import conversions as ros_qos

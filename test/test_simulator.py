@@ -160,7 +160,7 @@ def test_a_slab_ground_carries_a_standing_robot_as_the_plane_does():
     """The G1 stands on a slab ground (its profile's): the soles touch its top face at z = 0, the
     weight is carried, and the CoM stands within a millimetre of where it stands on a plane."""
     from dataclasses import replace
-    from fall_predictor.profiles import load_profile
+    from fall_predictor.profiles.profile import load_profile
     from fall_predictor.robot.balance_controller import controller_configs
     g1 = load_profile('g1')
     assert g1.sim_ground == 'slab'
@@ -187,7 +187,7 @@ def test_a_policy_posture_stands_on_the_ground_and_relative_meshes_load_from_the
     """A learned policy's posture gives no base position: PyBullet lowers the robot until its
     lowest geometry touches the ground (as MuJoCo does); the 12-joint G1's URDF names its meshes
     relative to its folder, and the rewritten copy PyBullet loads must still find them."""
-    from fall_predictor.profiles import load_profile
+    from fall_predictor.profiles.profile import load_profile
     from fall_predictor.robot.control import make_controller
     from fall_predictor.sim.urdf_loading import pybullet_urdf
     profile = load_profile('g1_12dof')

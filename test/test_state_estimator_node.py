@@ -226,7 +226,7 @@ def test_a_g1_standing_on_its_topics_without_foot_sensors():
     """robot:=g1: the G1's description, joint states with efforts at 500 Hz in the driver's order,
     its pelvis IMU, no wrench topics: the node estimates every sample, on both feet, with the CoM
     height and the CoP the statics give (known answer, to the millimetre), stamped as received."""
-    from fall_predictor.profiles import load_profile
+    from fall_predictor.profiles.profile import load_profile
     sensor_messages, com_height, cop_offset = g1_standing(60)
     got, counts, node = _drive(sensor_messages, load_profile('g1').urdf_xml(), expected=55,
                                params=[('robot', 'g1')])

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2, Measurement, PushSpec
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 from fall_predictor.robot.control import HoldControl, JointCommand
 from fall_predictor.sim import world as world_registry
 from fall_predictor.sim.pushes import PushProtocol

@@ -32,7 +32,7 @@ def fail(command: str, error: Exception | str) -> int:
 
 def add_robot_argument(parser: argparse.ArgumentParser) -> None:
     """``--robot NAME|PATH``: the robot profile (profiles/), checked when parsed."""
-    from fall_predictor.profiles import DEFAULT_ROBOT, ProfileError, available_profiles, load_profile
+    from fall_predictor.profiles.profile import DEFAULT_ROBOT, ProfileError, available_profiles, load_profile
 
     def robot(text: str) -> str:
         try:
@@ -61,7 +61,7 @@ def add_controller_arguments(parser: argparse.ArgumentParser) -> None:
 def controller_of(args) -> tuple[str, str]:
     """(controller, simulator) of ``args`` (--robot, --controller, --simulator), the profile's
     where not given; ProfileError for a controller the robot does not have."""
-    from fall_predictor.profiles import load_profile
+    from fall_predictor.profiles.profile import load_profile
     profile = load_profile(args.robot)
     controller = getattr(args, 'controller', None) or profile.default_controller
     profile.controller_profile(controller)

@@ -27,7 +27,7 @@ def generation_config(args):
     """The ``GenerationConfig`` of ``generate``'s arguments: another robot's push range, and no gait
     draws for a robot whose controller only stands or whose profile says so (``gait_variety``)."""
     from fall_predictor.data.generation import GenerationConfig
-    from fall_predictor.profiles import DEFAULT_ROBOT
+    from fall_predictor.profiles.profile import DEFAULT_ROBOT
     from fall_predictor.sim.pushes import PushDistribution
 
     from fall_predictor.profiles.profile import C_BAL
@@ -62,7 +62,7 @@ def cmd_generate(args) -> int:
     from fall_predictor.data.dataset_writer import WriterStopped
     from fall_predictor.data.generation import generate_dataset
 
-    from fall_predictor.profiles import ProfileError
+    from fall_predictor.profiles.profile import ProfileError
     try:
         config = generation_config(args)
     except (ProfileError, ValueError) as error:
@@ -106,7 +106,7 @@ def cmd_generate(args) -> int:
     if before_push:
         # A robot that falls before any push has its files wrong (or walks beyond itself): the
         # dataset's falls are not those of pushes.
-        from fall_predictor.profiles import load_profile
+        from fall_predictor.profiles.profile import load_profile
         profile = load_profile(args.robot)
         controller = argtypes.controller_of(args)[0]
         print(f'warning: {len(before_push)} of {len(rows)} runs fell before their push (first at '
@@ -170,7 +170,7 @@ def cmd_import_bags(args) -> int:
     from fall_predictor.data.recording_import import ImportReport, import_recordings
     from fall_predictor.data.robot_import import (import_robot_recordings, is_robot_recording,
                                                   read_push_times)
-    from fall_predictor.profiles import ProfileError
+    from fall_predictor.profiles.profile import ProfileError
 
     try:
         if args.urdf is not None:                   # a broken URDF said now, not per recording

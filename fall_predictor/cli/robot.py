@@ -17,7 +17,7 @@ def cmd_robustness(args) -> int:
     from fall_predictor.data.parallel import compute_backend, compute_parallel, progress_bar
     from fall_predictor.sim.robustness import RobustnessGrid, run_robustness
 
-    from fall_predictor.profiles import ProfileError
+    from fall_predictor.profiles.profile import ProfileError
     try:
         controller, simulator = argtypes.controller_of(args)
         argtypes.checked_profile(args.robot, controller)
@@ -65,7 +65,7 @@ def cmd_calibrate(args) -> int:
     from joblib import delayed
 
     from fall_predictor.data.parallel import compute_parallel, progress_bar
-    from fall_predictor.profiles import ProfileError
+    from fall_predictor.profiles.profile import ProfileError
     from fall_predictor.sim.calibration import PROBE_FORCE_N_PER_KG, CalibrationSetup, calibrate
 
     try:

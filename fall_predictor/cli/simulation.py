@@ -14,7 +14,7 @@ from fall_predictor.cli.args import emit as _emit, fail as _fail
 
 def cmd_simulate(args) -> int:
     from fall_predictor.monitor.records import PushSpec
-    from fall_predictor.profiles import ProfileError
+    from fall_predictor.profiles.profile import ProfileError
     from fall_predictor.robot.control import make_controller
     from fall_predictor.sim.policy_runs import commanded_pushes, physics_dt_s
     from fall_predictor.sim.pushes import PushDistribution, robot_gait
@@ -126,7 +126,7 @@ def cmd_render(args) -> int:
     import matplotlib.pyplot as plt
 
     from fall_predictor.monitor.records import PushSpec
-    from fall_predictor.profiles import ProfileError
+    from fall_predictor.profiles.profile import ProfileError
     from fall_predictor.robot.control import make_controller
     from fall_predictor.sim.policy_runs import physics_dt_s
     from fall_predictor.sim.trajectory import run_trajectory

@@ -291,7 +291,7 @@ def dataset_robot(data_dir: Path) -> str:
     manifest names no robot (made before robots had names). A robot named but neither shipped nor
     given by a profile file is a :class:`DatasetError`: estimating it with another robot's
     profile would be silently wrong."""
-    from fall_predictor.profiles import DEFAULT_ROBOT, available_profiles
+    from fall_predictor.profiles.profile import DEFAULT_ROBOT, available_profiles
     try:
         robot = json.loads((data_dir / 'dataset.json').read_text()).get('robot') or {}
     except (OSError, ValueError):
@@ -315,7 +315,7 @@ def dataset_guard_com_height_m(data_dir: str | os.PathLike) -> float:
     ``monitor.guard_com_height_m`` (:func:`dataset_robot`), the guard every offline tool trains,
     evaluates, sweeps and cross-validates that dataset with unless told otherwise. A profile that
     cannot be loaded is a :class:`DatasetError` naming the dataset."""
-    from fall_predictor.profiles import ProfileError, load_profile
+    from fall_predictor.profiles.profile import ProfileError, load_profile
     robot = dataset_robot(Path(data_dir))
     try:
         return load_profile(robot).guard_com_height_m
@@ -327,7 +327,7 @@ def dataset_guard_com_height_m(data_dir: str | os.PathLike) -> float:
 def _profile_fingerprint(data_dir: Path) -> str:
     """Fingerprint of the files of the dataset's robot profile (its YAML and the files beside
     it: the estimator reads the sole frames, bounds and URDF from them)."""
-    from fall_predictor.profiles import ProfileError, profile_path
+    from fall_predictor.profiles.profile import ProfileError, profile_path
     try:
         source = profile_path(dataset_robot(data_dir))
     except (ProfileError, OSError):

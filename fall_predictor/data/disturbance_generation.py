@@ -20,7 +20,7 @@ import numpy as np
 
 from fall_predictor.data.dataset import CAUSE_PUSH, CAUSE_WALK, CAUSES, cause_params_text
 from fall_predictor.monitor.records import PushSpec
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 
 #: The third seed word of a run's cause draw.
 CAUSE_STREAM = 57

@@ -18,7 +18,7 @@ from typing import Optional
 
 import numpy as np
 
-from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
+from fall_predictor.profiles.profile import DEFAULT_ROBOT, load_profile
 from fall_predictor.data.bagio import BagError, read_trajectory
 from fall_predictor.data.sensorbag import read_robot_description, read_sensor_messages
 from fall_predictor.monitor.contact_modes import classify_contact_mode

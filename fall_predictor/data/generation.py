@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any, Optional
 
 import numpy as np
 
-from fall_predictor.profiles import DEFAULT_ROBOT, load_profile, profile_reference
+from fall_predictor.profiles.profile import DEFAULT_ROBOT, load_profile, profile_reference
 from fall_predictor.profiles.profile import C_BAL
 from fall_predictor.data.bag_writer import BagWriter
 from fall_predictor.data.dataset import (FORMAT, DatasetError, IndexRow, read_index, trajectory_id,

@@ -22,7 +22,7 @@ from fall_predictor.data.estimation import BagEstimate, error_samples, summarise
 from fall_predictor.monitor.lowstate import LowStateConverter
 from fall_predictor.monitor.records import Measurement
 from fall_predictor.monitor.sensor_pipeline import SensorPipeline
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 
 #: The profile a G1 owner runs under Unitree's policy, and the robot's full description.
 POLICY_PROFILE = 'g1_12dof'

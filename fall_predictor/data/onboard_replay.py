@@ -20,7 +20,7 @@ from fall_predictor.monitor.chain import OnboardChain, Reading
 from fall_predictor.monitor.fall_monitor import EVENT_FALLING, FallenConfig, FallMonitor
 from fall_predictor.monitor.model_file import load_model
 from fall_predictor.monitor.sensor_pipeline import PipelineConfig, SensorPipeline
-from fall_predictor.profiles import RobotProfile
+from fall_predictor.profiles.profile import RobotProfile
 
 
 def onboard_chain(profile: RobotProfile, model: str | Path, urdf: Optional[str] = None,

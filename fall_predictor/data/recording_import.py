@@ -19,7 +19,7 @@ from fall_predictor.data.dataset import (FORMAT, DatasetError, IndexRow, traject
 from fall_predictor.data.generation import simulated_robot
 from fall_predictor.data.outcomes import height_drop_time
 from fall_predictor.monitor.fileio import atomic_write_text
-from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
+from fall_predictor.profiles.profile import DEFAULT_ROBOT, load_profile
 
 
 @dataclass

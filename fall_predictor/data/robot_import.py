@@ -42,7 +42,7 @@ from typing import Iterable, Mapping, Optional, Sequence
 
 import numpy as np
 
-from fall_predictor.profiles import DEFAULT_ROBOT, profile_reference
+from fall_predictor.profiles.profile import DEFAULT_ROBOT, profile_reference
 from fall_predictor.data.bagio import BagError
 from fall_predictor.data.dataset import (FORMAT, PUSH_FROM_FILE, PUSH_FROM_TOPIC, PUSH_UNKNOWN,
                                          ROBOT_URDF_FILE, DatasetError, IndexRow, trajectory_id,
@@ -198,7 +198,7 @@ def robot_recording_row(bag: Path, tid: str, urdf: Optional[str] = None,
     ms = estimated_measurements(bag, urdf=urdf, robot=robot)
     if len(ms) < 2:
         from fall_predictor.data.sensorbag import STREAM_TOPICS
-        from fall_predictor.profiles import load_profile
+        from fall_predictor.profiles.profile import load_profile
         streams = ('joints', 'imu', *load_profile(robot).sensor_layout().force_sensors)
         needed = [STREAM_TOPICS[stream].name for stream in streams]
         raise DatasetError(f'{bag}: the estimator gave {len(ms)} states; the {robot} robot needs '
@@ -296,7 +296,7 @@ def lowstate_urdf(bag: Path, robot: str) -> Optional[str]:
     (DatasetError when the profile has no motor table for it)."""
     from fall_predictor.contract.unitree_hg import LOWSTATE
     from fall_predictor.data.bagio import iter_messages
-    from fall_predictor.profiles import load_profile
+    from fall_predictor.profiles.profile import load_profile
     if next(iter(iter_messages(Path(bag), (LOWSTATE.name,))), None) is None:
         return None
     profile = load_profile(robot)

@@ -85,7 +85,7 @@ def read_sensor_messages(path: str | os.PathLike[str], robot: Optional[str] = No
 def lowstate_converter(path: str | os.PathLike[str], robot: Optional[str]) -> LowStateConverter:
     """The converter of a recording's ``/lowstate``: the motor table of profile ``robot``
     (BagError when there is none to name the motors with)."""
-    from fall_predictor.profiles import load_profile
+    from fall_predictor.profiles.profile import load_profile
     profile = None if robot is None else load_profile(robot)
     if profile is None or profile.unitree_hg is None:
         raise BagError(f'{path}: {LOWSTATE.name} names its motors by index only: give the robot '

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from xml.sax.saxutils import escape
 
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 
 PROFILE = load_profile('asimo_like')
 #: The robot description (``/robot_description``, Pinocchio): with the sole frames.

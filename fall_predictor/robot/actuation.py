@@ -27,7 +27,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from fall_predictor.profiles import RobotProfile, ServoGains
+from fall_predictor.profiles.profile import RobotProfile, ServoGains
 from fall_predictor.profiles import asimo_like_urdf as rm
 
 

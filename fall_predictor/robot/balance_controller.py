@@ -16,7 +16,7 @@ from typing import Optional
 import numpy as np
 
 from fall_predictor.monitor.robot_description import SIDES
-from fall_predictor.profiles import RobotProfile
+from fall_predictor.profiles.profile import RobotProfile
 from fall_predictor.profiles import asimo_like_urdf as rm
 from fall_predictor.robot import kinematics as kin
 from fall_predictor.robot.legs import ClosedFormLegs, LegSolver, leg_solver

@@ -27,7 +27,7 @@ import pinocchio as pin
 from scipy.linalg import lapack
 
 from fall_predictor.monitor.robot_description import SIDES, RobotDescription
-from fall_predictor.profiles import RobotProfile
+from fall_predictor.profiles.profile import RobotProfile
 from fall_predictor.robot import kinematics as kin
 
 

@@ -64,7 +64,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Optional, TextIO
 
 from fall_predictor.contract.topics import PIPELINE_NODES, RECORDER_NODE
-from fall_predictor.profiles import DEFAULT_ROBOT, ProfileError, RobotProfile, load_profile
+from fall_predictor.profiles.profile import DEFAULT_ROBOT, ProfileError, RobotProfile, load_profile
 from fall_predictor.sim.world import SIMULATORS
 from fall_predictor.ros.errors import BringupError
 from fall_predictor.ros.share import package_share_dir

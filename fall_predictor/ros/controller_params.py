@@ -6,7 +6,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from fall_predictor.monitor.robot_description import DescriptionError
-from fall_predictor.profiles import RobotProfile
+from fall_predictor.profiles.profile import RobotProfile
 from fall_predictor.ros.parameters import NodeStartupError, ParamSpec
 from fall_predictor.ros.robots import ROBOT_PARAM
 from fall_predictor.ros.simulated_world import (CONTROLLER_PARAM, SIMULATOR_PARAM,

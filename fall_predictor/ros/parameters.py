@@ -19,7 +19,7 @@ from fall_predictor.monitor.decision_list import PerModeDecisionLists
 from fall_predictor.monitor.features import FeatureSettings, FeatureSettingsMismatch
 from fall_predictor.monitor.model_file import (DEFAULT_MAX_MODEL_BYTES, ModelFileError,
                                               ModelMetadata, load_model)
-from fall_predictor.profiles import DEFAULT_ROBOT, ProfileError
+from fall_predictor.profiles.profile import DEFAULT_ROBOT, ProfileError
 from fall_predictor.ros.share import default_model_path
 
 ParamValue = Union[bool, int, float, str]

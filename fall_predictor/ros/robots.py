@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from fall_predictor.monitor.fall_monitor import FallenConfig
-from fall_predictor.profiles import DEFAULT_ROBOT, ProfileError, RobotProfile, load_profile
+from fall_predictor.profiles.profile import DEFAULT_ROBOT, ProfileError, RobotProfile, load_profile
 from fall_predictor.ros.parameters import NodeStartupError, ParamSpec
 
 ROBOT_PARAM = ParamSpec('robot', DEFAULT_ROBOT, 'robot profile: a shipped profile name or the path '

@@ -5,7 +5,7 @@ from pathlib import Path
 
 from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
 
-from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
+from fall_predictor.profiles.profile import DEFAULT_ROBOT, load_profile
 
 PACKAGE = 'fall_predictor'
 

@@ -18,7 +18,7 @@ from typing import Optional
 
 import numpy as np
 
-from fall_predictor.profiles import ProfileError, RobotProfile
+from fall_predictor.profiles.profile import ProfileError, RobotProfile
 from fall_predictor.profiles.profile import C_BAL, PolicyControllerProfile
 from fall_predictor.sim.world import SIMULATORS
 from fall_predictor.robot.control import JointCommand, Posture

@@ -78,7 +78,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool, Trigger
 
-from fall_predictor.profiles import DEFAULT_ROBOT
+from fall_predictor.profiles.profile import DEFAULT_ROBOT
 from fall_predictor.ros import conversions as ros_qos
 from fall_predictor.ros.robots import profile_for
 from fall_predictor.ros.endpoints import create_publisher, create_subscription

@@ -6,7 +6,7 @@ from collections.abc import Mapping
 from typing import Optional
 
 from fall_predictor.contract.topics import SIM_RATE_HZ
-from fall_predictor.profiles import RobotProfile
+from fall_predictor.profiles.profile import RobotProfile
 from fall_predictor.ros.parameters import ParamSpec, ParamValue
 from fall_predictor.ros.robots import ROBOT_PARAM
 from fall_predictor.ros.simulated_world import CONTROLLER_PARAM, SIMULATOR_PARAM

@@ -16,7 +16,7 @@ from typing import Callable, Optional, Sequence
 
 import numpy as np
 
-from fall_predictor.profiles import RobotProfile, load_profile
+from fall_predictor.profiles.profile import RobotProfile, load_profile
 from fall_predictor.sim.pushes import PushDistribution, robot_gait, trajectory_seed
 
 

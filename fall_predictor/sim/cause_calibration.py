@@ -13,7 +13,7 @@ from typing import Callable, Optional, Sequence
 
 import numpy as np
 
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 from fall_predictor.sim.disturbance_runs import (SEVERITY, cause_ranges, fault_joints, run_length_s,
                                                  sample_disturbance, walker_for)
 from fall_predictor.sim.pushes import trajectory_seed

@@ -207,7 +207,7 @@ def urdf_mesh_check(profile: RobotProfile) -> Check:
 
 def c_bal_check(profile: RobotProfile) -> Check:
     """C_bal drives every joint through the profile's servo table: an entry for each."""
-    from fall_predictor.profiles import ProfileError
+    from fall_predictor.profiles.profile import ProfileError
     missing = []
     for joint in profile.joint_names:
         try:

@@ -24,7 +24,7 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 from fall_predictor.monitor.rotations import rpy_matrix  # noqa: E402
-from fall_predictor.profiles import ProfileError, RobotProfile  # noqa: E402
+from fall_predictor.profiles.profile import ProfileError, RobotProfile  # noqa: E402
 from fall_predictor.sim.urdf_loading import resolve_urdf_text  # noqa: E402
 
 #: How far above the ground the lowest foot geometry starts [m] (it settles in a step).

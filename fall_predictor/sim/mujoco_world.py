@@ -36,7 +36,7 @@ import numpy as np  # noqa: E402
 
 from fall_predictor.monitor import rotations
 from fall_predictor.monitor.records import Measurement, PushSpec
-from fall_predictor.profiles import ProfileError, RobotProfile
+from fall_predictor.profiles.profile import ProfileError, RobotProfile
 from fall_predictor.robot.control import JointCommand
 from fall_predictor.sim.mujoco_model import (FloatingBase, fixed_frame_in_body, load_model,
                                              model_with_terrain, robot_geoms, stand_on_ground)

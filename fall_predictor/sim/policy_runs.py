@@ -11,7 +11,7 @@ import hashlib
 from pathlib import Path
 from typing import Optional
 
-from fall_predictor.profiles import RobotProfile
+from fall_predictor.profiles.profile import RobotProfile
 from fall_predictor.profiles.profile import PolicyControllerProfile
 from fall_predictor.robot.control import PolicyControl
 from fall_predictor.robot.learned_policy import LearnedPolicy

@@ -8,7 +8,7 @@ from typing import Optional
 
 import numpy as np
 
-from fall_predictor.profiles import load_profile
+from fall_predictor.profiles.profile import load_profile
 from fall_predictor.profiles.profile import PolicyControllerProfile
 from fall_predictor.robot.balance_controller import GaitConfig, controller_configs
 from fall_predictor.monitor.records import PUSH_DURATION_S, PushSpec

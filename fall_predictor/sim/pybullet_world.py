@@ -17,7 +17,7 @@ import numpy as np
 from fall_predictor.sim.pybullet_quiet import pb
 
 from fall_predictor.monitor.records import STANDARD_GRAVITY_M_S2, Measurement, PushSpec
-from fall_predictor.profiles import DEFAULT_ROBOT, RobotProfile, load_profile
+from fall_predictor.profiles.profile import DEFAULT_ROBOT, RobotProfile, load_profile
 from fall_predictor.robot.actuation import ServoArrays, servo_arrays, servo_torques
 from fall_predictor.robot.control import JointCommand
 from fall_predictor.sim import pybullet_state

@@ -43,7 +43,7 @@ class RobustnessGrid:
 
     def walk(self) -> tuple[float, float, float]:
         """(settling time [s], walk cycle [s], physics step [s]) of the robot's controller."""
-        from fall_predictor.profiles import load_profile
+        from fall_predictor.profiles.profile import load_profile
         from fall_predictor.sim.policy_runs import commanded_pushes
         profile = load_profile(self.robot)
         policy = profile.controller_profile(self.controller)
@@ -119,7 +119,7 @@ def survives(item: tuple) -> bool:
     simulator, command)). C_bal walks its default gait (one walk per worker thread, simulated once
     and restored from snapshots); a learned policy walks from a fresh world every time (its
     recurrent state and live sensors start with the run)."""
-    from fall_predictor.profiles import load_profile
+    from fall_predictor.profiles.profile import load_profile
     from fall_predictor.robot.control import make_controller
     from fall_predictor.sim.policy_runs import physics_dt_s
     from fall_predictor.sim.trajectory import WalkPrefix, run_trajectory

@@ -47,7 +47,7 @@ import numpy as np
 from fall_predictor.monitor import rotations
 from fall_predictor.monitor.robot_description import SIDES
 from fall_predictor.monitor.sensor_records import SensorSample
-from fall_predictor.profiles import RobotProfile
+from fall_predictor.profiles.profile import RobotProfile
 from fall_predictor.profiles import asimo_like_urdf as rm
 
 SAMPLE_RATE_HZ = 1000.0

@@ -28,7 +28,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from fall_predictor.profiles import DEFAULT_ROBOT, load_profile
+from fall_predictor.profiles.profile import DEFAULT_ROBOT, load_profile
 from fall_predictor.robot.control import (Controller, ControllerSwitch, Observation, OBSERVES_SENSORS,
                                           make_controller)
 from fall_predictor.monitor.records import Measurement, PushSpec

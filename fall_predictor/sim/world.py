@@ -25,7 +25,7 @@ from typing import Optional, Protocol, Sequence, Union
 import numpy as np
 
 from fall_predictor.monitor.records import Measurement, PushSpec
-from fall_predictor.profiles import RobotProfile
+from fall_predictor.profiles.profile import RobotProfile
 
 #: Contacts reported with less normal force than this carry no load (solver slop) [N], in any
 #: engine.
