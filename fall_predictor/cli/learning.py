@@ -109,6 +109,7 @@ def cmd_rules(args) -> int:
 
 def cmd_evaluate(args) -> int:
     from fall_predictor.data.dataset import DatasetError, dataset_guard_com_height_m
+    from fall_predictor.learning.deployment import deployment_lines
     from fall_predictor.learning.evaluation import evaluate_model, evaluation_json
     from fall_predictor.learning.when_where import when_where_lines
     from fall_predictor.monitor.model_file import ModelFileError, load_model
@@ -150,7 +151,7 @@ def cmd_evaluate(args) -> int:
         return _fail('evaluate', f'--per-run {args.per_run}: {error}')
     payload = {'model': str(args.model), 'data': str(args.data), 'state': state,
                'model_state': metadata.state, 'decision_threshold': lists.decision_threshold,
-               **evaluation_json(evaluation),
+               **evaluation_json(evaluation, args.band_width),
                'trained_on_this_dataset': metadata.dataset_fingerprint == evaluation.dataset_fingerprint,
                'dataset_guard_com_height_m': dataset_guard,
                'per_run': None if per_run is None else str(per_run)}
@@ -174,6 +175,7 @@ def cmd_evaluate(args) -> int:
              + (f'; {payload["n_runs_push_time_unknown"]} runs without a push time (alarms counted '
                 'from their start)' if payload['n_runs_push_time_unknown'] else ''),
              f'mean rule size {r.mean_rule_size:.2f}']
+    lines += deployment_lines(payload['deployment'])
     if payload['refused_samples']:
         lines.append(f'{payload["refused_samples"]} samples refused ({payload["refused_samples_estimator"]} '
                      f'by the estimator, {payload["refused_samples_features"]} by the feature extractor) '
@@ -352,7 +354,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    'decision lists, history window tau_his, the model\'s CoM guard) and report '
                                    'method §5\'s '
                                    'metrics: FPR, tau_lead, misses, pre-push false alarms, oracle lead, lead '
-                                   'fraction and mean rule size; with --baselines also the Pareto fronts of '
+                                   'fraction and mean rule size; per cause (push, trip, slip, step, fault): '
+                                   'falls caught, FPR over the survived runs, alarms before the onset, '
+                                   'lead and lead / onset-to-fall; false alarms per hour of undisturbed '
+                                   'walking (Garwood interval); the FPR of survived pushes per impulse '
+                                   'band and in the ambiguous band (20-80 %% fell); with --baselines also the Pareto fronts of '
                                    'the hand-coded baselines; with --per-run, each run\'s alarms. Samples '
                                    'the estimator or the feature extractor refuses are holes, as onboard, '
                                    'and counted (refused_samples). Not cross-validated: use a dataset the '
@@ -365,6 +371,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--decision-threshold', type=argtypes.finite(float), default=None, metavar='LOG_ODDS',
                    help='boosted-trees models: falling when the score exceeds this (default: the '
                         'model\'s); the other half of their operating point beside --tau-his')
+    p.add_argument('--band-width', type=argtypes.positive, default=10.0, metavar='NS',
+                   help='impulse band width [N s] of the per-band FPR of survived pushes (default 10)')
     p.add_argument('--baselines', action='store_true',
                    help='also evaluate the CoM-height, momentum and capture-point baselines')
     p.add_argument('--per-run', type=Path, default=None, metavar='FILE',

@@ -7,6 +7,6 @@ its settings and results as data), its report (``report``) and figures (``plots`
 ``plots_intervals``), which read the results, and ``sweep_files``, which runs the sweep and
 writes them.
 
-May import: fall_predictor.monitor, fall_predictor.data, numpy, scikit-learn, joblib,
+May import: fall_predictor.monitor, fall_predictor.data, numpy, scipy (scikit-learn's own dependency), scikit-learn, joblib,
 matplotlib, tqdm.
 """
