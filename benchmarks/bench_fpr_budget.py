@@ -2,7 +2,7 @@
 cross-validated FPR against the one chosen on its upper confidence bound (method §11 "A budget
 that holds").
 
-On the development data (``--data``), the boosted trees' cross-validation that ``train``
+On the development data (``--data``, repeatable: one training set, as ``train --data``), the boosted trees' cross-validation that ``train``
 runs (:func:`~fall_predictor.learning.crossval.cross_validate_grid`, one training per fold, every
 (decision threshold, tau_his) evaluated on the held-out fold), with folds stratified by outcome
 (the sweep's) and grouped by cause and push impulse band
@@ -21,7 +21,8 @@ choice), then evaluated held out (``--test``, a draw of another seed) at each ch
 Each figure is an FPR over survived runs with its Wilson 95 % interval, beside the falls caught
 and the lead. Writes JSON (``--out``):
 
-    .venv/bin/python benchmarks/bench_fpr_budget.py --data /tmp/g1pol150 --test /tmp/g1pol400 \\
+    .venv/bin/python benchmarks/bench_fpr_budget.py --data data/g1pol150_s11 \\
+        --data data/g1pol400_s12 --test data/g1pol400_s13 --attitude --mirror \\
         --out docs/prediction/g1_unitree_rl/fpr_budget.json
 """
 from __future__ import annotations
@@ -38,9 +39,11 @@ from fall_predictor.learning.deployment import cause_figures, run_outcomes
 from fall_predictor.learning.intervals import wilson_upper_bound
 from fall_predictor.learning.metrics import evaluate_atomic
 from fall_predictor.learning.nested import choose_setting, pool_results, pooled_json
-from fall_predictor.learning.run_groups import ambiguous_band, disturbances, fold_groups
+from fall_predictor.learning.run_groups import ambiguous_band, disturbances
 from fall_predictor.learning.sweep_results import DEFAULT_TAU_HIS_VALUES_S
-from fall_predictor.learning.training import fit_strided, load_dataset, make_learner, model_inputs
+from fall_predictor.learning.training import (fit_strided, load_dataset, load_training_data,
+                                              make_learner, model_inputs)
+from fall_predictor.learning.window_choice import training_groups
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from portable_paths import portable_path as portable  # noqa: E402
@@ -90,7 +93,8 @@ def held_out(model, test, runs, setting, guard_m) -> dict[str, Any]:
 
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
-    parser.add_argument('--data', type=Path, required=True, help='development data')
+    parser.add_argument('--data', type=Path, action='append', required=True,
+                        help='development data (repeatable)')
     parser.add_argument('--test', type=Path, required=True, help='held-out data (another seed)')
     parser.add_argument('--max-fpr', type=float, action='append', default=None,
                         help='FPR budget (repeatable; default 0.02 and 0.06)')
@@ -107,11 +111,10 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument('--out', type=Path, default=None)
     args = parser.parse_args(argv)
     args.max_fpr = tuple(args.max_fpr or (0.02, 0.06))
-    guard_m = dataset_guard_com_height_m(args.data)
-    trajs = model_inputs(load_dataset(args.data, jobs=args.jobs, state=args.state).trajectories,
-                         args.attitude)
-    dev_runs = disturbances(read_index(args.data))
-    groups = fold_groups([t.trajectory_id for t in trajs], dev_runs, args.folds)
+    data = load_training_data(args.data, jobs=args.jobs, state=args.state)
+    guard_m = data.guard_com_height_m
+    trajs = model_inputs(data.report.trajectories, args.attitude)
+    groups = training_groups(data, args.folds)
     learner = make_learner('boosting')
     chosen = choices(trajs, groups, learner, args, guard_m)
     model = fit_strided(trajs, args.tau_plus, learner, mirror=args.mirror)
@@ -126,7 +129,7 @@ def main(argv: list[str] | None = None) -> dict:
                                               (choice['decision_threshold'], choice['tau_his_s']),
                                               test_guard_m)
                 print(folds_by, budget, rule, json.dumps(choice['held_out']), flush=True)
-    out = {'data': portable(args.data), 'test': portable(args.test),
+    out = {'data': [portable(d) for d in args.data], 'test': portable(args.test),
            'n_dev': len(trajs), 'n_dev_fallen': sum(t.fallen for t in trajs),
            'n_test': len(test), 'n_test_fallen': sum(t.fallen for t in test),
            'state': args.state, 'attitude': args.attitude, 'mirror': args.mirror,

@@ -104,7 +104,10 @@ def test_evaluate_gives_the_figures_per_cause(tmp_path, capsys):
     alarms once on every squat, walks included: each walk is one episode in its 0.5 s."""
     data = write_robot_dataset(tmp_path / 'g1', 'g1', n_fallen=2, n_balanced=4)
     _write_causes(data)
-    figures = evaluation_json(evaluate_model(data, PerModeDecisionLists.empty(), 0.0))['deployment']
+    evaluation = evaluate_model(data, PerModeDecisionLists.empty(), 0.0)
+    figures = evaluation_json(evaluation)['deployment']
+    assert [(r.cause, r.alarm_onsets) for r in evaluation.run_records()] == \
+        [('push', 1), ('trip', 1), ('push', 1), ('trip', 1), ('walk', 1), ('walk', 1)]
     assert list(figures['by_cause']) == ['push', 'trip', 'walk']
     for cause in ('push', 'trip'):
         f = figures['by_cause'][cause]

@@ -208,7 +208,8 @@ class ModelEvaluation:
 
     def run_records(self) -> list[RunRecord]:
         """One :class:`~fall_predictor.learning.per_run.RunRecord` per trajectory evaluated."""
-        return run_records(self.trajectories, self.result.alarms, self.push_sources, self.refused)
+        return run_records(self.trajectories, self.result.alarms, self.push_sources, self.refused,
+                           {tid: run.cause for tid, run in self.runs.items()})
 
     def deployment(self, band_width_ns: float = DEFAULT_BAND_WIDTH_NS) -> dict[str, Any]:
         """The deployer's figures: per cause, per hour of walking, per push impulse band
