@@ -13,7 +13,7 @@ an operating point on all the folds, as ``train`` does. One model is trained on 
 development data (the threshold and the window are run-time settings: one model serves every
 choice), then evaluated held out (``--test``, a draw of another seed) at each choice:
 
-* on every held-out run (the generator's own sampler);
+* on every held-out run (the generator's own sampler; several ``--test`` sets pooled);
 * on the held-out pushes of the ambiguous band only (the band in which 20-80 % of the held-out
   pushes fell, found from them: :func:`~fall_predictor.learning.run_groups.ambiguous_band`), a
   second sampler: the pushes a policy sometimes recovers from, where false alarms concentrate.
@@ -22,7 +22,7 @@ Each figure is an FPR over survived runs with its Wilson 95 % interval, beside t
 and the lead. Writes JSON (``--out``):
 
     .venv/bin/python benchmarks/bench_fpr_budget.py --data data/g1pol150_s11 \\
-        --data data/g1pol400_s12 --test data/g1pol400_s13 --attitude --mirror \\
+        --data data/g1pol400_s12 --test data/g1pol400_s13 --test data/g1pol160_s8 --attitude --mirror \\
         --out docs/prediction/g1_unitree_rl/fpr_budget.json
 """
 from __future__ import annotations
@@ -33,7 +33,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from fall_predictor.data.dataset import dataset_guard_com_height_m, read_index
+from fall_predictor.data.dataset import read_index
 from fall_predictor.learning.crossval import cross_validate_grid
 from fall_predictor.learning.deployment import cause_figures, run_outcomes
 from fall_predictor.learning.intervals import wilson_upper_bound
@@ -41,8 +41,8 @@ from fall_predictor.learning.metrics import evaluate_atomic
 from fall_predictor.learning.nested import choose_setting, pool_results, pooled_json
 from fall_predictor.learning.run_groups import ambiguous_band, disturbances
 from fall_predictor.learning.sweep_results import DEFAULT_TAU_HIS_VALUES_S
-from fall_predictor.learning.training import (fit_strided, load_dataset, load_training_data,
-                                              make_learner, model_inputs)
+from fall_predictor.learning.training import (fit_strided, load_training_data, make_learner,
+                                              model_inputs)
 from fall_predictor.learning.window_choice import training_groups
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -95,7 +95,8 @@ def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--data', type=Path, action='append', required=True,
                         help='development data (repeatable)')
-    parser.add_argument('--test', type=Path, required=True, help='held-out data (another seed)')
+    parser.add_argument('--test', type=Path, action='append', required=True,
+                        help='held-out data (other seeds; repeatable: pooled)')
     parser.add_argument('--max-fpr', type=float, action='append', default=None,
                         help='FPR budget (repeatable; default 0.02 and 0.06)')
     parser.add_argument('--level', type=float, default=0.95, help='level of the one-sided bound')
@@ -118,10 +119,12 @@ def main(argv: list[str] | None = None) -> dict:
     learner = make_learner('boosting')
     chosen = choices(trajs, groups, learner, args, guard_m)
     model = fit_strided(trajs, args.tau_plus, learner, mirror=args.mirror)
-    test = model_inputs(load_dataset(args.test, jobs=args.jobs, state=args.state).trajectories,
-                        args.attitude)
-    test_runs = disturbances(read_index(args.test))
-    test_guard_m = dataset_guard_com_height_m(args.test)
+    test_data = load_training_data(args.test, jobs=args.jobs, state=args.state)
+    test = model_inputs(test_data.report.trajectories, args.attitude)
+    test_runs = {}
+    for part in test_data.parts:
+        test_runs.update(disturbances(read_index(part.data_dir), part.prefix))
+    test_guard_m = test_data.guard_com_height_m
     for folds_by in FOLDS_BY:
         for budget, per_rule in chosen[folds_by]['budgets'].items():
             for rule, choice in per_rule.items():
@@ -129,7 +132,7 @@ def main(argv: list[str] | None = None) -> dict:
                                               (choice['decision_threshold'], choice['tau_his_s']),
                                               test_guard_m)
                 print(folds_by, budget, rule, json.dumps(choice['held_out']), flush=True)
-    out = {'data': [portable(d) for d in args.data], 'test': portable(args.test),
+    out = {'data': [portable(d) for d in args.data], 'test': [portable(d) for d in args.test],
            'n_dev': len(trajs), 'n_dev_fallen': sum(t.fallen for t in trajs),
            'n_test': len(test), 'n_test_fallen': sum(t.fallen for t in test),
            'state': args.state, 'attitude': args.attitude, 'mirror': args.mirror,
