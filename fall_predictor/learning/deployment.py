@@ -219,7 +219,7 @@ def deployment_lines(figures: Mapping[str, Any]) -> list[str]:
     if band is not None:
         lines.append(_row(f"push, ambiguous {band['low_ns']:.0f}–{band['high_ns']:.0f} N s", band))
     walking = figures['walking']
-    if walking is not None:
+    if walking is not None and walking['per_hour_ci95'] is not None:
         interval = walking['per_hour_ci95']
         lines.append(f"undisturbed walking: {walking['alarm_episodes']} false alarm episodes in "
                      f"{walking['hours']:.2f} h ({walking['n_walks']} walks): "
