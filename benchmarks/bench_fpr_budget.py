@@ -140,7 +140,7 @@ def main(argv: list[str] | None = None) -> dict:
            'tau_his_values_s': list(DEFAULT_TAU_HIS_VALUES_S), 'level': args.level,
            'seed': args.seed, 'folds': args.folds,
            'rules': {'point': 'the longest cross-validated lead at a pooled FPR <= the budget',
-                     'ucb': f'the longest cross-validated lead where the one-sided {args.level:.0%} '
+                     'ucb': f'the longest cross-validated lead where the one-sided {100 * args.level:g} % '
                             'Wilson upper bound of the pooled FPR is <= the budget'},
            'else': 'no setting within the budget: the lowest FPR (point) or bound (ucb)',
            'choices': chosen, 'command': 'benchmarks/bench_fpr_budget.py ' + ' '.join(

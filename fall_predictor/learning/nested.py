@@ -102,7 +102,7 @@ def fpr_bound(pooled: PooledFigures, rule: str = 'point', level: float = DEFAULT
 def fpr_rule_text(rule: str, level: float = DEFAULT_FPR_LEVEL) -> str:
     """The FPR a rule checks, in words."""
     return ('the cross-validated FPR' if rule == 'point' else
-            f'the one-sided {level:.0%} Wilson upper bound of the cross-validated FPR')
+            f'the one-sided {100 * level:g} % Wilson upper bound of the cross-validated FPR')
 
 
 def choose_setting(pooled: dict[Setting, PooledFigures], max_fpr: float, rule: str = 'point',
