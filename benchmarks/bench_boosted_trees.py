@@ -8,7 +8,11 @@ thresholded at every ``--thresholds`` value (log-odds); the lists' setting is ta
 boosted trees' is (decision threshold, tau_his). ``--tau-plus`` repeated trains each learner at
 each tau_plus, which joins the setting: (tau_plus, decision threshold, tau_his). For each FPR
 budget the operating point is chosen as :func:`~fall_predictor.learning.nested.nested_over_grid`
-does (on the other folds, reported on each), with Wilson / bootstrap intervals.
+does (on the other folds, reported on each), with Wilson / bootstrap intervals. As ``train``
+does (method §11 "A budget that holds"), the budget is checked on the one-sided Wilson upper
+bound of the pooled FPR (``--fpr-rule ucb``, ``--fpr-level``; ``point``: on the pooled FPR, as
+the results made before this rule were) and the folds are grouped by cause and push impulse
+band (``--folds-by cause_band``; ``outcome``: the sweep's stratified folds).
 
 With ``--test``: both learners trained on all the development data, each budget's setting
 chosen on all the development folds, evaluated once on the test set; and each final model's
@@ -52,11 +56,13 @@ import numpy as np
 
 from fall_predictor.cli.args import learner_param
 from fall_predictor.data.dataset import dataset_guard_com_height_m
-from fall_predictor.learning.crossval import stratified_trajectory_folds
+from fall_predictor.data.dataset import read_index
+from fall_predictor.learning.crossval import grouped_trajectory_folds, stratified_trajectory_folds
 from fall_predictor.learning.evaluation import evaluation_result_json
 from fall_predictor.learning.metrics import evaluate_atomic
 from fall_predictor.learning.mirror import ATTITUDE_MIRROR_SIGNS, MIRROR_ID_SUFFIX
 from fall_predictor.learning.nested import nested_over_grid, pool_results
+from fall_predictor.learning.run_groups import disturbances, fold_groups
 from fall_predictor.learning.training import fit_strided, load_dataset, make_learner, model_inputs
 from fall_predictor.monitor.records import ATTITUDE_NAMES, FALLING, N_CONTACT_MODES
 
@@ -303,6 +309,12 @@ def main(argv: list[str] | None = None) -> dict:
                              'their shares (seed 0): a learning curve')
     parser.add_argument('--budgets', type=lambda s: tuple(float(v) for v in s.split(',')),
                         default=BUDGETS, help=f'FPR budgets of the nested choices (default {BUDGETS})')
+    parser.add_argument('--fpr-rule', choices=('ucb', 'point'), default='ucb',
+                        help='the budget checked on the FPR\'s one-sided Wilson upper bound (ucb) or on '
+                             'the pooled FPR (point)')
+    parser.add_argument('--fpr-level', type=float, default=0.95, help='level of the ucb rule\'s bound')
+    parser.add_argument('--folds-by', choices=('cause_band', 'outcome'), default='cause_band',
+                        help='folds grouped by cause and push impulse band, or stratified by outcome')
     parser.add_argument('--jobs', type=int, default=2)
     parser.add_argument('--out', type=Path, default=None)
     args = parser.parse_args(argv)
@@ -343,7 +355,12 @@ def main(argv: list[str] | None = None) -> dict:
         if isinstance(learner, ExtraInputsBoosting):
             return ExtraInputsBoosting(learner.params, learner.inputs).fit(train, tau_plus, args.mirror)
         return fit_strided(train, tau_plus, learner, mirror=args.mirror)
-    folds = stratified_trajectory_folds(trajs, args.folds, args.seed)
+    if args.folds_by == 'cause_band':
+        groups = fold_groups([t.trajectory_id for t in trajs], disturbances(read_index(args.data)),
+                             args.folds)
+        folds = grouped_trajectory_folds(groups, args.folds, args.seed)
+    else:
+        folds = stratified_trajectory_folds(trajs, args.folds, args.seed)
     # Per learner, per fold: {(tau_plus, decision threshold, tau_his): result on the fold}.
     rules = list(learners) + (['boosting_cusum'] if args.cusum else [])
     grids = {name: {k: {} for k in range(len(folds))} for name in rules}
@@ -367,7 +384,8 @@ def main(argv: list[str] | None = None) -> dict:
                     for (drift, level), result in cusum.items():
                         grids['boosting_cusum'][k][(tau_plus, drift, level)] = result
         print(f'fold {k} done', flush=True)
-    out = {'data': str(args.data), 'trajectories': len(trajs), 'folds': args.folds, 'seed': args.seed,
+    out = {'data': str(args.data), 'trajectories': len(trajs), 'folds': len(folds), 'seed': args.seed,
+           'fpr_rule': args.fpr_rule, 'fpr_level': args.fpr_level, 'folds_by': args.folds_by,
            'tau_plus_s': list(tau_plus_grid),
            'mirror': args.mirror, 'boosting_params': learners['boosting'].get_params(),
            'window_lags_s': list(WINDOW_LAGS_S) if args.window else None,
@@ -379,14 +397,14 @@ def main(argv: list[str] | None = None) -> dict:
            'setting': '(tau_plus [s], decision_threshold [log-odds], tau_his [s]); the lists: '
                       '(tau_plus, 0, tau_his); boosting_cusum: (tau_plus, drift [log-odds], '
                       'level [log-odds s])',
-           'fit_s_per_fold_and_tau_plus': {n: round(s / args.folds / len(tau_plus_grid), 1)
+           'fit_s_per_fold_and_tau_plus': {n: round(s / len(folds) / len(tau_plus_grid), 1)
                                            for n, s in fit_s.items()},
            'nested': {}, 'fixed': {}, 'test': None}
     chosen_on_dev = {}
     for name in rules:
         out['nested'][name] = {}
         for budget in args.budgets:
-            point = nested_over_grid(grids[name], budget)
+            point = nested_over_grid(grids[name], budget, args.fpr_rule, args.fpr_level)
             out['nested'][name][str(budget)] = {'chosen_per_fold': point.chosen, **figures(point.outer),
                                                 'chosen_on_all_folds': point.selected_in_hindsight}
             chosen_on_dev[(name, budget)] = point.selected_in_hindsight

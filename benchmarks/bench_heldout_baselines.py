@@ -2,6 +2,9 @@
 development dataset as the learned lists' settings are (method §11): for each FPR budget, the
 (threshold, tau_his) with the longest lead at development FPR <= budget (else the lowest FPR),
 then reported once on the test dataset with Wilson / bootstrap intervals (budgets 0, 0.01, 0.06).
+As ``train`` does (method §11 "A budget that holds"), the budget is checked on the one-sided
+Wilson upper bound of the development FPR (``--fpr-rule ucb``, ``--fpr-level``); ``point``
+checks the development FPR itself, as the results made before this rule were.
 Beside them, model files evaluated on the same test set (``--model FILE`` at its recommended
 tau_his, ``--model FILE@TAU_HIS`` at another). The baselines run with the CoM guard of each
 dataset's robot, a model with the guard it records (as ``fall-predictor evaluate``).
@@ -21,6 +24,7 @@ import numpy as np
 from fall_predictor.data.dataset import dataset_guard_com_height_m
 from fall_predictor.learning.evaluation import (BaselineGrids, capture_point_distances_cached,
                                                 evaluation_result_json)
+from fall_predictor.learning.intervals import wilson_upper_bound
 from fall_predictor.learning.metrics import evaluate_atomic, evaluate_lists
 from fall_predictor.learning.tilt_detector import imu_signals_cached, threshold_grid, tilt_alarms
 from fall_predictor.learning.training import load_dataset, model_inputs
@@ -54,9 +58,15 @@ def grid(trajs, thresholds, atomic_for, guard_m: float) -> list:
     return out
 
 
-def choose(points, budget: float):
-    ok = [p for p in points if p[2].fpr <= budget]
-    return max(ok, key=lambda p: p[2].tau_lead_s) if ok else min(points, key=lambda p: p[2].fpr)
+def choose(points, budget: float, rule: str = 'ucb', level: float = 0.95):
+    """The longest development lead whose FPR (by ``rule``: the FPR or its upper bound) is within
+    ``budget``; else the lowest such FPR (:func:`~fall_predictor.learning.nested.choose_setting`)."""
+    def fpr(p) -> float:
+        return p[2].fpr if rule == 'point' else wilson_upper_bound(p[2].n_false_positives,
+                                                                    p[2].n_balanced, level)
+    ok = [p for p in points if fpr(p) <= budget + 1e-12]
+    return (max(ok, key=lambda p: p[2].tau_lead_s) if ok
+            else min(points, key=lambda p: (fpr(p), -p[2].tau_lead_s)))
 
 
 def main() -> None:
@@ -67,6 +77,10 @@ def main() -> None:
                         help='model file, or FILE@TAU_HIS (repeatable)')
     parser.add_argument('--budgets', type=lambda s: tuple(float(v) for v in s.split(',')),
                         default=BUDGETS, help=f'FPR budgets (default {BUDGETS})')
+    parser.add_argument('--fpr-rule', choices=('ucb', 'point'), default='ucb',
+                        help='the budget checked on the development FPR\'s one-sided Wilson upper '
+                             'bound (ucb) or on the FPR itself (point)')
+    parser.add_argument('--fpr-level', type=float, default=0.95, help='level of the ucb rule\'s bound')
     parser.add_argument('--jobs', type=int, default=2)
     parser.add_argument('--out', type=Path, required=True)
     args = parser.parse_args()
@@ -78,12 +92,13 @@ def main() -> None:
         sets[name] = baselines(trajs, capture, imu, BaselineGrids.coarse()), trajs
         guards[name] = dataset_guard_com_height_m(folder)
     results = {'dev': str(args.dev), 'test': str(args.test), 'tau_his_grid_s': TAU_HIS_S,
+               'fpr_rule': args.fpr_rule, 'fpr_level': args.fpr_level,
                'guard_com_height_m': guards, 'baselines': [], 'models': []}
     for name in sets['dev'][0]:
         dev_points = grid(sets['dev'][1], *sets['dev'][0][name], guards['dev'])
         test_thresholds, test_atomic = sets['test'][0][name]
         for budget in args.budgets:
-            th, tau_his, dev_result = choose(dev_points, budget)
+            th, tau_his, dev_result = choose(dev_points, budget, args.fpr_rule, args.fpr_level)
             atomic = [test_atomic(i, th) for i in range(len(sets['test'][1]))]
             test_result = evaluate_atomic(sets['test'][1], atomic, (tau_his,), 0.001,
                                           guards['test'])[tau_his]

@@ -150,3 +150,29 @@ def test_mirror_trains_each_fold_on_its_trajectories_and_their_mirror_images():
         for tau_his in (0.0, 0.02):
             assert fit.results[tau_his].n_false_positives == expected[tau_his].n_false_positives
             assert fit.results[tau_his].tau_lead_s == pytest.approx(expected[tau_his].tau_lead_s)
+
+
+def test_grouped_folds_never_split_a_group_between_training_and_test():
+    from fall_predictor.learning.crossval import grouped_trajectory_folds
+    rng = np.random.default_rng(4)
+    groups = [('push', int(k)) for k in rng.integers(0, 7, 60)] + [('trip',)] * 9 + [('walk',)] * 3
+    for folds in (2, 5, 10):
+        test_folds = grouped_trajectory_folds(groups, folds, seed=1)
+        assert len(test_folds) == min(folds, 9)
+        assert sorted(np.concatenate(test_folds).tolist()) == list(range(len(groups)))
+        for test in test_folds:
+            inside = {groups[i] for i in test}
+            outside = {groups[i] for i in set(range(len(groups))) - set(test.tolist())}
+            assert not inside & outside
+    sizes = [f.size for f in grouped_trajectory_folds([(i // 4,) for i in range(40)], 5, seed=0)]
+    assert sizes == [8] * 5                                  # ten groups of 4 dealt evenly
+    with pytest.raises(ValueError, match='2 groups'):
+        grouped_trajectory_folds([('push', 0)] * 5, 3, seed=0)
+
+
+def test_cross_validation_with_groups_tests_each_group_on_a_model_that_never_saw_it():
+    trajectories = make_dataset(n_fallen=6, n_balanced=6, seed=2)
+    groups = [('a',)] * 4 + [('b',)] * 4 + [('c',)] * 4
+    fits = cross_validate_grid(trajectories, make_learner('tree'), (0.0,), (0.0,), folds=5,
+                               groups=groups)
+    assert len(fits) == 3 and all(fit.n_train == 8 for fit in fits)

@@ -51,3 +51,33 @@ def test_bootstrap_median_interval_matches_order_statistic_theory():
     assert all(math.isnan(v) for v in bootstrap_quantile_interval([], 0.5))
     with pytest.raises(ValueError):
         bootstrap_quantile_interval(x, 1.5)
+
+
+def test_garwood_interval_known_values():
+    """The exact Poisson interval (Garwood 1936): 0 events -> upper 3.689 (= -ln(0.025)) per
+    exposure; 3 events -> [0.6187, 8.7673]; 10 events in 2 h -> [2.398, 9.195] per hour."""
+    from fall_predictor.learning.intervals import garwood_interval
+
+    low, high = garwood_interval(0, 10.0)
+    assert low == 0.0 and high == pytest.approx(0.3689, abs=1e-4)
+    assert high == pytest.approx(-math.log(0.025) / 10.0, rel=1e-9)
+    assert garwood_interval(3, 1.0) == pytest.approx((0.6187, 8.7673), abs=1e-4)
+    assert garwood_interval(10, 2.0) == pytest.approx((4.7954 / 2, 18.3904 / 2), abs=1e-3)
+    assert all(math.isnan(v) for v in garwood_interval(0, 0.0))
+    for bad in ((-1, 1.0), (1.5, 1.0), (1, -1.0), (1, math.inf)):
+        with pytest.raises(ValueError):
+            garwood_interval(*bad)
+
+
+def test_wilson_upper_bound_is_one_sided():
+    """At 95 % one-sided, the upper end of the two-sided 90 % interval: 0/n -> z^2 / (n + z^2)
+    with z = 1.645; higher than the point estimate, lower than the two-sided 95 % bound."""
+    from fall_predictor.learning.intervals import wilson_upper_bound
+
+    z = 1.6448536269514722
+    assert wilson_upper_bound(0, 150) == pytest.approx(z * z / (150 + z * z), rel=1e-9)
+    assert wilson_upper_bound(3, 100) == pytest.approx(wilson_interval(3, 100, z)[1], rel=1e-12)
+    assert 0.03 < wilson_upper_bound(3, 100) < wilson_interval(3, 100)[1]
+    assert wilson_upper_bound(0, 0) == 1.0
+    with pytest.raises(ValueError):
+        wilson_upper_bound(1, 10, level=0.3)

@@ -81,3 +81,36 @@ def test_results_without_leads_cannot_be_pooled():
             for k in range(2)]
     with pytest.raises(ValueError, match='leads_s'):
         fixed_setting(bare, (0.0, 0.0))
+
+
+def _pooled(false_positives: int, balanced: int, lead_s: float):
+    from fall_predictor.learning.nested import PooledFigures
+    return PooledFigures(balanced, false_positives, false_positives / balanced,
+                         wilson_interval(false_positives, balanced), 10, lead_s, (lead_s, lead_s), 0)
+
+
+def test_the_upper_bound_rule_chooses_a_stricter_point_than_the_point_estimate():
+    """Budget 0.05 over 100 survived runs: 4 false alarms (0.04, bound 0.087) meet it on the
+    point estimate with the longest lead; on the one-sided 95 % Wilson bound only the setting
+    without a false alarm does (bound 0.026), with a shorter lead."""
+    from fall_predictor.learning.nested import choose_setting, fpr_bound
+
+    pooled = {(0.0, 0.0): _pooled(4, 100, 0.8), (0.0, 0.05): _pooled(2, 100, 0.6),
+              (0.0, 0.1): _pooled(0, 100, 0.4)}
+    assert choose_setting(pooled, 0.05) == (0.0, 0.0)
+    assert choose_setting(pooled, 0.05, rule='ucb') == (0.0, 0.1)
+    assert fpr_bound(pooled[0.0, 0.1], 'ucb') == pytest.approx(1.6449 ** 2 / (100 + 1.6449 ** 2), abs=1e-5)
+    assert fpr_bound(pooled[0.0, 0.05], 'ucb') > 0.05 > pooled[0.0, 0.05].fpr
+    # a lower level tightens the bound: at 60 % four false alarms fit the budget again (0.047)
+    assert choose_setting(pooled, 0.05, rule='ucb', level=0.6) == (0.0, 0.0)
+    # no setting within the budget: the lowest bound (here also the lowest FPR)
+    assert choose_setting(pooled, 0.01, rule='ucb') == (0.0, 0.1)
+    with pytest.raises(ValueError, match='FPR rule'):
+        choose_setting(pooled, 0.05, rule='median')
+
+
+def test_nested_selection_by_the_upper_bound_records_its_rule():
+    point = nested_operating_point(fits(), max_fpr=0.1, rule='ucb', level=0.95)
+    # no setting's bound meets 0.1 on 20 survived runs (0/20: 0.12): the lowest bound, B, where
+    # A's 3 false alarms are among the inner folds, and the longer lead, A, where neither has any
+    assert point.rule == 'ucb' and point.chosen == (B, B, A)

@@ -3,6 +3,7 @@ models."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 from pathlib import Path
 
@@ -19,7 +20,10 @@ def cmd_train(args) -> int:
     try:
         make_learner(args.learner, dict(args.param))
         chosen_by = {name: value for name, value in (('max_fpr', args.max_fpr), ('folds', args.folds),
-                                                     ('decision_thresholds', args.decision_thresholds))
+                                                     ('decision_thresholds', args.decision_thresholds),
+                                                     ('fpr_rule', args.fpr_rule),
+                                                     ('fpr_level', args.fpr_level),
+                                                     ('folds_by', args.folds_by))
                      if value is not None}
         search = WindowSearch(**chosen_by)
     except ValueError as error:
@@ -66,18 +70,30 @@ def cmd_train(args) -> int:
     elif window is None:
         lines.append(f'tau_his {metadata.recommended_tau_his_s:.3f} s (given), stored in the model')
     else:
+        from fall_predictor.learning.nested import fpr_bound, fpr_rule_text
         chosen = window.chosen
+        search = window.search
+        bound = fpr_bound(chosen, search.fpr_rule, search.fpr_level)
         if window.decision_threshold is not None:
             lines.append(f'decision threshold {window.decision_threshold:g} chosen with the window, '
                          f'among {", ".join(f"{d:g}" for d in window.search.decision_thresholds)}')
+        folds_by = ('grouped by cause and push impulse band' if search.folds_by == 'cause_band'
+                    else 'stratified by outcome')
         lines.append(f'tau_his {window.tau_his_s:.3f} s chosen by {window.folds}-fold cross-validation '
-                     f'on this data (the longest lead at FPR <= {window.search.max_fpr:g}): FPR '
-                     f'{chosen.fpr:.3f} ({chosen.n_false_positives}/{chosen.n_balanced}), tau_lead '
-                     f'{chosen.tau_lead_s:.3f} s, misses {chosen.n_missed}/{chosen.n_fallen}; stored '
-                     'in the model')
+                     f'on this data, folds {folds_by} (the longest lead where '
+                     f'{fpr_rule_text(search.fpr_rule, search.fpr_level)} is <= {search.max_fpr:g}): '
+                     f'FPR {chosen.fpr:.3f} ({chosen.n_false_positives}/{chosen.n_balanced})'
+                     + (f', upper bound {bound:.3f}' if search.fpr_rule == 'ucb' else '')
+                     + f', tau_lead {chosen.tau_lead_s:.3f} s, misses {chosen.n_missed}/'
+                     f'{chosen.n_fallen}; stored in the model')
         if not window.within_budget:
-            lines.append(f'warning: no window met FPR <= {window.search.max_fpr:g} on held-out folds: '
-                         'the one with the fewest false alarms was chosen')
+            lines.append(f'warning: no window met the budget {search.max_fpr:g} on held-out folds '
+                         f'({fpr_rule_text(search.fpr_rule, search.fpr_level)}): the one with the '
+                         'lowest was chosen'
+                         + (f'; {chosen.n_balanced} survived runs cannot show an FPR below '
+                            f'{fpr_bound(dataclasses.replace(chosen, n_false_positives=0), "ucb", search.fpr_level):.3f}'
+                            ' even without a false alarm: more runs that do not fall'
+                            if search.fpr_rule == 'ucb' else ''))
     if refused.total:
         lines.append(f'{refused.total} samples refused ({refused.estimator} by the estimator, '
                      f'{refused.features} by the feature extractor): left out as holes, as onboard')
@@ -109,6 +125,7 @@ def cmd_rules(args) -> int:
 
 def cmd_evaluate(args) -> int:
     from fall_predictor.data.dataset import DatasetError, dataset_guard_com_height_m
+    from fall_predictor.learning.deployment import deployment_lines
     from fall_predictor.learning.evaluation import evaluate_model, evaluation_json
     from fall_predictor.learning.when_where import when_where_lines
     from fall_predictor.monitor.model_file import ModelFileError, load_model
@@ -150,7 +167,7 @@ def cmd_evaluate(args) -> int:
         return _fail('evaluate', f'--per-run {args.per_run}: {error}')
     payload = {'model': str(args.model), 'data': str(args.data), 'state': state,
                'model_state': metadata.state, 'decision_threshold': lists.decision_threshold,
-               **evaluation_json(evaluation),
+               **evaluation_json(evaluation, args.band_width),
                'trained_on_this_dataset': metadata.dataset_fingerprint == evaluation.dataset_fingerprint,
                'dataset_guard_com_height_m': dataset_guard,
                'per_run': None if per_run is None else str(per_run)}
@@ -174,6 +191,7 @@ def cmd_evaluate(args) -> int:
              + (f'; {payload["n_runs_push_time_unknown"]} runs without a push time (alarms counted '
                 'from their start)' if payload['n_runs_push_time_unknown'] else ''),
              f'mean rule size {r.mean_rule_size:.2f}']
+    lines += deployment_lines(payload['deployment'])
     if payload['refused_samples']:
         lines.append(f'{payload["refused_samples"]} samples refused ({payload["refused_samples_estimator"]} '
                      f'by the estimator, {payload["refused_samples_features"]} by the feature extractor) '
@@ -322,7 +340,18 @@ def register(sub: argparse._SubParsersAction) -> None:
                         'by cross-validation on the --data trajectories, the longest lead at FPR <= '
                         '--max-fpr, as the sweep chooses operating points)')
     p.add_argument('--max-fpr', type=argtypes.finite(float), default=None, metavar='FPR',
-                   help='FPR budget of the window\'s choice (default 0.06, FP-L2\'s)')
+                   help='FPR budget of the window\'s choice (default 0.06, FP-L2\'s), on the survived '
+                        'runs of the training data\'s distribution (checked by --fpr-rule)')
+    p.add_argument('--fpr-rule', choices=('ucb', 'point'), default=None,
+                   help='how --max-fpr is checked: on the one-sided Wilson upper bound of the '
+                        'cross-validated FPR at --fpr-level (ucb, the default: the budget holds on runs '
+                        'the model never saw) or on the cross-validated FPR itself (point: optimistic)')
+    p.add_argument('--fpr-level', type=argtypes.finite(float), default=None, metavar='LEVEL',
+                   help='confidence level of the ucb rule\'s bound (default 0.95)')
+    p.add_argument('--folds-by', choices=('cause_band', 'outcome'), default=None,
+                   help='the window\'s folds: grouped by cause and push impulse band (cause_band, the '
+                        'default: no fold is tested on a band or cause its training saw) or stratified '
+                        'by outcome (outcome, as the sweep)')
     p.add_argument('--folds', type=argtypes.at_least_two, default=None,
                    help='cross-validation folds of the window\'s choice, each one more training '
                         '(default 10; at most one per trajectory)')
@@ -352,7 +381,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    'decision lists, history window tau_his, the model\'s CoM guard) and report '
                                    'method §5\'s '
                                    'metrics: FPR, tau_lead, misses, pre-push false alarms, oracle lead, lead '
-                                   'fraction and mean rule size; with --baselines also the Pareto fronts of '
+                                   'fraction and mean rule size; per cause (push, trip, slip, step, fault): '
+                                   'falls caught, FPR over the survived runs, alarms before the onset, '
+                                   'lead and lead / onset-to-fall; false alarms per hour of undisturbed '
+                                   'walking (Garwood interval); the FPR of survived pushes per impulse '
+                                   'band and in the ambiguous band (20-80 %% fell); with --baselines also the Pareto fronts of '
                                    'the hand-coded baselines; with --per-run, each run\'s alarms. Samples '
                                    'the estimator or the feature extractor refuses are holes, as onboard, '
                                    'and counted (refused_samples). Not cross-validated: use a dataset the '
@@ -365,6 +398,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--decision-threshold', type=argtypes.finite(float), default=None, metavar='LOG_ODDS',
                    help='boosted-trees models: falling when the score exceeds this (default: the '
                         'model\'s); the other half of their operating point beside --tau-his')
+    p.add_argument('--band-width', type=argtypes.positive, default=10.0, metavar='NS',
+                   help='impulse band width [N s] of the per-band FPR of survived pushes (default 10)')
     p.add_argument('--baselines', action='store_true',
                    help='also evaluate the CoM-height, momentum and capture-point baselines')
     p.add_argument('--per-run', type=Path, default=None, metavar='FILE',

@@ -1,6 +1,9 @@
 """The cross-validation of the package (method §5, §9): k-fold by trajectory, stratified by outcome.
 
-A trajectory is never split between training and test (:func:`stratified_trajectory_folds`).
+A trajectory is never split between training and test (:func:`stratified_trajectory_folds`);
+:func:`grouped_trajectory_folds` keeps groups of trajectories whole as well (a push impulse band,
+a cause: :func:`~fall_predictor.learning.run_groups.fold_groups`), so that no fold is tested on
+a group its training saw (method §11 "A budget that holds").
 :func:`cross_validate_grid` trains once per (training size, fold, ``tau_plus``); the test fold's
 atomic predictions are computed once and every ``tau_his`` (a run-time parameter: no
 retraining) is evaluated from them. :func:`aggregate_folds` averages the fold results as the
@@ -44,6 +47,28 @@ def stratified_trajectory_folds(trajectories: Sequence[TrajectoryFeatures], fold
     fold_of = np.empty(len(trajectories), dtype=int)
     fold_of[order] = np.arange(order.size) % folds
     return [np.flatnonzero(fold_of == k) for k in range(folds)]
+
+
+def grouped_trajectory_folds(groups: Sequence, folds: int, seed: int) -> list[np.ndarray]:
+    """Split trajectory indices into at most ``folds`` test folds, each group (``groups[i]``: the
+    group of trajectory ``i``, any hashable) whole in one fold: fewer folds when there are fewer
+    groups. The groups are dealt largest first (ties in a ``seed``-shuffled order), each to the
+    fold holding the fewest trajectories so far (ties: the lower fold), so fold sizes stay close."""
+    if isinstance(folds, bool) or not isinstance(folds, int) or folds < 2:
+        raise ValueError(f'folds must be an int >= 2, got {folds!r}')
+    members: dict = {}
+    for i, group in enumerate(groups):
+        members.setdefault(group, []).append(i)
+    if len(members) < 2:
+        raise ValueError(f'{len(members)} group: grouped folds need at least 2 groups')
+    names = list(members)
+    shuffled = [names[k] for k in np.random.default_rng(seed).permutation(len(names))]
+    order = sorted(shuffled, key=lambda g: -len(members[g]))        # stable: the shuffle breaks ties
+    n_folds = min(folds, len(members))
+    test_folds: list[list[int]] = [[] for _ in range(n_folds)]
+    for group in order:
+        min(test_folds, key=len).extend(members[group])
+    return [np.array(sorted(f), dtype=int) for f in test_folds]
 
 
 @dataclass(frozen=True)
@@ -125,7 +150,8 @@ def cross_validate_grid(trajectories: Sequence[TrajectoryFeatures], learner: Rul
                         progress: bool = False,
                         guard_com_height_m: float = GUARD_COM_HEIGHT_M,
                         mirror: bool = False,
-                        decision_thresholds: Sequence[float] = ()) -> list[FoldFit]:
+                        decision_thresholds: Sequence[float] = (),
+                        groups: Optional[Sequence] = None) -> list[FoldFit]:
     """k-fold cross-validation by trajectory over a grid: one training per (training size,
     tau_plus, fold), all ``tau_his_values`` [s] evaluated from its atomic predictions.
 
@@ -140,7 +166,8 @@ def cross_validate_grid(trajectories: Sequence[TrajectoryFeatures], learner: Rul
     ASIMO-like robot's). With ``mirror`` each training also learns from its trajectories'
     left-right mirror images (the test folds stay as recorded). With ``decision_thresholds``
     (boosted trees) each fold's model is also evaluated at each of them
-    (:attr:`FoldFit.by_threshold`), from one pass of scores.
+    (:attr:`FoldFit.by_threshold`), from one pass of scores. With ``groups`` (one per trajectory)
+    the folds are :func:`grouped_trajectory_folds` (at most ``folds``) instead.
     """
     from joblib import delayed
     from tqdm import tqdm
@@ -154,7 +181,12 @@ def cross_validate_grid(trajectories: Sequence[TrajectoryFeatures], learner: Rul
     if any(not (math.isfinite(v) and v >= 0.0) for v in tau_his_values):
         raise ValueError(f'tau_his values must be finite and >= 0, got {tau_his_values}')
     sample_stride = check_sample_stride(sample_stride)
-    test_folds = stratified_trajectory_folds(trajectories, folds, seed)
+    if groups is None:
+        test_folds = stratified_trajectory_folds(trajectories, folds, seed)
+    else:
+        if len(groups) != len(trajectories):
+            raise ValueError(f'{len(trajectories)} trajectories but {len(groups)} groups')
+        test_folds = grouped_trajectory_folds(groups, folds, seed)
     all_index = np.arange(len(trajectories))
     tasks = []
     for n_train in train_sizes:

@@ -29,8 +29,11 @@ from fall_predictor.data.dataset import (PUSH_UNKNOWN, DatasetError, RefusedSamp
                                          push_time_known, read_index, read_manifest)
 from fall_predictor.learning.baselines import (CurvePoint, capture_point_curve, com_height_curve,
                                                momentum_curve, pareto_front)
+from fall_predictor.learning.deployment import (DEFAULT_BAND_WIDTH_NS, deployment_figures,
+                                                run_outcomes)
 from fall_predictor.learning.metrics import EvaluationResult, evaluate_lists
 from fall_predictor.learning.per_run import RunRecord, run_records
+from fall_predictor.learning.run_groups import RunDisturbance, disturbances
 from fall_predictor.learning.training import PathLike, load_dataset, model_inputs
 from fall_predictor.monitor.decision_list import PerModeDecisionLists
 from fall_predictor.monitor.records import GUARD_COM_HEIGHT_M, TrajectoryFeatures
@@ -195,6 +198,8 @@ class ModelEvaluation:
     push_sources: dict[str, str] = field(default_factory=dict)
     #: the trajectories as evaluated, in the result's order (the per-run rows)
     trajectories: tuple[TrajectoryFeatures, ...] = ()
+    #: per trajectory id, what disturbed it (cause, onset, a push's impulse) from the index
+    runs: dict[str, RunDisturbance] = field(default_factory=dict)
 
     @property
     def refused_total(self) -> RefusedSamples:
@@ -203,7 +208,14 @@ class ModelEvaluation:
 
     def run_records(self) -> list[RunRecord]:
         """One :class:`~fall_predictor.learning.per_run.RunRecord` per trajectory evaluated."""
-        return run_records(self.trajectories, self.result.alarms, self.push_sources, self.refused)
+        return run_records(self.trajectories, self.result.alarms, self.push_sources, self.refused,
+                           {tid: run.cause for tid, run in self.runs.items()})
+
+    def deployment(self, band_width_ns: float = DEFAULT_BAND_WIDTH_NS) -> dict[str, Any]:
+        """The deployer's figures: per cause, per hour of walking, per push impulse band
+        (:mod:`fall_predictor.learning.deployment`)."""
+        return deployment_figures(run_outcomes(self.trajectories, self.result.alarms, self.runs),
+                                  band_width_ns)
 
 
 def push_sources(data_dir: PathLike) -> dict[str, str]:
@@ -269,11 +281,15 @@ def evaluate_model(data_dir: PathLike, lists: PerModeDecisionLists, tau_his_s: f
                            curves, ttf_error, direction_error, cp_error, guard,
                            dict(report.unsettled), momentum_error,
                            'momentum' if fall_direction is None else 'learned',
-                           dict(report.refused), push_sources(data_dir), tuple(trajectories))
+                           dict(report.refused), push_sources(data_dir), tuple(trajectories),
+                           disturbances(read_index(data_dir)))
 
 
-def evaluation_json(evaluation: ModelEvaluation) -> dict[str, Any]:
-    """``evaluation`` as a JSON-ready dict (NaN -> null); baselines as their Pareto fronts."""
+def evaluation_json(evaluation: ModelEvaluation,
+                    band_width_ns: float = DEFAULT_BAND_WIDTH_NS) -> dict[str, Any]:
+    """``evaluation`` as a JSON-ready dict (NaN -> null); baselines as their Pareto fronts;
+    ``deployment``: per cause, per hour of walking, per push impulse band of ``band_width_ns``
+    [N s] (:meth:`ModelEvaluation.deployment`)."""
     payload: dict[str, Any] = {
         'tau_his_s': evaluation.tau_his_s, 'guard_com_height_m': evaluation.guard_com_height_m,
         **evaluation_result_json(evaluation.result),
@@ -292,7 +308,8 @@ def evaluation_json(evaluation: ModelEvaluation) -> dict[str, Any]:
         'refused_by_trajectory': {tid: r.to_json() for tid, r in evaluation.refused.items()},
         'n_runs_push_time_unknown': sum(
             evaluation.push_sources.get(t.trajectory_id, PUSH_UNKNOWN) == PUSH_UNKNOWN
-            for t in evaluation.trajectories)}
+            for t in evaluation.trajectories),
+        'deployment': evaluation.deployment(band_width_ns)}
     if evaluation.baselines is not None:
         payload['baselines'] = {name: [curve_point_json(p) for p in pareto_front(curve)]
                                 for name, curve in evaluation.baselines.named().items()}

@@ -79,6 +79,9 @@ class TrajectoryAlarms:
     #: times the falling output turned on before t_push (a count beside the alarm times, which
     #: identify the alarms: not compared)
     pre_push_onsets: int = field(default=0, compare=False)
+    #: times the falling output turned on anywhere on the trajectory: its alarm episodes (the
+    #: false alarms per hour of an undisturbed walk count them); a count, not compared
+    alarm_onsets: int = field(default=0, compare=False)
 
 
 def trajectory_alarms(t: np.ndarray, falling: np.ndarray, t_push: float) -> TrajectoryAlarms:
@@ -89,7 +92,8 @@ def trajectory_alarms(t: np.ndarray, falling: np.ndarray, t_push: float) -> Traj
     return TrajectoryAlarms(first_alarm_t=first,
                             first_alarm_after_push_t=first_true_time(t, falling, t_push),
                             pre_push_alarm=first is not None and first < t_push,
-                            pre_push_onsets=int(np.count_nonzero(onsets & (np.asarray(t) < t_push))))
+                            pre_push_onsets=int(np.count_nonzero(onsets & (np.asarray(t) < t_push))),
+                            alarm_onsets=int(np.count_nonzero(onsets)))
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,8 @@ from dataclasses import dataclass
 from typing import Mapping, Optional, Sequence
 
 from fall_predictor.learning.crossval import FoldFit
-from fall_predictor.learning.intervals import bootstrap_mean_interval, wilson_interval
+from fall_predictor.learning.intervals import (bootstrap_mean_interval, wilson_interval,
+                                               wilson_upper_bound)
 from fall_predictor.learning.metrics import EvaluationResult, mean_or_nan
 
 Setting = tuple[float, float]   #: (tau_plus_s, tau_his_s)
@@ -75,13 +76,45 @@ def _per_fold_grid(fits: Sequence[FoldFit]) -> dict[int, dict[Setting, Evaluatio
     return dict(grid)
 
 
-def choose_setting(pooled: dict[Setting, PooledFigures], max_fpr: float) -> Setting:
-    """The setting with the longest pooled lead whose pooled FPR is ``<= max_fpr``; if none
-    qualifies, the lowest FPR (ties: longest lead). Remaining ties: the smaller setting."""
-    within = [s for s, p in pooled.items() if p.fpr <= max_fpr + 1e-12]
+#: How a budget is checked (method §11 "A budget that holds"): ``'point'``, on the pooled
+#: held-out FPR; ``'ucb'``, on its one-sided Wilson upper confidence bound at a stated level.
+FPR_RULES = ('point', 'ucb')
+#: The default level of the ``'ucb'`` rule's bound (one-sided).
+DEFAULT_FPR_LEVEL = 0.95
+
+
+def check_fpr_rule(rule: str, level: float) -> None:
+    if rule not in FPR_RULES:
+        raise ValueError(f'the FPR rule is one of {", ".join(FPR_RULES)}, got {rule!r}')
+    if not 0.5 <= level < 1.0:
+        raise ValueError(f'the FPR bound\'s level must be in [0.5, 1), got {level!r}')
+
+
+def fpr_bound(pooled: PooledFigures, rule: str = 'point', level: float = DEFAULT_FPR_LEVEL) -> float:
+    """The FPR a budget is checked on: the pooled FPR (``'point'``) or its one-sided Wilson
+    upper bound at ``level`` (``'ucb'``: 1.0 with no balanced trajectory)."""
+    check_fpr_rule(rule, level)
+    if rule == 'point':
+        return pooled.fpr
+    return wilson_upper_bound(pooled.n_false_positives, pooled.n_balanced, level)
+
+
+def fpr_rule_text(rule: str, level: float = DEFAULT_FPR_LEVEL) -> str:
+    """The FPR a rule checks, in words."""
+    return ('the cross-validated FPR' if rule == 'point' else
+            f'the one-sided {100 * level:g} % Wilson upper bound of the cross-validated FPR')
+
+
+def choose_setting(pooled: dict[Setting, PooledFigures], max_fpr: float, rule: str = 'point',
+                   level: float = DEFAULT_FPR_LEVEL) -> Setting:
+    """The setting with the longest pooled lead whose FPR (:func:`fpr_bound`: the pooled FPR,
+    or with ``rule='ucb'`` its upper confidence bound at ``level``) is ``<= max_fpr``; if none
+    qualifies, the lowest such FPR (ties: longest lead). Remaining ties: the smaller setting."""
+    bound = {s: fpr_bound(p, rule, level) for s, p in pooled.items()}
+    within = [s for s in pooled if bound[s] <= max_fpr + 1e-12]
     if within:
         return max(sorted(within), key=lambda s: pooled[s].tau_lead_s)
-    return min(sorted(pooled), key=lambda s: (pooled[s].fpr, -pooled[s].tau_lead_s))
+    return min(sorted(pooled), key=lambda s: (bound[s], -pooled[s].tau_lead_s))
 
 
 @dataclass(frozen=True)
@@ -93,18 +126,24 @@ class NestedOperatingPoint:
     outer: PooledFigures                 #: the outer folds' results at their chosen settings
     selected_in_hindsight: tuple         #: what choosing on all folds would have picked
     hindsight: PooledFigures             #: its figures on all folds (optimistic)
+    rule: str = 'point'                  #: how the budget was checked (:data:`FPR_RULES`)
+    level: float = DEFAULT_FPR_LEVEL     #: the ``'ucb'`` rule's level
 
 
-def nested_operating_point(fits: Sequence[FoldFit], max_fpr: float) -> NestedOperatingPoint:
-    """Choose "the longest lead at FPR <= ``max_fpr``" on the other folds, report each fold."""
-    return nested_over_grid(_per_fold_grid(fits), max_fpr)
+def nested_operating_point(fits: Sequence[FoldFit], max_fpr: float, rule: str = 'point',
+                           level: float = DEFAULT_FPR_LEVEL) -> NestedOperatingPoint:
+    """Choose "the longest lead at FPR <= ``max_fpr``" on the other folds, report each fold
+    (the FPR checked by ``rule``: :func:`choose_setting`)."""
+    return nested_over_grid(_per_fold_grid(fits), max_fpr, rule, level)
 
 
 def nested_over_grid(grid: Mapping[int, Mapping[tuple, EvaluationResult]],
-                     max_fpr: float) -> NestedOperatingPoint:
+                     max_fpr: float, rule: str = 'point',
+                     level: float = DEFAULT_FPR_LEVEL) -> NestedOperatingPoint:
     """:func:`nested_operating_point` over a grid given per fold: ``{fold: {setting: result}}``
     where a setting is any tuple of numbers (e.g. ``(tau_plus, decision_threshold, tau_his)``,
     a grid with a training setting and two run-time ones); every fold holds the same settings."""
+    check_fpr_rule(rule, level)
     folds = sorted(grid)
     if len(folds) < 2:
         raise ValueError('nested selection needs at least 2 folds')
@@ -115,13 +154,13 @@ def nested_over_grid(grid: Mapping[int, Mapping[tuple, EvaluationResult]],
     outer: list[EvaluationResult] = []
     for k in folds:
         inner = {s: pool_results([grid[j][s] for j in folds if j != k]) for s in settings}
-        setting = choose_setting(inner, max_fpr)
+        setting = choose_setting(inner, max_fpr, rule, level)
         chosen.append(setting)
         outer.append(grid[k][setting])
     everything = {s: pool_results([grid[j][s] for j in folds]) for s in settings}
-    hindsight = choose_setting(everything, max_fpr)
+    hindsight = choose_setting(everything, max_fpr, rule, level)
     return NestedOperatingPoint(max_fpr, tuple(chosen), pool_results(outer), hindsight,
-                                everything[hindsight])
+                                everything[hindsight], rule, level)
 
 
 def fixed_setting(fits: Sequence[FoldFit], setting: Setting) -> PooledFigures:

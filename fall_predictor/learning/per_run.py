@@ -15,6 +15,10 @@ prediction with the CoM guard, as ``evaluate`` runs it), with method §5's defin
 * ``pre_push_alarm_onsets``: how many times the alarm turned on before the push, on either
   outcome (a run with any is one of the summary's pre-push false alarms).
 
+* ``cause``: what disturbed the run (the index's; a push in datasets made before causes
+  existed), whose onset the push columns hold; ``alarm_onsets``: the alarm episodes anywhere
+  on the run (on a long walk, its false alarms).
+
 Times are the recording's own stamp times [s] (simulation time in generated datasets, ROS time on
 a robot). A run whose push time is unknown (a robot's recording imported without one: its
 ``t_push`` is the recording's start) has an empty push time and no pre-push count: every alarm
@@ -57,15 +61,21 @@ class RunRecord:
     false_alarm: Optional[bool]                 #: runs that did not fall: any alarm
     pre_push_alarm_onsets: Optional[int]        #: None when the push time is unknown
     refused_samples: int
+    #: what disturbed the run (push, trip, slip, step, fault, walk: the index's ``cause``)
+    cause: str = 'push'
+    alarm_onsets: int = 0                       #: alarm episodes anywhere on the run
 
 
 def run_records(trajectories: Sequence[TrajectoryFeatures], alarms: Sequence[TrajectoryAlarms],
                 push_sources: Mapping[str, str],
-                refused: Mapping[str, RefusedSamples]) -> list[RunRecord]:
+                refused: Mapping[str, RefusedSamples],
+                causes: Optional[Mapping[str, str]] = None) -> list[RunRecord]:
     """The rows of ``trajectories`` from their ``alarms`` (the evaluation's, in the same order).
 
     ``push_sources``: per trajectory id where its push time comes from, ``'unknown'`` for none
-    (:func:`~fall_predictor.data.dataset.push_time_known`); ``refused``: its refused samples.
+    (:func:`~fall_predictor.data.dataset.push_time_known`); ``refused``: its refused samples;
+    ``causes``: its cause (none given: a push). For every cause the index keeps the onset in
+    ``t_push``, so the push columns are the onset's.
     """
     if len(alarms) != len(trajectories):
         raise ValueError(f'{len(trajectories)} trajectories but {len(alarms)} alarm records')
@@ -87,7 +97,8 @@ def run_records(trajectories: Sequence[TrajectoryFeatures], alarms: Sequence[Tra
             first_alarm_s=alarm.first_alarm_t, first_alarm_after_push_s=t_predict if known else None,
             lead_s=lead, missed=missed, false_alarm=false_alarm,
             pre_push_alarm_onsets=alarm.pre_push_onsets if known else None,
-            refused_samples=0 if holes is None else holes.total))
+            refused_samples=0 if holes is None else holes.total,
+            cause=(causes or {}).get(traj.trajectory_id, 'push'), alarm_onsets=alarm.alarm_onsets))
     return rows
 
 
