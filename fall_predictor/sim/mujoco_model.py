@@ -89,17 +89,13 @@ def compile_with_terrain(spec: mujoco.MjSpec, boxes) -> mujoco.MjModel:
                                 friction=[box.friction, 0.005, 0.0001], priority=1, rgba=list(box.rgba))
     around = ground_around(boxes)
     for k, (centre, half) in enumerate(around):
-        # Unseen (alpha 0): the floor, lowered out of contact, is drawn in their place.
+        # Drawn as the floor (_ground_as_boxes).
         spec.worldbody.add_geom(name=f'ground_{k}', type=mujoco.mjtGeom.mjGEOM_BOX, size=list(half),
                                 pos=list(centre), rgba=[0.0, 0.0, 0.0, 0.0])
     model = spec.compile()
     if around:
         _ground_as_boxes(model, floors, len(around))
     return model
-
-
-#: How far the floor is lowered when boxes lay the ground in its place [m] (drawn only).
-FLOOR_DRAWN_BELOW_M = 0.001
 
 
 def _ground_as_boxes(model: mujoco.MjModel, floor_names: Sequence[str], n_boxes: int) -> None:
@@ -118,7 +114,13 @@ def _ground_as_boxes(model: mujoco.MjModel, floor_names: Sequence[str], n_boxes:
         values[boxes] = values[f]
     model.geom_contype[floors] = 0
     model.geom_conaffinity[floors] = 0
-    model.geom_pos[floors, 2] -= FLOOR_DRAWN_BELOW_M
+    # The boxes drawn as the floor was (its material: a checkerboard), the floor not at all: a
+    # floor drawn just below the patch's top shows through it at a depth buffer's resolution,
+    # and a reflecting one mirrors the patch's body above it.
+    model.geom_matid[boxes] = model.geom_matid[f]
+    model.geom_rgba[boxes] = model.geom_rgba[f]
+    model.geom_matid[floors] = -1
+    model.geom_rgba[floors] = 0.0
 
 
 def _without_obsolete_attributes(path, error: ValueError) -> mujoco.MjModel:
