@@ -13,8 +13,8 @@ from fall_predictor.profiles.cause_ranges import parse_cause_ranges
 from fall_predictor.sim.disturbance_runs import (DEFAULT_RANGES, cause_ranges, fault_joints,
                                                  sample_disturbance, walker_for)
 from fall_predictor.sim.disturbances import (CAUSES, CommandSchedule, FaultProtocol, JointFault,
-                                             TerrainBox, slip_patch, start_height_m, step_terrain,
-                                             trip_box)
+                                             TerrainBox, ground_around, slip_patch, start_height_m,
+                                             step_terrain, trip_box)
 
 
 def test_the_simulator_and_the_index_name_the_same_causes():
@@ -66,8 +66,9 @@ def test_terrain_lies_across_the_path_where_its_parameters_say():
     box = trip_box(0.8, 0.05, 0.1)
     assert box.top_at((0.85, 1.5)) == pytest.approx(0.05) and box.top_at((0.75, 0.0)) is None
     patch = slip_patch(1.0, 0.1)
-    assert patch.friction == 0.1 and patch.top_at((12.0, 0.0)) == pytest.approx(0.002)
-    assert patch.top_at((0.99, 0.0)) is None
+    # Flush with the ground: its top at z = 0, no edge to catch a sole.
+    assert patch.friction == 0.1 and patch.top_at((12.0, 0.0)) == pytest.approx(0.0) and patch.flush
+    assert patch.top_at((0.99, 0.0)) is None and not box.flush
     down, = step_terrain('down', 0.6, 0.1)
     # The robot starts on the platform; its edge is 0.6 m ahead.
     assert start_height_m((down,)) == pytest.approx(0.1)
@@ -149,3 +150,18 @@ def test_a_causes_range_starts_at_its_mild_end_and_reaches_the_wanted_fall_fract
     assert summary['predicted_fall_fraction'] == pytest.approx(0.4) and summary['can_fell']
     never = suggest_cause_range(cause, [{**r, 'fallen': False} for r in rows], probe)
     assert not never['can_fell']
+
+
+def test_the_ground_around_a_flush_patch_covers_the_rest_and_nothing_under_it():
+    patch = slip_patch(1.0, 0.1)
+    assert ground_around((trip_box(0.8, 0.05, 0.1),)) == ()
+    around = ground_around((patch, trip_box(0.8, 0.05, 0.1)), half_extent_m=50.0)
+    # Areas: the square less the patch's 20 m x 4 m, every box's top at z = 0.
+    area = sum(4 * h[0] * h[1] for _, h in around)
+    assert area == pytest.approx(100.0 ** 2 - 20.0 * 4.0)
+    assert all(c[2] + h[2] == pytest.approx(0.0) for c, h in around)
+    grounds = [TerrainBox(c, h) for c, h in around]
+    for xy in ((0.0, 0.0), (0.99, 0.0), (21.01, 0.0), (5.0, 2.01), (5.0, -2.01)):
+        assert sum(b.top_at(xy) is not None for b in grounds) == 1
+    for xy in ((1.01, 0.0), (12.0, 1.9), (20.99, -1.9)):
+        assert not any(b.top_at(xy) is not None for b in grounds)

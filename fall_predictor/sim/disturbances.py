@@ -3,7 +3,10 @@
 A run is disturbed by one cause (the dataset index's ``cause``): a push (sim/pushes.py), or
 
 - a **trip**: a low box fixed to the ground across the path, which a swing foot can catch;
-- a **slip**: a low-friction patch across the path, under the feet from its edge on;
+- a **slip**: a low-friction patch across the path, under the feet from its edge on: flush with
+  the ground (its top at z = 0), the ground around it laid as boxes (:func:`ground_around`) and the
+  engine's own ground out of contact, so that a foot on the patch touches nothing but the patch and
+  has no edge to catch;
 - a **step**: a step down (the robot starts on a platform whose edge crosses its path), a step up,
   or an incline (a ramp rising from the ground across the path);
 - a **fault** on a leg joint's actuator: its torque lost abruptly, fading over seconds, lost
@@ -37,8 +40,12 @@ STEP_KINDS = ('down', 'up', 'slope')
 FAULT_MODES = ('lost', 'fade', 'intermittent', 'stuck')
 #: Terrain spans this much across the path [m]: a walk that drifts sideways still meets it.
 TERRAIN_WIDTH_M = 4.0
-#: A slip patch's thickness [m]: its top this far above the ground (a sheet, not a step).
-PATCH_THICKNESS_M = 0.002
+#: A slip patch's depth [m]: its top flush with the ground, its body below it (a solid the
+#: engines cannot tunnel through; a sheet on the ground has an edge a sole catches, and Bullet
+#: feels the ground beneath a thin one within its contact margin).
+PATCH_DEPTH_M = 0.5
+#: Half the side of the ground laid as boxes around a flush patch [m]: far beyond any walk.
+GROUND_HALF_EXTENT_M = 100.0
 #: How far a platform, a step up or a slip patch reaches along the path [m] (beyond any run's walk).
 STEP_LENGTH_M = 20.0
 #: A stuck joint may move this far either side of where it stuck [rad] (the engines' joint limit).
@@ -80,6 +87,12 @@ class TerrainBox:
         if abs(local[0]) > self.half_extents_m[0] or abs(local[1]) > self.half_extents_m[1]:
             return None
         return float(self.centre_m[2] + self.half_extents_m[2])
+
+    @property
+    def flush(self) -> bool:
+        """Whether the box is part of the ground's surface (its top at z = 0, unpitched): the
+        ground around it is laid as boxes (:func:`ground_around`), none under it."""
+        return self.pitch_rad == 0.0 and abs(self.centre_m[2] + self.half_extents_m[2]) < 1e-9
 
 
 def start_height_m(boxes: Sequence[TerrainBox], xy: Sequence[float] = (0.0, 0.0)) -> float:
@@ -216,14 +229,39 @@ def trip_box(distance_m: float, height_m: float, depth_m: float) -> TerrainBox:
 
 
 def slip_patch(distance_m: float, friction: float, length_m: Optional[float] = None) -> TerrainBox:
-    """A low-friction sheet across the path from ``distance_m`` ahead, ``length_m`` long (default:
-    beyond any run's walk, :data:`STEP_LENGTH_M`). Its far edge is best out of reach: a sole of
-    small spheres (MuJoCo's G1) stepping off a sheet's edge catches on it, a fall that is not a
-    slip's."""
+    """A low-friction patch of the ground across the path from ``distance_m`` ahead, ``length_m``
+    long (default: beyond any run's walk, :data:`STEP_LENGTH_M`): flush with the ground
+    (:attr:`TerrainBox.flush`), so that its friction alone holds a foot on it."""
     length_m = STEP_LENGTH_M if length_m is None else length_m
-    return TerrainBox((distance_m + length_m / 2, 0.0, PATCH_THICKNESS_M / 2),
-                      (length_m / 2, TERRAIN_WIDTH_M / 2, PATCH_THICKNESS_M / 2),
+    return TerrainBox((distance_m + length_m / 2, 0.0, -PATCH_DEPTH_M / 2),
+                      (length_m / 2, TERRAIN_WIDTH_M / 2, PATCH_DEPTH_M / 2),
                       friction=friction, rgba=(0.3, 0.6, 0.95, 1.0))
+
+
+def ground_around(boxes: Sequence[TerrainBox], half_extent_m: float = GROUND_HALF_EXTENT_M
+                  ) -> tuple[tuple[tuple[float, float, float], tuple[float, float, float]], ...]:
+    """The ground around the flush boxes of ``boxes`` (none: ()), as (centre [m], half extents [m])
+    of level boxes, their tops at z = 0, :data:`PATCH_DEPTH_M` deep, tiling the square of half side
+    ``half_extent_m`` less the flush boxes (a grid on their edges). An engine lays these with its
+    ground's contact properties and takes its own ground out of contact, so that nothing lies
+    under a patch (every contact of a foot on it is the patch's)."""
+    flush = [b for b in boxes if b.flush]
+    if not flush:
+        return ()
+    if any(b.yaw_rad != 0.0 for b in flush):
+        raise ValueError('a flush terrain box is laid along the world axes (yaw 0)')
+    h = half_extent_m
+    xs = sorted({-h, h, *(b.centre_m[0] + s * b.half_extents_m[0] for b in flush for s in (-1, 1))})
+    ys = sorted({-h, h, *(b.centre_m[1] + s * b.half_extents_m[1] for b in flush for s in (-1, 1))})
+    out = []
+    for x0, x1 in zip(xs, xs[1:]):
+        for y0, y1 in zip(ys, ys[1:]):
+            centre = ((x0 + x1) / 2, (y0 + y1) / 2)
+            if x1 - x0 <= 0 or y1 - y0 <= 0 or any(b.top_at(centre) is not None for b in flush):
+                continue
+            out.append(((centre[0], centre[1], -PATCH_DEPTH_M / 2),
+                        ((x1 - x0) / 2, (y1 - y0) / 2, PATCH_DEPTH_M / 2)))
+    return tuple(out)
 
 
 def step_terrain(kind: str, distance_m: float, height_m: float = 0.0, slope_deg: float = 0.0

@@ -25,6 +25,7 @@ import numpy as np  # noqa: E402
 
 from fall_predictor.monitor.rotations import rpy_matrix  # noqa: E402
 from fall_predictor.profiles.profile import ProfileError, RobotProfile  # noqa: E402
+from fall_predictor.sim.disturbances import ground_around  # noqa: E402
 from fall_predictor.sim.urdf_loading import resolve_urdf_text  # noqa: E402
 
 #: How far above the ground the lowest foot geometry starts [m] (it settles in a step).
@@ -59,7 +60,9 @@ def load_model(profile: RobotProfile) -> mujoco.MjModel:
 def model_with_terrain(profile: RobotProfile, boxes) -> mujoco.MjModel:
     """:func:`load_model`'s model with ``boxes`` (sim/disturbances.TerrainBox) fixed to the world
     as box geometries named ``terrain_<k>``: their friction decides a contact's (priority 1 over
-    the robot's geometries; MuJoCo otherwise takes the larger of the two)."""
+    the robot's geometries; MuJoCo otherwise takes the larger of the two). Flush boxes (a slip's
+    patch) are laid in the ground: the floor is taken out of contact and level boxes
+    ``ground_<k>`` with its contact properties lie around them (disturbances.ground_around)."""
     if profile.mjcf_path is not None:
         try:
             spec = mujoco.MjSpec.from_file(str(profile.mjcf_path))
@@ -72,12 +75,52 @@ def model_with_terrain(profile: RobotProfile, boxes) -> mujoco.MjModel:
         spec.compiler.discardvisual = False
         spec.worldbody.first_body().add_freejoint()
         spec.worldbody.add_geom(name='ground', type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 0.05])
+    return compile_with_terrain(spec, boxes)
+
+
+def compile_with_terrain(spec: mujoco.MjSpec, boxes) -> mujoco.MjModel:
+    """``spec`` compiled with ``boxes`` laid as :func:`model_with_terrain` says (its floor: the
+    world body's named colliding geometries)."""
+    floors = [g.name for g in spec.worldbody.geoms]
     for k, box in enumerate(boxes):
         x, y, z, w = box.quaternion_xyzw()
         spec.worldbody.add_geom(name=f'terrain_{k}', type=mujoco.mjtGeom.mjGEOM_BOX,
                                 size=list(box.half_extents_m), pos=list(box.centre_m), quat=[w, x, y, z],
                                 friction=[box.friction, 0.005, 0.0001], priority=1, rgba=list(box.rgba))
-    return spec.compile()
+    around = ground_around(boxes)
+    for k, (centre, half) in enumerate(around):
+        # Drawn as the floor (_ground_as_boxes).
+        spec.worldbody.add_geom(name=f'ground_{k}', type=mujoco.mjtGeom.mjGEOM_BOX, size=list(half),
+                                pos=list(centre), rgba=[0.0, 0.0, 0.0, 0.0])
+    model = spec.compile()
+    if around:
+        _ground_as_boxes(model, floors, len(around))
+    return model
+
+
+def _ground_as_boxes(model: mujoco.MjModel, floor_names: Sequence[str], n_boxes: int) -> None:
+    """Take the floor (the world body's colliding geometries of the robot's own model) out of
+    contact and give the ``ground_<k>`` boxes laid in its place its contact properties (friction,
+    priority, solver parameters, margin), so that a foot on them meets the floor it met."""
+    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name) for name in floor_names if name]
+    floors = [g for g in ids if g >= 0 and (model.geom_contype[g] or model.geom_conaffinity[g])]
+    if not floors:
+        raise ValueError('the MuJoCo model has no named floor geometry to lay a flush patch in')
+    f = floors[0]
+    boxes = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f'ground_{k}') for k in range(n_boxes)]
+    for field in ('geom_contype', 'geom_conaffinity', 'geom_condim', 'geom_priority', 'geom_friction',
+                  'geom_solmix', 'geom_solref', 'geom_solimp', 'geom_margin', 'geom_gap'):
+        values = getattr(model, field)
+        values[boxes] = values[f]
+    model.geom_contype[floors] = 0
+    model.geom_conaffinity[floors] = 0
+    # The boxes drawn as the floor was (its material: a checkerboard), the floor not at all: a
+    # floor drawn just below the patch's top shows through it at a depth buffer's resolution,
+    # and a reflecting one mirrors the patch's body above it.
+    model.geom_matid[boxes] = model.geom_matid[f]
+    model.geom_rgba[boxes] = model.geom_rgba[f]
+    model.geom_matid[floors] = -1
+    model.geom_rgba[floors] = 0.0
 
 
 def _without_obsolete_attributes(path, error: ValueError) -> mujoco.MjModel:

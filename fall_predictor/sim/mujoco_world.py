@@ -116,6 +116,9 @@ class MujocoWorld:
         self._terrain_geoms = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f'terrain_{k}')
                                for k in range(len(self._terrain))]
         self._terrain_set = frozenset(self._terrain_geoms)
+        # Boxes standing on the ground (an obstacle, a platform): a link other than a foot on
+        # one is no fall. A flush one (a slip's patch) is ground.
+        self._raised_terrain = frozenset(g for g, box in zip(self._terrain_geoms, self._terrain) if not box.flush)
         self._joint_ids = ids
         self._joint_limits = (m.jnt_range[ids].copy(), m.jnt_limited[ids].copy())
         # The nominal masses, inertias and ground friction a randomised start scales.
@@ -356,8 +359,9 @@ class MujocoWorld:
                 continue
             side = self._foot_of_body.get(int(m.geom_bodyid[robot_geom]))
             if side is None:
-                # Another link on the ground; on a terrain box (a shin over an obstacle) it is not.
-                non_foot = non_foot or (g1 if sign > 0 else g2) not in self._terrain_set
+                # Another link on the ground (a flush patch is ground); on a terrain box standing on
+                # it (a shin over an obstacle) it is not.
+                non_foot = non_foot or (g1 if sign > 0 else g2) not in self._raised_terrain
             else:
                 per_foot[side].append((c.pos.copy(), world))
         return per_foot, non_foot

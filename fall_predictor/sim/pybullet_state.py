@@ -112,8 +112,9 @@ def measure(world) -> Measurement:
         link = cp[3]
         if link in per_foot:
             per_foot[link].append((cp[6][0], cp[6][1], cp[9]))
-        elif cp[2] == world.plane:
-            # Another link on the ground; on a terrain box (a shin over an obstacle) it is not.
+        elif cp[2] == world.plane or cp[2] in world.flush_bodies:
+            # Another link on the ground (a slip's flush patch is ground); on a terrain box (a
+            # shin over an obstacle) it is not.
             non_foot = True
     left = np.array(per_foot[world.foot_links['l']], dtype=float).reshape(-1, 3)
     right = np.array(per_foot[world.foot_links['r']], dtype=float).reshape(-1, 3)

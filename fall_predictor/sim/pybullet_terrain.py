@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pybullet as pb
 
-from fall_predictor.sim.disturbances import STUCK_PLAY_RAD, TerrainBox
+from fall_predictor.sim.disturbances import STUCK_PLAY_RAD, TerrainBox, ground_around
 from fall_predictor.sim.world import MIN_CONTACT_FORCE_N, TerrainContact
 
 
@@ -24,6 +24,37 @@ def add_box(client: int, box: TerrainBox) -> int:
                               physicsClientId=client)
     pb.changeDynamics(body, -1, lateralFriction=box.friction, physicsClientId=client)
     return body
+
+
+#: How far below z = 0 the ground is drawn when boxes lay it around a flush patch [m] (drawn
+#: only: the patch's top face shows above it).
+GROUND_DRAWN_BELOW_M = 0.001
+
+
+def ground_of_boxes(client: int, boxes) -> int:
+    """The ground as one static body of level boxes around the flush boxes of ``boxes``
+    (disturbances.ground_around), in place of the plane or slab: nothing lies under a flush
+    patch, so that within Bullet's contact margin a foot on it meets the patch alone. -1 when
+    ``boxes`` has no flush box (the ground is the profile's)."""
+    around = ground_around(boxes)
+    if not around:
+        return -1
+    shape = pb.createCollisionShapeArray(
+        [pb.GEOM_BOX] * len(around), halfExtents=[list(h) for _, h in around],
+        collisionFramePositions=[list(c) for c, _ in around], physicsClientId=client)
+    # A body without a visual shape is drawn as its collision shape: a speck below the ground
+    # instead, the ground drawn as a plane (draw_ground_plane).
+    speck = pb.createVisualShape(pb.GEOM_SPHERE, radius=1e-3, visualFramePosition=[0.0, 0.0, -1.0],
+                                 physicsClientId=client)
+    return pb.createMultiBody(0, shape, speck, physicsClientId=client)
+
+
+def draw_ground_plane(client: int, z_m: float = 0.0) -> None:
+    """The checkerboard plane PyBullet draws a plane ground as, at height ``z_m``, colliding with
+    nothing."""
+    drawn = pb.createMultiBody(0, pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=client),
+                               basePosition=[0.0, 0.0, z_m], physicsClientId=client)
+    pb.setCollisionFilterGroupMask(drawn, -1, 0, 0, physicsClientId=client)
 
 
 def terrain_contact_points(world) -> tuple:

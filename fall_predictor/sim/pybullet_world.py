@@ -82,6 +82,7 @@ class PybulletWorld:
         self.robot = -1
         self.plane = -1
         self._ground_drawn = False
+        self._boxes_ground = False
         self.t = 0.0
         self.tick = 0
         self._measured = None      # this step's PyBullet reads (measure)
@@ -93,6 +94,7 @@ class PybulletWorld:
         #: Terrain boxes laid at each start (sim/disturbances.py) and their bodies; the fault.
         self._terrain: tuple = ()
         self.terrain_bodies: list[int] = []
+        self.flush_bodies: frozenset = frozenset()
         self._fault = FaultProtocol()
         self._stuck = False
         #: The run's randomised world (sim/randomization.py), None: nominal; the drives it scaled.
@@ -117,6 +119,8 @@ class PybulletWorld:
             self.terrain_bodies = [add_box(c, box) for box in self._terrain]
         else:
             self.terrain_bodies = []
+        #: Terrain bodies that are ground (flush with it: a slip's patch).
+        self.flush_bodies = frozenset(b for b, box in zip(self.terrain_bodies, self._terrain) if box.flush)
         orn = pb.getQuaternionFromEuler((0, 0, torso_yaw_rad))
         # The base link frame at torso_position (PyBullet's base pose is its inertial frame).
         self.robot = pb.loadURDF(self._urdf, torso_position, orn,
@@ -200,8 +204,18 @@ class PybulletWorld:
         return self.measure()
 
     def _ground(self) -> int:
-        """The ground body: the profile's plane or slab, its top face at z = 0."""
+        """The ground body: the profile's plane or slab, its top face at z = 0; around a flush
+        terrain box (a slip's patch), level boxes in their place (pybullet_terrain.ground_of_boxes)."""
         c = self.client
+        if self._terrain:
+            from fall_predictor.sim.pybullet_terrain import ground_of_boxes
+            body = ground_of_boxes(c, self._terrain)
+            if body >= 0:
+                self._boxes_ground = True
+                if self.config.gui:
+                    self.draw_ground()
+                return body
+        self._boxes_ground = False
         if self.profile.sim_ground != 'slab':
             return pb.createMultiBody(0, pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=c),
                                       physicsClientId=c)
@@ -222,13 +236,11 @@ class PybulletWorld:
     def draw_ground(self) -> None:
         """Show a slab ground as the checkerboard plane a plane ground is drawn as (a plane that
         collides with nothing), for the GUI and for rendered frames (once per world)."""
-        if self.profile.sim_ground != 'slab' or self._ground_drawn:
+        if (self.profile.sim_ground != 'slab' and not self._boxes_ground) or self._ground_drawn:
             return
         self._ground_drawn = True
-        c = self.client
-        drawn = pb.createMultiBody(0, pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=c),
-                                   physicsClientId=c)
-        pb.setCollisionFilterGroupMask(drawn, -1, 0, 0, physicsClientId=c)
+        from fall_predictor.sim.pybullet_terrain import GROUND_DRAWN_BELOW_M, draw_ground_plane
+        draw_ground_plane(self.client, -GROUND_DRAWN_BELOW_M if self._boxes_ground else 0.0)
 
     def restore(self, state: int, tick: int, measurement: Measurement) -> None:
         """Return to a ``pybullet.saveState`` snapshot taken at ``tick`` (its sample

@@ -96,7 +96,10 @@ class World(Protocol):
     # pushes only, and says so when asked for more ------------------------------------------------
     def set_terrain(self, boxes: Sequence) -> None:
         """Lay ``boxes`` (sim/disturbances.TerrainBox) fixed to the ground from the next
-        :meth:`start` on, the robot starting on the highest one under it (none: the flat ground)."""
+        :meth:`start` on, the robot starting on the highest one under it (none: the flat ground).
+        A flush box (a slip's patch, ``TerrainBox.flush``) is part of the ground: the engine lays
+        the ground around it as level boxes (``disturbances.ground_around``) with its ground's
+        contact properties, and nothing under it."""
 
     def terrain_contacts(self) -> list[TerrainContact]:
         """The robot's loaded contacts with the terrain boxes at the current step."""
