@@ -23,6 +23,14 @@ def test_a_pushs_impulse_and_a_rows_cause():
     assert runs['dev/c'].onset_s is None and runs['dev/c'].impulse_ns is None
 
 
+def test_a_push_of_unknown_force_has_no_impulse_and_no_band():
+    """A robot's own recordings carry no push force (NaN): the push counts, of no impulse (no
+    band: evaluate's per-band figures leave it out, as for a run without an index row)."""
+    run = disturbances([_row('r', math.nan), _row('s', math.inf)])
+    assert run['r'] == RunDisturbance('push', 2.0, None)
+    assert run['s'].impulse_ns is None
+
+
 def test_the_ambiguous_band_is_found_where_20_to_80_percent_fall():
     """Pushes of 0-80 N s whose fall probability is a logistic of centre 40 N s and scale 5 N s:
     the band is 40 -+ 5 ln 4 = [33.07, 46.93] N s, recovered within 2 N s from 4000 draws."""

@@ -36,13 +36,16 @@ class RunDisturbance:
 
     cause: str
     onset_s: Optional[float]        #: when the disturbance first acted; None for a long walk
-    impulse_ns: Optional[float]     #: a push's force x duration; None for other causes
+    #: A push's force x duration; None for other causes, and for a push of unknown force (a
+    #: robot's own recordings: its force is not measured).
+    impulse_ns: Optional[float]
 
     @classmethod
     def of_row(cls, row: IndexRow) -> 'RunDisturbance':
         impulse = (abs(row.force_n) * max(row.t_force_end - row.t_push, 0.0)
                    if row.cause == CAUSE_PUSH else None)
-        return cls(row.cause, row.onset_s, impulse)
+        return cls(row.cause, row.onset_s,
+                   impulse if impulse is not None and math.isfinite(impulse) else None)
 
 
 #: A run without an index row (e.g. a trajectory built in a test) reads as a push of unknown size.
