@@ -162,6 +162,8 @@ class ControllerNode(Node):
         """``command``'s targets on every joint of the robot, in the profile's order (a joint it
         does not command keeps ``held``)."""
         names = self._profile.joint_names
+        if command.joint_names == names:        # C_bal's, every sample: nothing to fit
+            return command.targets_rad
         return command.fit_onto(names, JointCommand(names, held)).targets_rad
 
     @guarded('fall event')
