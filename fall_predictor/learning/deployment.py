@@ -202,11 +202,23 @@ def _s(value: Optional[float], interval: Optional[Sequence[float]] = None) -> st
     return f'{value:.2f}' + ('' if interval is None else f' [{interval[0]:.2f}, {interval[1]:.2f}]')
 
 
-def _row(name: str, f: Mapping[str, Any]) -> str:
+def cause_row(name: str, f: Mapping[str, Any]) -> str:
+    """One row of the per-cause table (:func:`deployment_lines`; the results page's tables)."""
     return (f"| {name} | {_ratio(f['falls_caught'])} | {_fpr(f['fpr'])} | "
             f"{f['alarms_before_onset']['k']}/{f['alarms_before_onset']['n']} | "
             f"{_s(f['lead_median_s'], f['lead_median_ci95'])} | {_s(f['onset_to_fall_median_s'])} | "
             f"{_s(f['lead_fraction_median'])} |")
+
+
+def walking_line(walking: Optional[Mapping[str, Any]]) -> str:
+    """The false alarms over the hours of undisturbed walking, in words ('' without walks)."""
+    if walking is None or walking['per_hour_ci95'] is None:
+        return ''
+    interval = walking['per_hour_ci95']
+    return (f"undisturbed walking: {walking['alarm_episodes']} false alarm episodes in "
+            f"{walking['hours']:.2f} h ({walking['n_walks']} walks): "
+            f"{walking['per_hour']:.2f} per hour, Garwood 95 % "
+            f"[{interval[0]:.2f}, {interval[1]:.2f}]")
 
 
 def deployment_lines(figures: Mapping[str, Any]) -> list[str]:
@@ -214,17 +226,12 @@ def deployment_lines(figures: Mapping[str, Any]) -> list[str]:
     lines = ['', '| cause | falls caught | FPR [Wilson 95 %] (false alarms / survived) | alarms '
              'before onset | median lead [s] [95 %] | onset to fall [s] (median) | lead / onset '
              'to fall (median) |', '|---|---|---|---|---|---|---|']
-    lines += [_row(cause, f) for cause, f in figures['by_cause'].items()]
+    lines += [cause_row(cause, f) for cause, f in figures['by_cause'].items()]
     band = figures['ambiguous_push_band']
     if band is not None:
-        lines.append(_row(f"push, ambiguous {band['low_ns']:.0f}–{band['high_ns']:.0f} N s", band))
-    walking = figures['walking']
-    if walking is not None and walking['per_hour_ci95'] is not None:
-        interval = walking['per_hour_ci95']
-        lines.append(f"undisturbed walking: {walking['alarm_episodes']} false alarm episodes in "
-                     f"{walking['hours']:.2f} h ({walking['n_walks']} walks): "
-                     f"{walking['per_hour']:.2f} per hour, Garwood 95 % "
-                     f"[{interval[0]:.2f}, {interval[1]:.2f}]")
+        lines.append(cause_row(f"push, ambiguous {band['low_ns']:.0f}–{band['high_ns']:.0f} N s", band))
+    if walking_line(figures['walking']):
+        lines.append(walking_line(figures['walking']))
     if figures['push_bands']:
         lines.append('survived pushes per impulse band: ' + '; '.join(
             f"{b['low_ns']:.0f}–{b['high_ns']:.0f} N s {_fpr(b['fpr'])}, "
