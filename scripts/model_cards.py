@@ -21,6 +21,8 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / 'scripts' / 'rebuild'))
 from heldout_table import fpr_cell  # noqa: E402  (the rebuild tables' cell, one format)
+sys.path.insert(0, str(ROOT))
+from fall_predictor.learning.deployment import cause_row, walking_line  # noqa: E402
 MODELS = ROOT / 'models'
 CARDS = MODELS / 'cards.yaml'
 COST = 'docs/monitor/model_cost.json'   # benchmarks/bench_model_cost.py
@@ -98,6 +100,32 @@ def _remeasured_row(entry: dict) -> list[str]:
     return [f'| {_heldout_row(e)} | {entry["remeasured_data"].strip()} ([evaluation]({Path("..") / entry["remeasured"]})) |']
 
 
+def _cause_lines(entry: dict) -> list[str]:
+    """The card's per-cause figures (``causes:`` in cards.yaml): the held-out runs of every cause,
+    the same on randomised worlds, the ambiguous pushes, the hours of undisturbed walking."""
+    causes = entry.get('causes')
+    if not causes:
+        return []
+    lines = ['', f'**Per cause**, held out (the falls caught, the FPR over the survived runs, '
+             f'alarms before the onset, the lead and its share of the time from the onset to the '
+             f'fall; method §5):', '',
+             '| runs | cause | falls caught | FPR [Wilson 95 %] (false alarms / survived) | alarms '
+             'before onset | median lead [s] [95 %] | onset to fall [s] (median) | lead / onset '
+             'to fall (median) |', '|---|---|---|---|---|---|---|---|']
+    for key in ('nominal', 'randomized', 'ambiguous'):
+        if key not in causes:
+            continue
+        e = _load(causes[key]['evaluation'])['deployment']
+        label = f'[{causes[key]["label"].strip()}]({Path("..") / causes[key]["evaluation"]})'
+        lines += [cause_row(f'{label} | {cause}', f) for cause, f in e['by_cause'].items()]
+    for key in ('walking',):
+        if key in causes:
+            walking = walking_line(_load(causes[key]['evaluation'])['deployment']['walking'])
+            lines += ['', f'{walking[0].upper()}{walking[1:]} ({causes[key]["label"].strip()}, '
+                      f'[evaluation]({Path("..") / causes[key]["evaluation"]})).']
+    return lines
+
+
 def card(name: str, entry: dict) -> str:
     model = _load(f'models/{name}')
     e = _load(entry['heldout'])
@@ -110,7 +138,7 @@ def card(name: str, entry: dict) -> str:
              f'| held out on | {entry["heldout_data"].strip()} ([evaluation]({Path("..") / entry["heldout"]})) |',
              '', '| FPR [95 %] | lead [95 %] | missed | lead / oracle | alarms before the push | runs |',
              '|---|---|---|---|---|---|', f'| {_heldout_row(e)} | the held-out set above |',
-             *_remeasured_row(entry), '',
+             *_remeasured_row(entry), *_cause_lines(entry), '',
              f'- **Time to fall** at its triggers, median error: {_median(e.get("time_to_fall_error_s"))} s; '
              f'**direction**, median error: {_median(e.get("direction_error_deg"))}° '
              f'(the momentum\'s: {_median(e.get("direction_error_deg_momentum"))}°).',

@@ -302,6 +302,39 @@ def test_results_held_out_baselines_match_their_json(robot: str) -> None:
     assert checked >= 8
 
 
+def _cause_table_module():
+    import importlib.util
+    spec = importlib.util.spec_from_file_location('cause_table',
+                                                  ROOT / 'scripts' / 'rebuild' / 'cause_table.py')
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+CAUSE_TABLES = DOCS / 'prediction' / 'causes.yaml'
+
+
+def test_results_per_cause_tables_match_their_evaluations() -> None:
+    """Every row of the per-cause tables (scripts/rebuild/cause_table.py from the evaluations
+    docs/prediction/causes.yaml names) is on the results page as the script writes it."""
+    cause_table = _cause_table_module()
+    tables = cause_table.tables(CAUSE_TABLES)
+    assert len(tables) >= 3 and all(len(lines) > 2 for lines in tables.values())
+    assert cause_table.missing(CAUSE_TABLES, RESULTS) == []
+
+
+def test_the_cause_table_check_fails_on_a_changed_figure(tmp_path) -> None:
+    """The check can fail: a page whose first row says one false alarm more is caught."""
+    cause_table = _cause_table_module()
+    first_row = next(line for lines in cause_table.tables(CAUSE_TABLES).values()
+                     for line in lines[2:] if line.startswith('|'))
+    cells = first_row.split(' | ')
+    cells[2] = '999/999'
+    page = tmp_path / 'results.md'
+    page.write_text(RESULTS.read_text(encoding='utf-8').replace(first_row, ' | '.join(cells)))
+    assert first_row in cause_table.missing(CAUSE_TABLES, page)
+
+
 # -- docs/method.md: the method with the numbers the code uses -------------------------------
 
 def test_method_lists_the_contact_modes_and_features_of_the_code():
