@@ -125,6 +125,20 @@ def nonnegative(text: str) -> float:
     return value
 
 
+def force_range(text: str) -> tuple[float, float]:
+    """``LOW,HIGH``: a push force range [N] (two finite numbers, 0 <= LOW <= HIGH)."""
+    from fall_predictor.sim.pushes import checked_force_range
+    try:
+        low, high = (float(part) for part in text.split(','))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'{text!r}: expected LOW,HIGH, two numbers in newtons '
+                                         '(e.g. 150,300)') from None
+    try:
+        return checked_force_range(low, high)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(f'{text!r}: {error}') from None
+
+
 def at_least_two(text: str) -> int:
     value = int(text)
     if value < 2:

@@ -24,8 +24,9 @@ def _sensor_timing(args, profile) -> Optional[dict]:
 
 
 def generation_config(args):
-    """The ``GenerationConfig`` of ``generate``'s arguments: another robot's push range, and no gait
-    draws for a robot whose controller only stands or whose profile says so (``gait_variety``)."""
+    """The ``GenerationConfig`` of ``generate``'s arguments: another robot's push range (or
+    ``--push-force-n``'s), and no gait draws for a robot whose controller only stands or whose
+    profile says so (``gait_variety``)."""
     from fall_predictor.data.generation import GenerationConfig
     from fall_predictor.profiles.profile import DEFAULT_ROBOT
     from fall_predictor.sim.pushes import PushDistribution
@@ -47,6 +48,8 @@ def generation_config(args):
         extra['walk_s'] = args.walk_s
     if args.randomize:
         extra['randomize'] = True
+    if args.push_force_n is not None:
+        extra['push_force_n'] = args.push_force_n
     noise = args.sensor_noise
     if controller != C_BAL and noise is None:
         noise = 1.0                 # a learned policy walks on its sensors: the bags hold them
@@ -263,6 +266,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help='randomise each run\'s world as legged_gym-style training does (ground friction, '
                         'link masses, base payload, motor strength, PD gains, sensor latency, IMU bias: '
                         'sim/randomization.py), its draw in the index')
+    p.add_argument('--push-force-n', type=argtypes.force_range, default=None, metavar='LOW,HIGH',
+                   help='draw each push\'s force uniformly from [LOW, HIGH] N instead of the robot '
+                        'profile\'s range (push_force_n, or controllers.<name>.push_force_n): a second '
+                        'sampler of the same robot, e.g. only the ambiguous band\'s pushes, to check a '
+                        'model\'s false-alarm budget on runs drawn otherwise (method §11); other causes '
+                        'keep their ranges; dataset.json records the range drawn')
     p.add_argument('--fixed-gait', action='store_true',
                    help='every trajectory walks the default gait (faster: the walk is simulated once per '
                         'process) instead of drawing its gait (method §3 amendment)')

@@ -15,7 +15,7 @@ import os
 import shutil
 import tempfile
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Optional
@@ -101,20 +101,42 @@ class GenerationConfig:
     #: Each run's world randomised (sim/randomization.py, legged_gym-style ranges), its draw in
     #: the index; False: the nominal world, as datasets made before.
     randomize: bool = False
+    #: The pushes' force range [N], (low, high), drawn instead of the robot profile's
+    #: (``push_force_n``, or ``controllers.<name>.push_force_n`` for a learned policy); None: the
+    #: profile's. A second sampler of the same robot (e.g. only the ambiguous band's pushes), to
+    #: check a model's false-alarm budget on runs drawn otherwise (method §11, "A budget that
+    #: holds"). Other causes keep their ranges.
+    push_force_n: Optional[tuple[float, float]] = None
+
+    def __post_init__(self) -> None:
+        if self.push_force_n is not None:
+            from fall_predictor.sim.pushes import checked_force_range
+            object.__setattr__(self, 'push_force_n', checked_force_range(*self.push_force_n))
 
     @property
     def policy(self):
-        """The learned policy's profile entry (profiles/controller_entries.py), or None for C_bal."""
+        """The learned policy's profile entry (profiles/controller_entries.py), or None for C_bal;
+        its push range ``push_force_n`` when given. Read from the profile by each worker, so the
+        override travels with this config."""
         if self.controller in (None, C_BAL):
             return None
-        return load_profile(self.robot).controller_profile(self.controller)
+        policy = load_profile(self.robot).controller_profile(self.controller)
+        return policy if self.push_force_n is None else replace(policy, push_force_n=self.push_force_n)
+
+    @property
+    def pushes(self) -> PushDistribution:
+        """C_bal's push distribution: ``push_distribution`` with the force range ``push_force_n``
+        when given."""
+        if self.push_force_n is None:
+            return self.push_distribution
+        return replace(self.push_distribution, force_n=self.push_force_n)
 
     def manifest(self) -> dict:
         out = {'format': FORMAT, 'seed': self.seed, 'horizon_after_push_s': self.horizon_after_push_s,
                'settle_extension_s': self.settle_extension_s,
                'pre_push_s': self.pre_push_s, 'joint_state_rate_hz': self.joint_state_rate_hz,
                'gait_variety': self.gait_variety,
-               'push_distribution': asdict(self.push_distribution),
+               'push_distribution': asdict(self.pushes),
                'robot': simulated_robot(self.robot, self.policy is None)}
         if self.sensor_noise_scale is not None:
             from fall_predictor.sim.sensors import SensorParams
@@ -158,9 +180,12 @@ def _open_dataset(out: Path, config: GenerationConfig) -> None:
             existing = json.loads(manifest_path.read_text())
         except (OSError, json.JSONDecodeError) as exc:
             raise DatasetError(f'{manifest_path}: unreadable manifest: {exc}') from exc
-        if _settings(existing) != manifest:
-            raise DatasetError(f'{out}: exists with different generation settings '
-                               f'({_settings(existing)}); use another --out or the same settings')
+        existing = _settings(existing)
+        if existing != manifest:
+            differ = sorted(k for k in set(existing) | set(manifest) if existing.get(k) != manifest.get(k))
+            said = '; '.join(f'{k}: {existing.get(k)} there, {manifest.get(k)} now' for k in differ)
+            raise DatasetError(f'{out}: exists with different generation settings ({said}); use '
+                               'another --out or the same settings')
     else:
         out.mkdir(parents=True, exist_ok=True)
         atomic_write_text(manifest_path, json.dumps(manifest, indent=1, sort_keys=True))
@@ -181,7 +206,7 @@ def _walk_prefix(config: GenerationConfig):
     from fall_predictor.sim.pushes import robot_gait
     from fall_predictor.sim.trajectory import WalkPrefix
 
-    dist = config.push_distribution
+    dist = config.pushes
     cycle_s = dist.walk_cycle_s(robot_gait(config.robot))
     until = dist.settle_s + cycle_s
     record = config.sensor_noise_scale is not None
@@ -280,11 +305,11 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
         gait = None
         command, push, start = _policy_start(config, index, rng)
     elif config.gait_variety:
-        gait, push = config.push_distribution.sample_with_gait(rng)
+        gait, push = config.pushes.sample_with_gait(rng)
         start = gait_run(_worker_simulator(config.robot, config.simulator), gait,
                          push.t_force_end + config.horizon_after_push_s + config.settle_extension_s)
     else:
-        gait, push = None, config.push_distribution.sample(rng, robot_gait(config.robot))
+        gait, push = None, config.pushes.sample(rng, robot_gait(config.robot))
         start = ({'prefix': _walk_prefix(config)} if not config.randomize else gait_run(
             _worker_simulator(config.robot, config.simulator), robot_gait(config.robot),
             push.t_force_end + config.horizon_after_push_s + config.settle_extension_s))

@@ -14,6 +14,20 @@ from fall_predictor.robot.balance_controller import GaitConfig, controller_confi
 from fall_predictor.monitor.records import PUSH_DURATION_S, PushSpec
 
 
+def checked_force_range(low: float, high: float) -> tuple[float, float]:
+    """``(low, high)`` as a push force range [N] a dataset can draw from uniformly: two finite
+    numbers, ``0 <= low <= high`` (ValueError saying which is wrong)."""
+    low, high = float(low), float(high)
+    if not (math.isfinite(low) and math.isfinite(high)):
+        raise ValueError(f'push force range [{low:g}, {high:g}] N: both ends must be finite numbers')
+    if low < 0.0:
+        raise ValueError(f'push force range [{low:g}, {high:g}] N: the low end must be >= 0 '
+                         '(a push\'s direction is drawn separately)')
+    if low > high:
+        raise ValueError(f'push force range [{low:g}, {high:g}] N: the low end must not exceed the high one')
+    return low, high
+
+
 @dataclass(frozen=True)
 class PushDistribution:
     """method §3 ranges. The onset is drawn uniformly over one full walk cycle (two steps)
