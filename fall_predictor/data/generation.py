@@ -205,13 +205,17 @@ def _walk_prefix(config: GenerationConfig):
     :meth:`~fall_predictor.sim.pybullet_world.PybulletWorld.restore`)."""
     from fall_predictor.sim.pushes import robot_gait
     from fall_predictor.sim.trajectory import WalkPrefix
+    from fall_predictor.sim.world import make_world
 
     dist = config.pushes
     cycle_s = dist.walk_cycle_s(robot_gait(config.robot))
     until = dist.settle_s + cycle_s
     record = config.sensor_noise_scale is not None
+    # The prefix owns a world of its own: a run of another cause starts the worker's world again
+    # (with its terrain), which would void the prefix's snapshots.
     return _WORKER.get(('prefix', config.robot, config.simulator, dist.settle_s, cycle_s, record),
-                       lambda: WalkPrefix(_worker_simulator(config.robot, config.simulator), until_s=until,
+                       lambda: WalkPrefix(make_world(load_profile(config.robot), config.simulator or 'pybullet'),
+                                          until_s=until,
                                           walk_duration_s=(until + config.horizon_after_push_s
                                                            + config.settle_extension_s + 5.0),
                                           record_sensors=record))
