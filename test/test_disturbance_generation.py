@@ -137,3 +137,21 @@ def test_c_bal_pushes_after_a_run_of_another_cause_are_those_of_a_push_only_data
     for row, twin in zip(rows[::2], only[::2]):
         assert _bag_digest(tmp_path / 'mixed', row) == _bag_digest(tmp_path / 'pushes', twin)
         assert (row.force_n, row.t_push, row.fallen) == (twin.force_n, twin.t_push, twin.fallen)
+
+
+def test_a_run_that_falls_before_its_disturbance_is_an_undisturbed_walk_that_fell():
+    """On a randomised world the policy may fall before its disturbance acts (run 76 of seed 5713:
+    a fault meant to start after the robot was down). Its recording had nothing after the
+    onset ("generator raised StopIteration"); it is an undisturbed walk that fell, recorded from
+    its start, the disturbance it was meant to have kept in its parameters."""
+    from fall_predictor.data.generation import simulate_one
+    config = GenerationConfig(seed=5713, robot='g1_12dof', controller='unitree_rl_gym',
+                              sensor_noise_scale=1.0, randomize=True,
+                              causes=parse_causes('push:0.2,trip:0.2,slip:0.2,step:0.2,fault:0.2'),
+                              push_distribution=PushDistribution.for_robot(load_profile('g1_12dof')))
+    assert run_cause(config.causes, 5713, 76) == 'fault'
+    row = simulate_one(config, 76).row
+    assert row.cause == 'walk' and row.t_onset is None and row.fallen
+    assert row.params['fell_before_onset_of'] == 'fault'
+    assert row.t_fallen < row.params['t_start_s']            # down before the fault began
+    assert row.t_start == 0.0 and row.force_n == 0.0 and row.t_push == 0.0

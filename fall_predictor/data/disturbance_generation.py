@@ -13,6 +13,7 @@ its recording for a walk) and gives the cause, its parameters and the measured o
 """
 from __future__ import annotations
 
+import json
 from functools import partial
 from typing import Optional, Sequence
 
@@ -130,3 +131,15 @@ def disturbed_run(config, index: int, cause: str, world, start, still_moving, ra
         t_start = round(max(anchor - config.pre_push_s, 0.0), 6)
     fields = {'cause': cause, 'cause_params': cause_params_text(disturbance.params), 't_onset': t_onset}
     return PushSpec(0.0, 0.0, 0.0, round(anchor, 6), 0.0), result, t_start, gait, disturbance.command, fields
+
+
+def undisturbed_fall_fields(cause: str, push: PushSpec, fields: dict) -> dict:
+    """The index fields of a run that fell before its disturbance acted: an undisturbed walk
+    (no onset) whose parameters keep what was meant to disturb it (``fell_before_onset_of``: the
+    cause; a push's force, angle and height, or the cause's own parameters)."""
+    import json
+    meant = (json.loads(fields['cause_params']) if fields.get('cause_params') else
+             {'force_n': push.force_n, 'angle_deg': push.angle_deg, 'height_m': push.height_m,
+              't_push_s': push.t_push})
+    return {'cause': CAUSE_WALK, 't_onset': None,
+            'cause_params': cause_params_text({**meant, 'fell_before_onset_of': cause})}

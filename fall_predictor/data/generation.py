@@ -25,12 +25,13 @@ import numpy as np
 from fall_predictor.profiles.profile import DEFAULT_ROBOT, load_profile, profile_reference
 from fall_predictor.profiles.profile import C_BAL
 from fall_predictor.data.bag_writer import BagWriter
-from fall_predictor.data.dataset import (FORMAT, DatasetError, IndexRow, read_index, trajectory_id,
-                                         write_index_csv)
+from fall_predictor.data.dataset import (CAUSE_WALK, FORMAT, DatasetError, IndexRow, read_index,
+                                         trajectory_id, write_index_csv)
 from fall_predictor.data.dataset_writer import (StopRequested, WriterStopped, commit_section,
                                                 stop_on_signals, writer_lock)
 from fall_predictor.data.disturbance_generation import (causes_manifest, disturbed_run, randomization_fields,
-                                                        run_cause, run_randomization, sensor_params)
+                                                        run_cause, run_randomization, sensor_params,
+                                                        undisturbed_fall_fields)
 from fall_predictor.data.generation_cost import (COSTS_DIR, GENERATION_COST_KEY,
                                                  record_generation_cost, trajectory_cost)
 from fall_predictor.data.outcomes import height_drop_time, unsettled_at_horizon
@@ -39,6 +40,7 @@ from fall_predictor.data.sensorbag import (write_robot_description, write_sensor
 from fall_predictor.data.parallel import (PerThread, compute_backend, compute_parallel, machine,
                                           progress_bar)
 from fall_predictor.monitor.fileio import atomic_write_text
+from fall_predictor.monitor.records import PushSpec
 
 if TYPE_CHECKING:
     from fall_predictor.sim.pushes import PushDistribution
@@ -326,6 +328,12 @@ def simulate_one(config: GenerationConfig, index: int) -> SimulatedTrajectory:
                                 max_extension_s=config.settle_extension_s,
                                 randomization=run_randomization(config, index), **start)
         cause_fields = {} if config.causes is None else {'t_onset': push.t_push}
+    if result.fallen and result.t_fallen < push.t_push:
+        # It fell before its disturbance acted (a randomised world it cannot walk in): an
+        # undisturbed walk that fell, recorded from its start; a walk that fell counts as a fall
+        # like any other (method §5), not as the disturbance's.
+        cause_fields = undisturbed_fall_fields(cause, push, cause_fields)
+        cause, t_start, push = CAUSE_WALK, 0.0, PushSpec(0.0, 0.0, 0.0, 0.0, 0.0)
     cause_fields.update(randomization_fields(config, index))
     simulated_s = result.measurements[-1].t
     first = next(i for i, m in enumerate(result.measurements) if m.t >= t_start - 1e-9)
