@@ -69,16 +69,17 @@ def per_cause(model, test: Sequence[TrajectoryFeatures], runs, threshold: float,
 
 
 def settings_of(model_path: Path) -> dict[str, Any]:
-    """The learner and settings a model file was trained and runs with."""
+    """The learner and settings a model file was trained and runs with (its decision threshold
+    the one it runs with, which ``train`` may have chosen by cross-validation)."""
+    lists, metadata = load_model(model_path)
     doc = json.loads(model_path.read_text())
-    training = doc['training']
-    learner = training['learner']
-    params = dict(learner['params'])
-    return {'learner': LEARNERS[learner['name']], 'params': params,
-            'decision_threshold': float(params.get('decision_threshold', 0.0)),
-            'tau_plus_s': float(training['tau_plus_s']), 'mirror': bool(training.get('mirror')),
+    threshold = lists.decision_threshold
+    return {'learner': LEARNERS[metadata.learner_name], 'params': dict(metadata.learner_params),
+            'decision_threshold': float(threshold if threshold is not None else 0.0),
+            'tau_plus_s': float(metadata.tau_plus_s), 'mirror': bool(doc['training'].get('mirror')),
             'attitude': 'base_roll' in doc.get('input_names', ()),
-            'tau_his_s': float(doc['recommended_tau_his_s']), 'state': training.get('state', 'estimated')}
+            'tau_his_s': float(metadata.recommended_tau_his_s),
+            'state': doc['training'].get('state', 'estimated')}
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -90,8 +91,7 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument('--jobs', type=int, default=1)
     parser.add_argument('--out', type=Path, default=None)
     args = parser.parse_args(argv)
-    load_model(args.model)  # refuses a model file that is not one, before any training
-    settings = settings_of(args.model)
+    settings = settings_of(args.model)   # load_model refuses a file that is not a model
     data = load_training_data(args.data, jobs=args.jobs, state=settings['state'])
     dev = model_inputs(data.report.trajectories, settings['attitude'])
     dev_runs = runs_of(data)

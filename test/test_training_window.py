@@ -150,6 +150,8 @@ def test_boosted_trees_choose_their_threshold_with_the_window(fixture_dataset):
     trained = train_choosing_window(fixture_dataset, -0.25, 'boosting', {'max_iter': 5},
                                     search=search)
     assert trained.lists.decision_threshold == chosen.decision_threshold
+    # The model file's training settings name the threshold it runs with, not the learner's default.
+    assert trained.metadata.learner_params['decision_threshold'] == chosen.decision_threshold
     assert trained.metadata.recommended_tau_his_s == chosen.tau_his_s
     with pytest.raises(ValueError, match='boosted trees only'):
         train_choosing_window(fixture_dataset, -0.25, 'tree', search=search)
@@ -222,8 +224,8 @@ def test_one_data_writes_the_single_dataset_paths_model_with_its_window(tmp_path
                          disturbances(read_index(data)), search.folds)
     window = choose_tau_his(report.trajectories, learner, -0.1, search,
                             guard_com_height_m=dataset_guard_com_height_m(data), groups=groups)
-    lists, metadata = train_on_report(report, data, -0.1, learner, recommended_tau_his_s=window.tau_his_s)
-    lists = lists.with_decision_threshold(window.decision_threshold)
+    chosen = make_learner('boosting', {'max_iter': 5, 'decision_threshold': window.decision_threshold})
+    lists, metadata = train_on_report(report, data, -0.1, chosen, recommended_tau_his_s=window.tau_his_s)
     assert any(lists.depths)
     expected = tmp_path / 'expected.json'
     model_file.save_model(expected, lists, metadata)

@@ -37,6 +37,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Mapping, Optional, Sequence
 
+from sklearn.base import clone
+
 from fall_predictor.data.dataset import LoadReport
 from fall_predictor.learning.crossval import cross_validate_grid
 from fall_predictor.learning.learners import RuleListLearner
@@ -247,6 +249,10 @@ def train_choosing_window(data_dir: PathLike | Sequence[PathLike], tau_plus_s: f
             tau_his_s = window.tau_his_s
         except WindowNotChosen as why:
             not_chosen = str(why)
+    if window is not None and window.decision_threshold is not None:
+        # The model file records the threshold it runs with among its learner's settings (the
+        # threshold does not change the fit).
+        learner = clone(learner).set_params(decision_threshold=window.decision_threshold)
     lists, metadata = train_on_data(data, tau_plus_s, learner, sample_stride, tau_his_s, mirror,
                                     attitude)
     if window is not None and window.decision_threshold is not None:
