@@ -84,7 +84,8 @@ def test_a_policy_with_the_true_state_or_without_a_model_is_refused_in_words(
     with pytest.raises(BringupError, match='learned policy: it walks on the robot\'s sensor topics'):
         run_bringup(1, SEED, robot=ROBOT, sensors=False, log_dir=tmp_path)
     monkeypatch.setattr('fall_predictor.ros.bringup.package_share_dir', lambda: tmp_path)
-    missing = tmp_path / 'models' / 'g1_unitree_rl_model.json'
+    from fall_predictor.profiles.profile import load_profile
+    missing = tmp_path / 'models' / load_profile(ROBOT).model_for()
     with pytest.raises(BringupError, match=re.escape(f'{missing} does not exist') + '.*pass --model'):
         run_bringup(1, SEED, robot=ROBOT, sensors=True, log_dir=tmp_path)
     with pytest.raises(BringupError, match="robot 'g1_12dof' has no controller 'walker'"):

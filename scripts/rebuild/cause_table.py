@@ -5,7 +5,10 @@ page holds them.
     python scripts/rebuild/cause_table.py docs/prediction/causes.yaml [--check docs/results.md]
 
 The spec (YAML) names each table and its rows: a label (the model and the runs) and an
-``evaluate --json`` output. Each table is printed in the page's form: one row per cause with
+``evaluate --json`` output, or a leave-one-cause-out study
+(``benchmarks/bench_leave_one_cause_out.py``: each model trained without a cause, on that cause);
+a table whose entries all name their ``runs`` is a budget table: a model's FPR, misses and lead on
+each sampler. Each table is printed in the page's form: one row per cause with
 :func:`~fall_predictor.learning.deployment.cause_row` (falls caught, FPR with its Wilson interval,
 alarms before the onset, median lead with its bootstrap interval, onset to fall, lead / onset to
 fall), the ambiguous push band on its own row, and the hours of undisturbed walking of an
@@ -47,13 +50,48 @@ def rows_of(label: str, evaluation: dict[str, Any]) -> list[str]:
     return rows
 
 
+def loco_rows(label: str, study: dict[str, Any]) -> list[str]:
+    """The rows of a leave-one-cause-out study (benchmarks/bench_leave_one_cause_out.py): each
+    model trained without a cause on that cause; the models trained on every cause and on the
+    pushes alone on each cause."""
+    rows = []
+    for name, variant in study['variants'].items():
+        held_out = variant['held_out']
+        left_out = name.removeprefix('without ') if name.startswith('without ') else None
+        causes = [left_out] if left_out else [c for c in held_out if c != 'all_runs']
+        trained = f"{label}, {name} ({variant['n_train']} runs)"
+        rows += [cause_row(f'{trained} | {cause}', held_out[cause]) for cause in causes]
+    return rows
+
+
+BUDGET_HEADER = ('| model, its budget | runs held out | FPR [Wilson 95 %] | falls missed | lead [s] '
+                 '(mean) |')
+BUDGET_RULE = '|---|---|---|---|---|'
+
+
+def budget_row(label: str, runs: str, e: dict[str, Any]) -> str:
+    """One row of a budget table: a model's FPR held out on one sampler (``evaluate --json``)."""
+    low, high = e['fpr_ci95']
+    return (f"| {label} | {runs} | {e['n_false_positives']}/{e['n_balanced']} = {e['fpr']:.3f} "
+            f"[{low:.3f}, {high:.3f}] | {e['n_missed']}/{e['n_fallen']} | {e['tau_lead_s']:.2f} |")
+
+
 def tables(spec_path: Path) -> dict[str, list[str]]:
     """Each table of the spec: its lines (header, rule, rows; walking lines after)."""
     spec = yaml.safe_load(spec_path.read_text())
     out = {}
     for name, entries in spec['tables'].items():
         rows: list[str] = []
+        if all('runs' in entry for entry in entries):           # a budget table
+            out[name] = [BUDGET_HEADER, BUDGET_RULE] + [
+                budget_row(e['label'], e['runs'], json.loads((ROOT / e['evaluation']).read_text()))
+                for e in entries]
+            continue
         for entry in entries:
+            if 'leave_one_cause_out' in entry:
+                rows += loco_rows(entry['label'],
+                                  json.loads((ROOT / entry['leave_one_cause_out']).read_text()))
+                continue
             rows += rows_of(entry['label'], json.loads((ROOT / entry['evaluation']).read_text()))
         table = [r for r in rows if r.startswith('|')]
         words = [r for r in rows if not r.startswith('|')]
