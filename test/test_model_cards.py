@@ -97,3 +97,22 @@ def test_a_card_with_a_second_held_out_measurement_shows_both_and_its_reading_fi
         assert f'{again["fpr"]:.3f} re-made' in row, row
         if entry.get('read_fpr_as'):
             assert f'| {entry["read_fpr_as"]}: ' in row, row
+
+
+def test_each_cards_per_cause_figures_are_its_own_model_held_out():
+    """A card's per-cause figures (cards.yaml ``causes:``) are evaluations of that very model on
+    runs it was not trained on; every shipped model has them (the push-only ones on every cause)."""
+    for name, entry in cards().items():
+        parts = entry.get('causes') or {}
+        assert 'nominal' in parts, name
+        fingerprint = json.loads((MODELS / name).read_text())['dataset_fingerprint']
+        for key, part in parts.items():
+            evaluation = json.loads((ROOT / part['evaluation']).read_text())
+            assert Path(evaluation['model']).name == name, (name, part['evaluation'])
+            assert evaluation['trained_on_this_dataset'] is False, name
+            assert evaluation['dataset_fingerprint'] != fingerprint, name
+            causes = set(evaluation['deployment']['by_cause'])
+            if key == 'walking':             # hours of walking, no disturbance
+                assert evaluation['deployment']['walking']['hours'] > 0, name
+            else:
+                assert causes - {'walk'}, part['evaluation']

@@ -204,7 +204,7 @@ def test_results_dataset_and_speed_figures_match_the_committed_json():
 
 
 #: The page's sections, in order: each answers one question (no history, no issue numbers).
-QUESTION_SECTIONS = ('the-robots-and-their-controllers', 'prediction-quality',
+QUESTION_SECTIONS = ('the-robots-and-their-controllers', 'prediction-quality', 'falls-of-every-cause',
                      'time-to-fall-and-fall-direction', 'state-estimation-and-the-sensors',
                      'the-monitor-on-a-robot', 'scale-out-and-generation-speed', 'known-limitations',
                      'how-the-figures-are-rebuilt')
