@@ -37,7 +37,7 @@ from fall_predictor.monitor.model_file import load_model
 from fall_predictor.monitor.records import TrajectoryFeatures
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from portable_paths import portable_path as portable  # noqa: E402
+from portable_paths import portable_path as portable, write_json  # noqa: E402
 
 LEARNERS = {'BoostedTreesLearner': 'boosting', 'DecisionTreeLearner': 'tree',
             'CoveringLearner': 'covering'}
@@ -121,11 +121,9 @@ def main(argv: list[str] | None = None) -> dict:
            'n_test_by_cause': {c: sum(cause_of(t, test_runs) == c for t in test)
                                for c in sorted({cause_of(t, test_runs) for t in test})},
            'variants': out_variants,
-           'command': 'benchmarks/bench_leave_one_cause_out.py ' + ' '.join(
-               portable(a) if a.startswith('/') else a for a in (argv or sys.argv[1:]))}
+           'command': ' '.join(['benchmarks/bench_leave_one_cause_out.py', *(argv or sys.argv[1:])])}
     if args.out:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(json.dumps(out, indent=1, allow_nan=False) + '\n')
+        write_json(args.out, out)       # every machine path made portable
     return out
 
 
