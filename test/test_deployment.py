@@ -9,7 +9,7 @@ import pytest
 
 from fall_predictor import cli
 from fall_predictor.data.dataset import IndexRow, read_index
-from fall_predictor.learning.deployment import (deployment_figures, deployment_lines,
+from fall_predictor.learning.deployment import (deployment_figures, deployment_lines, walking_line,
                                                 impulse_band_figures, run_outcomes)
 from fall_predictor.learning.evaluation import evaluate_model, evaluation_json
 from fall_predictor.learning.intervals import garwood_interval, wilson_interval
@@ -84,6 +84,8 @@ def test_per_cause_figures_and_false_alarms_per_hour_of_walking():
     assert walking['per_hour_ci95'] == pytest.approx(list(garwood_interval(3, hours)))
     text = '\n'.join(deployment_lines(figures))
     assert '| trip | 0/1 |' in text and '3 false alarm episodes in 1.00 h (2 walks)' in text
+    one = {**figures['walking'], 'n_walks': 1}
+    assert '(1 walk):' in walking_line(one)
 
 
 def _write_causes(data) -> None:

@@ -216,7 +216,7 @@ def walking_line(walking: Optional[Mapping[str, Any]]) -> str:
         return ''
     interval = walking['per_hour_ci95']
     return (f"undisturbed walking: {walking['alarm_episodes']} false alarm episodes in "
-            f"{walking['hours']:.2f} h ({walking['n_walks']} walks): "
+            f"{walking['hours']:.2f} h ({walking['n_walks']} walk{'' if walking['n_walks'] == 1 else 's'}): "
             f"{walking['per_hour']:.2f} per hour, Garwood 95 % "
             f"[{interval[0]:.2f}, {interval[1]:.2f}]")
 
