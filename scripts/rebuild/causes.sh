@@ -60,8 +60,12 @@ for set in g1pol_mix_test600 g1pol_mix_rand300 g1pol_ambiguous400 g1pol_walk21; 
   ev models/g1_unitree_rl_model.json $set g1_unitree_rl_model_on_$set
   ev "$OUT/g1_unitree_rl_causes_model.json" $set g1_unitree_rl_causes_model_on_$set
 done
-for m in g1_model g1_conservative_model; do ev models/$m.json g1cbal_mix_test200 ${m}_on_g1cbal_mix_test200; done
-for m in boosted_model conservative_model; do ev models/$m.json asimo_mix_test200 ${m}_on_asimo_mix_test200; done
+for m in g1_model g1_conservative_model; do
+  for set in g1cbal_mix_test200 g1cbal_mix_rand60; do ev models/$m.json $set ${m}_on_$set; done
+done
+for m in boosted_model conservative_model; do
+  for set in asimo_mix_test200 asimo_mix_rand60; do ev models/$m.json $set ${m}_on_$set; done
+done
 for set in g1cbal_mix_test200 g1cbal_mix_rand60 g1cbal_walk10m; do
   ev models/g1_attitude_model.json $set g1_attitude_model_on_$set
   ev "$OUT/g1_causes_model.json" $set g1_causes_model_on_$set
