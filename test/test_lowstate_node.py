@@ -25,7 +25,7 @@ from test_nodes_support import ros_context, test_domain_id
 unitree_hg_msg = pytest.importorskip('unitree_hg.msg', reason='scripts/build_interfaces.sh builds it')
 
 PROFILE = load_profile('g1_12dof')
-MODEL = Path(__file__).resolve().parents[1] / 'models' / PROFILE.model
+MODEL = Path(__file__).resolve().parents[1] / 'models' / PROFILE.model_for()   # as the monitor loads it
 PUSH_AT_S = 2.5
 RUNS = {'fall': (900.0, 0.0, 0.3), 'survived': (250.0, 0.0, 0.3)}
 

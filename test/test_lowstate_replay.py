@@ -22,7 +22,7 @@ from fall_predictor.profiles.profile import load_profile
 from fall_predictor.sim.lowstate_driver import RECEIVE_EPOCH_NS, BoardTiming, lowstate_records
 
 PROFILE = load_profile('g1_12dof')
-MODEL = Path(__file__).resolve().parents[1] / 'models' / PROFILE.model
+MODEL = Path(__file__).resolve().parents[1] / 'models' / PROFILE.model_for()   # as the monitor loads it
 #: (name, push force [N], direction [deg], commanded vx [m/s]): two that fall, two that do not.
 RUNS = (('fall_forward', 900.0, 0.0, 0.3), ('fall_sideways', 700.0, 90.0, 0.0),
         ('survived_forward', 250.0, 0.0, 0.3), ('survived_sideways', 300.0, 90.0, 0.0))

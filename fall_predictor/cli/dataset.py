@@ -95,7 +95,10 @@ def cmd_generate(args) -> int:
                'machines': cost.get('machines', {}), 'by_cause': stats_by_cause(rows),
                'recorded_past_horizon': {r.trajectory_id: {'fallen': r.fallen, 'after_push_end_s': round(
                    r.t_end - r.t_force_end, 3)} for r in went_on}}
-    before_push = [r for r in rows if r.fallen and r.t_fallen is not None and r.t_fallen < r.t_push]
+    # (a run that fell before its disturbance acted is recorded as a walk that fell, the
+    # disturbance it was meant to have in its parameters: data/generation.py)
+    before_push = [r for r in rows if r.fallen and r.t_fallen is not None
+                   and (r.t_fallen < r.t_push or 'fell_before_onset_of' in (r.params or {}))]
     payload['fell_before_push'] = len(before_push)
     machines = ', '.join(f'{host} ({m["cores"]} cores, {m["trajectories"]} traj)'
                          for host, m in payload['machines'].items())
