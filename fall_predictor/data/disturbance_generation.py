@@ -137,7 +137,6 @@ def undisturbed_fall_fields(cause: str, push: PushSpec, fields: dict) -> dict:
     """The index fields of a run that fell before its disturbance acted: an undisturbed walk
     (no onset) whose parameters keep what was meant to disturb it (``fell_before_onset_of``: the
     cause; a push's force, angle and height, or the cause's own parameters)."""
-    import json
     meant = (json.loads(fields['cause_params']) if fields.get('cause_params') else
              {'force_n': push.force_n, 'angle_deg': push.angle_deg, 'height_m': push.height_m,
               't_push_s': push.t_push})
