@@ -102,6 +102,17 @@ def test_cli_train_stores_the_window_and_evaluate_uses_it(tmp_path, capsys):
     code, out, err = run_cli(capsys, 'train', '--data', str(data), '--tau-plus=10', '--max-fpr', '1',
                              '--out', str(model), '--json')
     assert code == 0 and json.loads(out)['recommended_tau_his_s'] == 0.0, err
+    # --tau-his-grid: the choice among the given windows only (the smallest at that budget)
+    code, out, err = run_cli(capsys, 'train', '--data', str(data), '--tau-plus=10', '--max-fpr', '1',
+                             '--tau-his-grid', '0.2,0.03', '--out', str(model), '--json')
+    assert code == 0, err
+    chosen = json.loads(out)['tau_his_chosen']
+    assert [w['tau_his_s'] for w in chosen['per_window']] == [0.03, 0.2]
+    assert json.loads(out)['recommended_tau_his_s'] == 0.03 == load_model(model)[1].recommended_tau_his_s
+    with pytest.raises(SystemExit) as refused:                 # argparse's usage error
+        cli.main(['train', '--data', str(data), '--tau-plus=10', '--tau-his-grid=0.1,-0.05',
+                  '--out', str(model)])
+    assert refused.value.code == 2 and "'-0.05' must be >= 0" in capsys.readouterr().err
     code, out, err = run_cli(capsys, 'train', '--data', str(data), '--tau-plus=10', '--tau-his', '0.03',
                              '--out', str(model), '--json')
     assert code == 0, err

@@ -21,6 +21,7 @@ def cmd_train(args) -> int:
         make_learner(args.learner, dict(args.param))
         chosen_by = {name: value for name, value in (('max_fpr', args.max_fpr), ('folds', args.folds),
                                                      ('decision_thresholds', args.decision_thresholds),
+                                                     ('tau_his_values_s', args.tau_his_grid),
                                                      ('fpr_rule', args.fpr_rule),
                                                      ('fpr_level', args.fpr_level),
                                                      ('folds_by', args.folds_by))
@@ -360,6 +361,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help='boosted trees: choose the decision threshold [log-odds] among these with the '
                         'window, by the same cross-validation (e.g. 0,1,2,3,4,5,6); default: the '
                         'learner\'s own (--param decision_threshold=...)')
+    p.add_argument('--tau-his-grid', type=argtypes.list_of(argtypes.nonnegative), default=None, metavar='S1,S2,...',
+                   help='the history windows [s] the choice is made among (default: the sweep\'s grid, '
+                        '0 to 0.1 s); windows cost no training, only their evaluation')
     p.add_argument('--jobs', type=argtypes.positive_int, default=1,
                    help='processes loading features and training the window\'s folds')
     p.add_argument('--skip-unreadable', action='store_true',

@@ -34,6 +34,7 @@ that does not fall (an FPR); with fewer, the window cannot be chosen
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Mapping, Optional, Sequence
 
@@ -94,7 +95,11 @@ class WindowSearch:
             raise ValueError(f'folds_by is one of {", ".join(FOLDS_BY)}, got {self.folds_by!r}')
         if isinstance(self.folds, bool) or not isinstance(self.folds, int) or self.folds < 2:
             raise ValueError(f'folds must be an int >= 2, got {self.folds!r}')
-        object.__setattr__(self, 'tau_his_values_s', tuple(float(v) for v in self.tau_his_values_s))
+        windows = tuple(sorted({float(v) for v in self.tau_his_values_s}))
+        if not windows or any(not (math.isfinite(v) and v >= 0.0) for v in windows):
+            raise ValueError(f'the windows to choose among must be finite and >= 0 s, got '
+                             f'{self.tau_his_values_s!r}')
+        object.__setattr__(self, 'tau_his_values_s', windows)
         thresholds = tuple(float(v) for v in self.decision_thresholds)
         if any(v != v for v in thresholds):
             raise ValueError('decision thresholds must be numbers')
