@@ -155,3 +155,14 @@ def test_a_run_that_falls_before_its_disturbance_is_an_undisturbed_walk_that_fel
     assert row.params['fell_before_onset_of'] == 'fault'
     assert row.t_fallen < row.params['t_start_s']            # down before the fault began
     assert row.t_start == 0.0 and row.force_n == 0.0 and row.t_push == 0.0
+
+
+def test_a_long_walk_is_not_reported_as_a_run_still_moving_at_the_horizon(tmp_path, capsys):
+    """A walk lasts as long as asked (``--walk-s``), far past the push horizon: it has none."""
+    assert main(['generate', '--robot', 'g1_12dof', '--trajectories', '1', '--seed', '3', '--out',
+                 str(tmp_path / 'walk'), '--horizon', '0.5', '--settle-extension', '0', '--causes', 'walk',
+                 '--walk-s', '4', '--json']) == 0
+    generated = json.loads(capsys.readouterr().out)
+    (row,) = read_index(tmp_path / 'walk')
+    assert row.cause == 'walk' and row.t_end - row.t_force_end > 0.5 + 1.0
+    assert generated['recorded_past_horizon'] == {}

@@ -61,7 +61,7 @@ def generation_config(args):
 
 
 def cmd_generate(args) -> int:
-    from fall_predictor.data.dataset import DatasetError, read_manifest
+    from fall_predictor.data.dataset import CAUSE_WALK, DatasetError, read_manifest
     from fall_predictor.data.dataset_writer import WriterStopped
     from fall_predictor.data.generation import generate_dataset
 
@@ -83,8 +83,10 @@ def cmd_generate(args) -> int:
     wall = time.perf_counter() - start
     rows = [r for r in rows if int(r.trajectory_id.split('_')[1]) < args.trajectories]
     fallen = sum(r.fallen for r in rows)
-    # Runs still moving at the horizon, recorded on until they settled or fell (method §4).
-    went_on = [r for r in rows if r.t_end - r.t_force_end > config.horizon_after_push_s + 1e-6]
+    # Runs still moving at the horizon, recorded on until they settled or fell (method §4); a
+    # long walk has no horizon: it lasts as long as it was asked to.
+    went_on = [r for r in rows if r.cause != CAUSE_WALK
+               and r.t_end - r.t_force_end > config.horizon_after_push_s + 1e-6]
     size = sum(f.stat().st_size for f in Path(args.out).rglob('*') if f.is_file() and 'cache' not in f.parts)
     cost = read_manifest(args.out).get('generation', {})
     payload = {'out': str(args.out), 'trajectories': len(rows), 'fallen': fallen,
