@@ -6,8 +6,9 @@
 # the models made on every cause (train's default rule: the 95 % Wilson upper bound of the
 # cross-validated FPR within the budget, folds grouped by cause and impulse band), each shipped
 # model before (pushes only) and after on every set, the leave-one-cause-out study and the
-# budget (the ambiguous pushes, the randomised mix); then the tables (scripts/rebuild/cause_table.py). About 4 h on 2 cores; the
-# 3.5 h of simulated walking (21 walks of 10 min: generation and features) take a third of it.
+# budget (the ambiguous pushes, the randomised mix); then the tables (scripts/rebuild/cause_table.py). About 5 h on 2 cores; the
+# 10.1 h of simulated walking (61 walks of 10 min: 1.4 CPU min to simulate and 1 to estimate
+# each) take 1.3 h of it.
 #   scripts/rebuild/causes.sh OUT_DIR      (DATA=dir of datasets to reuse, JOBS=2)
 source "$(dirname "$0")/common.sh"
 MIX=push:0.4,trip:0.15,slip:0.15,step:0.15,fault:0.15
@@ -24,7 +25,7 @@ gen g1pol_mix_rand300 --robot g1_12dof --causes push:0.2,trip:0.2,slip:0.2,step:
 # The ambiguous band (20-80 % of pushes fell) of the policy's pushes, 38.6-63.3 N s: forces of
 # 386-633 N for 0.1 s.
 gen g1pol_ambiguous400 --robot g1_12dof --push-force-n 386,633 --trajectories 400 --seed 5714
-gen g1pol_walk21 --robot g1_12dof --causes walk --walk-s 600 --trajectories 21 --seed 7001
+gen g1pol_walk61 --robot g1_12dof --causes walk --walk-s 600 --trajectories 61 --seed 7001
 # -- the G1 and the ASIMO-like robot under C_bal (PyBullet) ----------------------------------------
 gen g1cbal_mix_dev289 --robot g1 --sensor-noise 1 --causes $MIX --trajectories 289 --seed 5721
 gen g1cbal_mix_test200 --robot g1 --sensor-noise 1 --causes $MIX --trajectories 200 --seed 5722
@@ -55,8 +56,7 @@ mkdir -p "$OUT/causes"
 ev() {  # ev MODEL_FILE DATASET NAME: evaluate --json into $OUT/causes/NAME.json
   $FP evaluate --data "$DATA/$2" --model "$1" --jobs "$JOBS" --json > "$OUT/causes/$3.json"; portable "$OUT/causes/$3.json"
 }
-for set in g1pol_mix_test600 g1pol_mix_rand300 g1pol_ambiguous400 g1pol_walk21; do
-  # (the push-only model's walking figures were not measured in the session that made the page)
+for set in g1pol_mix_test600 g1pol_mix_rand300 g1pol_ambiguous400 g1pol_walk61; do
   ev models/g1_unitree_rl_model.json $set g1_unitree_rl_model_on_$set
   ev "$OUT/g1_unitree_rl_causes_model.json" $set g1_unitree_rl_causes_model_on_$set
 done
