@@ -75,6 +75,13 @@ for set in asimo_mix_test200 asimo_mix_rand60 asimo_walk10m; do
   ev "$OUT/asimo_like_causes_model.json" $set asimo_like_causes_model_on_$set
 done
 
+# -- the operating point beyond train's default grid (windows to 0.3 s, thresholds down to -2) ----
+$FP train --data "$DATA/g1pol_mix_dev1000" --tau-plus="$TAU_PLUS" --learner boosting --attitude --mirror \
+  --decision-thresholds=-2,-1,-0.5,0,0.5,1,2 --tau-his-grid 0.06,0.08,0.1,0.12,0.15,0.2,0.25,0.3 \
+  --max-fpr 0.02 --out "$OUT/window_grid_model.json" --jobs "$JOBS" --json \
+  > "$OUT/causes/window_grid_g1_unitree_rl_causes_model.json"
+portable "$OUT/causes/window_grid_g1_unitree_rl_causes_model.json"
+
 # -- without a cause in training; the budget held out ----------------------------------------------
 $PY benchmarks/bench_leave_one_cause_out.py --data "$DATA/g1pol_mix_dev1000" --test "$DATA/g1pol_mix_test600" \
   --model "$OUT/g1_unitree_rl_causes_model.json" --jobs "$JOBS" --out "$OUT/causes/leave_one_cause_out.json"
