@@ -263,3 +263,36 @@ def test_a_row_made_before_causes_reads_as_a_push_whose_onset_is_its_push(tmp_pa
     (tmp_path / 'index' / 'traj_00000.json').write_text(json.dumps({**old, 'cause': 'earthquake'}))
     with pytest.raises(DatasetError, match='earthquake'):
         read_index(tmp_path)
+
+
+def test_the_features_profile_key_ignores_the_models_a_profile_names_and_its_comments(tmp_path):
+    """Making another model a profile's default (or editing a comment) derives no dataset's
+    features again; a value the estimator may read, or a file beside the profile, does."""
+    from fall_predictor.data.dataset import _profile_fingerprint as cached
+    from fall_predictor.profiles.profile import profile_path
+    _profile_fingerprint = cached.__wrapped__           # each call reads the files again
+    source = profile_path('g1_12dof')
+    folder = tmp_path / 'g1_12dof'
+    folder.mkdir()
+    for f in source.parent.iterdir():
+        if f.is_file():
+            shutil.copy(f, folder / f.name)
+    data = tmp_path / 'data'
+    data.mkdir()
+    (data / 'dataset.json').write_text(json.dumps({'robot': {'name': 'g1_12dof',
+                                                            'profile': str(folder / 'profile.yaml')}}))
+    yaml_file = folder / 'profile.yaml'
+    text = yaml_file.read_text()
+    base = _profile_fingerprint(data)
+
+    def with_text(new_text: str) -> str:
+        yaml_file.write_text(new_text)
+        return _profile_fingerprint(data)
+    models = 'model: g1_unitree_rl_causes_model.json'
+    assert text.count(models) == 2                      # the top level's and the controller's
+    assert with_text(text.replace(models, 'model: g1_unitree_rl_model.json')) == base
+    assert with_text(text + '\n# a comment\n') == base
+    assert with_text(text.replace('guard_com_height_m: 0.55', 'guard_com_height_m: 0.5')) != base
+    assert with_text(text) == base
+    (folder / 'g1_12dof.urdf').write_text((folder / 'g1_12dof.urdf').read_text() + '\n<!-- -->\n')
+    assert _profile_fingerprint(data) != base

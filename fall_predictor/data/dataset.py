@@ -325,14 +325,41 @@ def dataset_guard_com_height_m(data_dir: str | os.PathLike) -> float:
 
 @functools.lru_cache(maxsize=64)
 def _profile_fingerprint(data_dir: Path) -> str:
-    """Fingerprint of the files of the dataset's robot profile (its YAML and the files beside
-    it: the estimator reads the sole frames, bounds and URDF from them)."""
+    """Fingerprint of what the estimator reads of the dataset's robot profile: its YAML as parsed,
+    less the models it names, and the files beside it (the estimator reads the sole frames,
+    bounds and URDF from them). Which model a robot runs changes no feature, nor does a comment:
+    making another model a profile's default derives no dataset's features again."""
     from fall_predictor.profiles.profile import ProfileError, profile_path
     try:
         source = profile_path(dataset_robot(data_dir))
+        beside = files_fingerprint(f for f in source.parent.iterdir() if f.is_file() and f != source)
+        text = source.read_text(encoding='utf-8')
     except (ProfileError, OSError):
         return 'none'
-    return files_fingerprint(f for f in source.parent.iterdir() if f.is_file())
+    return f'{beside}{_profile_content_fingerprint(text)}'
+
+
+#: The profile keys that name model files, at its top and per controller (profiles/profile.py).
+_MODEL_KEYS = ('model',)
+
+
+def _profile_content_fingerprint(text: str) -> str:
+    """Fingerprint of a profile's YAML content without its comments and the models it names;
+    of the text itself when it is not a YAML mapping (loading the profile says why elsewhere)."""
+    import yaml
+    try:
+        content = yaml.safe_load(text)
+    except yaml.YAMLError:
+        content = None
+    if not isinstance(content, dict):
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+    content = {k: v for k, v in content.items() if k not in _MODEL_KEYS}
+    if isinstance(content.get('controllers'), dict):
+        content['controllers'] = {name: ({k: v for k, v in entry.items() if k not in _MODEL_KEYS}
+                                         if isinstance(entry, dict) else entry)
+                                  for name, entry in content['controllers'].items()}
+    canonical = json.dumps(content, sort_keys=True, default=str)
+    return hashlib.sha256(canonical.encode()).hexdigest()[:16]
 
 
 def cached_bag_arrays(data_dir: Path, bag: str, name: str, kind: str, compute,
