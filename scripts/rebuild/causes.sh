@@ -6,7 +6,7 @@
 # the models made on every cause (train's default rule: the 95 % Wilson upper bound of the
 # cross-validated FPR within the budget, folds grouped by cause and impulse band), each shipped
 # model before (pushes only) and after on every set, the leave-one-cause-out study and the
-# budget (the ambiguous pushes, the randomised mix); then the tables (scripts/rebuild/cause_table.py). About 5 h on 2 cores; the
+# budget (the ambiguous pushes, the randomised mix); then the tables (scripts/rebuild/cause_table.py). About 5.5 h on 2 cores; the
 # 10.1 h of simulated walking (61 walks of 10 min: 1.4 CPU min to simulate and 1 to estimate
 # each) take 1.3 h of it.
 #   scripts/rebuild/causes.sh OUT_DIR      (DATA=dir of datasets to reuse, JOBS=2)
@@ -29,12 +29,12 @@ gen g1pol_walk61 --robot g1_12dof --causes walk --walk-s 600 --trajectories 61 -
 # -- the G1 and the ASIMO-like robot under C_bal (PyBullet) ----------------------------------------
 gen g1cbal_mix_dev289 --robot g1 --sensor-noise 1 --causes $MIX --trajectories 289 --seed 5721
 gen g1cbal_mix_test200 --robot g1 --sensor-noise 1 --causes $MIX --trajectories 200 --seed 5722
-gen g1cbal_walk10m --robot g1 --sensor-noise 1 --causes walk --walk-s 600 --trajectories 1 --seed 7002
+gen g1cbal_walk50m --robot g1 --sensor-noise 1 --causes walk --walk-s 600 --trajectories 5 --seed 7002
 gen asimo_mix_dev400 --robot asimo_like --sensor-noise 1 --causes $ASIMO_MIX --trajectories 400 --seed 5731
 gen asimo_mix_test200 --robot asimo_like --sensor-noise 1 --causes $ASIMO_MIX --trajectories 200 --seed 5732
 gen g1cbal_mix_rand60 --robot g1 --sensor-noise 1 --causes $MIX --randomize --trajectories 60 --seed 5723
 gen asimo_mix_rand60 --robot asimo_like --sensor-noise 1 --causes $ASIMO_MIX --randomize --trajectories 60 --seed 5733
-gen asimo_walk10m --robot asimo_like --sensor-noise 1 --causes walk --walk-s 600 --trajectories 1 --seed 7003
+gen asimo_walk50m --robot asimo_like --sensor-noise 1 --causes walk --walk-s 600 --trajectories 5 --seed 7003
 
 # -- the models made on every cause ----------------------------------------------------------------
 # The G1 under Unitree's policy: the shipped push-only model's learner (boosted trees on the
@@ -66,11 +66,11 @@ done
 for m in boosted_model conservative_model; do
   for set in asimo_mix_test200 asimo_mix_rand60; do ev models/$m.json $set ${m}_on_$set; done
 done
-for set in g1cbal_mix_test200 g1cbal_mix_rand60 g1cbal_walk10m; do
+for set in g1cbal_mix_test200 g1cbal_mix_rand60 g1cbal_walk50m; do
   ev models/g1_attitude_model.json $set g1_attitude_model_on_$set
   ev "$OUT/g1_causes_model.json" $set g1_causes_model_on_$set
 done
-for set in asimo_mix_test200 asimo_mix_rand60 asimo_walk10m; do
+for set in asimo_mix_test200 asimo_mix_rand60 asimo_walk50m; do
   ev models/default_model.json $set default_model_on_$set
   ev "$OUT/asimo_like_causes_model.json" $set asimo_like_causes_model_on_$set
 done
