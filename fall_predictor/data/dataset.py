@@ -339,8 +339,12 @@ def _profile_fingerprint(data_dir: Path) -> str:
     return f'{beside}{_profile_content_fingerprint(text)}'
 
 
-#: The profile keys that name model files, at its top and per controller (profiles/profile.py).
-_MODEL_KEYS = ('model',)
+#: The profile key that names a model file, at its top and in each controller's entry.
+_MODEL_KEY = 'model'
+
+
+def _without_model(entry: Any) -> Any:
+    return {k: v for k, v in entry.items() if k != _MODEL_KEY} if isinstance(entry, dict) else entry
 
 
 def _profile_content_fingerprint(text: str) -> str:
@@ -353,13 +357,10 @@ def _profile_content_fingerprint(text: str) -> str:
         content = None
     if not isinstance(content, dict):
         return hashlib.sha256(text.encode()).hexdigest()[:16]
-    content = {k: v for k, v in content.items() if k not in _MODEL_KEYS}
+    content = _without_model(content)
     if isinstance(content.get('controllers'), dict):
-        content['controllers'] = {name: ({k: v for k, v in entry.items() if k not in _MODEL_KEYS}
-                                         if isinstance(entry, dict) else entry)
-                                  for name, entry in content['controllers'].items()}
-    canonical = json.dumps(content, sort_keys=True, default=str)
-    return hashlib.sha256(canonical.encode()).hexdigest()[:16]
+        content['controllers'] = {name: _without_model(e) for name, e in content['controllers'].items()}
+    return hashlib.sha256(json.dumps(content, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
 def cached_bag_arrays(data_dir: Path, bag: str, name: str, kind: str, compute,

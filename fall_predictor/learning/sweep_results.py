@@ -24,6 +24,17 @@ from fall_predictor.learning.training import (BALANCED_WEIGHT, DEFAULT_SAMPLE_ST
 #: method §9's range of tau_plus [s] and the history windows [s] of the sweep.
 DEFAULT_TAU_PLUS_VALUES_S = (-1.5, -1.25, -1.0, -0.75, -0.5, -0.25, 0.0, 0.25, 0.5)
 DEFAULT_TAU_HIS_VALUES_S = (0.0, 0.004, 0.008, 0.016, 0.03, 0.044, 0.06, 0.08, 0.1)
+
+
+def checked_tau_his_values(values) -> tuple[float, ...]:
+    """A grid of history windows [s] as floats: at least one, each finite and >= 0 (else
+    ``ValueError``)."""
+    windows = tuple(float(v) for v in values)
+    if not windows:
+        raise ValueError('need at least one tau_his value')
+    if any(not (math.isfinite(v) and v >= 0.0) for v in windows):
+        raise ValueError(f'tau_his values must be finite and >= 0, got {windows}')
+    return windows
 #: Learning curve: training-set sizes (trajectories) at FP-L2's settings (method §9).
 DEFAULT_LEARNING_CURVE_SIZES = (50, 100, 250, 500, 900)
 LEARNING_CURVE_TAU_PLUS_S = -0.25
@@ -65,16 +76,14 @@ class SweepConfig:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, 'tau_plus_values_s', tuple(float(v) for v in self.tau_plus_values_s))
-        object.__setattr__(self, 'tau_his_values_s', tuple(float(v) for v in self.tau_his_values_s))
+        object.__setattr__(self, 'tau_his_values_s', checked_tau_his_values(self.tau_his_values_s))
         object.__setattr__(self, 'learning_curve_sizes', tuple(self.learning_curve_sizes))
         if isinstance(self.folds, bool) or not isinstance(self.folds, int) or self.folds < 2:
             raise ValueError(f'folds must be an int >= 2, got {self.folds!r}')
-        if not self.tau_plus_values_s or not self.tau_his_values_s:
-            raise ValueError('need at least one tau_plus and one tau_his value')
+        if not self.tau_plus_values_s:
+            raise ValueError('need at least one tau_plus value')
         if any(not math.isfinite(v) for v in self.tau_plus_values_s):
             raise ValueError(f'tau_plus values must be finite, got {self.tau_plus_values_s}')
-        if any(not (math.isfinite(v) and v >= 0.0) for v in self.tau_his_values_s):
-            raise ValueError(f'tau_his values must be finite and >= 0, got {self.tau_his_values_s}')
         if any(isinstance(n, bool) or not isinstance(n, int) or n < 2
                for n in self.learning_curve_sizes):
             raise ValueError(f'learning-curve sizes must be ints >= 2, got {self.learning_curve_sizes}')

@@ -34,7 +34,6 @@ that does not fall (an FPR); with fewer, the window cannot be chosen
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any, Mapping, Optional, Sequence
 
@@ -48,7 +47,7 @@ from fall_predictor.learning.nested import (DEFAULT_FPR_LEVEL, PooledFigures, ch
                                             pooled_json)
 from fall_predictor.learning.run_groups import disturbances, fold_groups
 from fall_predictor.learning.selection import PAPER_PREDICTORS
-from fall_predictor.learning.sweep_results import DEFAULT_TAU_HIS_VALUES_S
+from fall_predictor.learning.sweep_results import DEFAULT_TAU_HIS_VALUES_S, checked_tau_his_values
 from fall_predictor.learning.training import (DEFAULT_SAMPLE_STRIDE, DatasetPart, PathLike,
                                               check_training_settings, load_training_data,
                                               model_inputs, require_outcomes, train_on_data)
@@ -95,11 +94,8 @@ class WindowSearch:
             raise ValueError(f'folds_by is one of {", ".join(FOLDS_BY)}, got {self.folds_by!r}')
         if isinstance(self.folds, bool) or not isinstance(self.folds, int) or self.folds < 2:
             raise ValueError(f'folds must be an int >= 2, got {self.folds!r}')
-        windows = tuple(sorted({float(v) for v in self.tau_his_values_s}))
-        if not windows or any(not (math.isfinite(v) and v >= 0.0) for v in windows):
-            raise ValueError(f'the windows to choose among must be finite and >= 0 s, got '
-                             f'{self.tau_his_values_s!r}')
-        object.__setattr__(self, 'tau_his_values_s', windows)
+        object.__setattr__(self, 'tau_his_values_s',
+                           tuple(sorted(set(checked_tau_his_values(self.tau_his_values_s)))))
         thresholds = tuple(float(v) for v in self.decision_thresholds)
         if any(v != v for v in thresholds):
             raise ValueError('decision thresholds must be numbers')
